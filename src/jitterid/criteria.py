@@ -1,0 +1,175 @@
+"""The estimation criteria of the paper, as functions of one parameter vector.
+
+A :class:`Problem` binds data, a model structure, a jitter law (known) or family (free),
+a frequency set and a method, and exposes what an optimiser needs:
+
+=============  ====================================================================  =========
+method         criterion                                                             paper
+=============  ====================================================================  =========
+``ls``         sum_f |Y(f) - S_d(f)|^2, jitter ignored                               (8)
+``bcls``       sum_f |Y(f) - mu_Y(f)|^2                                              (14)
+``wbcls``      (Y - mu)^H R^{-1} (Y - mu), R = R_Y(theta) over the frequency set     (20)
+``asml``       (Y - mu)^H R^{-1} (Y - mu) + ln det R                                 (22)
+``asml-diag``  sum_f |Y - mu|^2 / R(f, f) + ln R(f, f)                               (23)
+``gaussian``   sum_k (y_k - m_k)^2 / w_k + ln w_k: the exact real Gaussian criterion  notes 3
+=============  ====================================================================  =========
+
+The parameter vector is ordered: jitter-family parameters (if the law is free), then the
+system's parameters, then ``noise_std`` when it is estimated (Table 3's order: n, a, k0,
+pr, pi). Every criterion V(theta, y) also provides dV/dy, from which
+:func:`sandwich_covariance` builds the delta-method covariance of the estimate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
+
+from .distributions import JitterFamily, JitterLaw, NoJitter
+from .models import TransferFunction
+from .moments import SampleMoments, covariance_from_variances, sample_moments
+from .simulate import SampledData
+from .spectral import dtft
+from .structures import ModelStructure
+
+__all__ = ["METHODS", "Problem", "default_frequencies"]
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+METHODS = ("ls", "bcls", "wbcls", "asml", "asml-diag", "gaussian")
+LEAST_SQUARES = ("ls", "bcls", "wbcls")
+# Methods whose criterion needs the measurement-noise variance.
+NEEDS_NOISE = ("wbcls", "asml", "asml-diag", "gaussian")
+# Of those, the ones that can estimate it (a ln det term makes it identifiable).
+ESTIMATES_NOISE = ("asml", "asml-diag", "gaussian")
+
+
+def default_frequencies(N: int, T: float) -> FloatArray:
+    """The paper's frequency set (24): f_k = k / (N T), k = 0..floor(N/2) - 1."""
+    return np.arange(N // 2) / (N * T)
+
+
+def adjoint_dtft(z: ComplexArray, T: float, f: FloatArray, N: int) -> ComplexArray:
+    """F^H z = sum_n z_n exp(+i 2 pi f_n k T) for k = 0..N-1 (the adjoint of (3))."""
+    out = np.empty(N, complex)
+    step = max(1, 4_000_000 // max(1, f.size))
+    for k0 in range(0, N, step):
+        k = np.arange(k0, min(N, k0 + step))
+        out[k0 : k0 + k.size] = np.exp(2j * np.pi * np.outer(k * T, f)) @ z
+    return out
+
+
+@dataclass(eq=False)
+class Problem:
+    """Everything a criterion needs, with the moments of the last parameter vector cached."""
+
+    data: SampledData
+    structure: ModelStructure
+    jitter: JitterLaw | JitterFamily
+    method: str
+    freqs: FloatArray
+    noise_std: float | None
+    names: tuple[str, ...] = field(init=False)
+    bounds: tuple[tuple[float, float], ...] = field(init=False)
+    Y: ComplexArray = field(init=False)
+    _cache: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
+
+    def __post_init__(self) -> None:
+        jnames: tuple[str, ...] = ()
+        jbounds: tuple[tuple[float, float], ...] = ()
+        if isinstance(self.jitter, JitterFamily):
+            jnames, jbounds = tuple(self.jitter.param_names), tuple(self.jitter.bounds)
+        names = jnames + self.structure.param_names
+        bounds = jbounds + self.structure.bounds
+        if self.estimates_noise:
+            names += ("noise_std",)
+            bounds += ((1e-12, np.inf),)
+        self.names, self.bounds = names, bounds
+        self.Y = dtft(self.data.y, self.data.T, self.freqs)
+
+    @property
+    def estimates_noise(self) -> bool:
+        return self.method in ESTIMATES_NOISE and self.noise_std is None
+
+    @property
+    def n_jitter(self) -> int:
+        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+
+    def split(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
+        """(jitter law, system, noise std) at parameter vector ``x``."""
+        nj, ns = self.n_jitter, len(self.structure.param_names)
+        if self.method == "ls":
+            law: JitterLaw = NoJitter()
+        elif isinstance(self.jitter, JitterFamily):
+            law = self.jitter.law(x[:nj])
+        else:
+            law = self.jitter
+        tf = self.structure.system(x[nj : nj + ns])
+        noise = float(x[-1]) if self.estimates_noise else float(self.noise_std or 0.0)
+        return law, tf, noise
+
+    def moments(self, x: FloatArray) -> SampleMoments:
+        key = np.asarray(x, float).tobytes()
+        if key not in self._cache:
+            law, tf, _ = self.split(x)
+            d = self.data
+            self._cache.clear()
+            self._cache[key] = sample_moments(tf.response(d.u), law, d.T, d.N)
+        return self._cache[key]
+
+    def variances(self, x: FloatArray) -> FloatArray:
+        """w_k = Var[s(kT + tau)] + sigma_v^2, floored so that no weight is infinite."""
+        _, _, noise = self.split(x)
+        w = self.moments(x).var + noise**2
+        return np.maximum(w, 1e-300 + 1e-12 * float(np.max(w, initial=0.0)))
+
+    # ------------------------------------------------------------------ criteria
+    def _weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
+        """Residual Y - mu and, for the full-covariance methods, the Cholesky factor of R."""
+        d = self.data
+        r = self.Y - dtft(self.moments(x).mean, d.T, self.freqs)
+        if self.method in ("wbcls", "asml"):
+            R = covariance_from_variances(self.variances(x), d.T, self.freqs, self.freqs)
+            return r, cho_factor(R, lower=True)
+        return r, None
+
+    def residuals(self, x: FloatArray) -> FloatArray:
+        """Real residual vector whose squared norm is the criterion (ls, bcls, wbcls)."""
+        r, chol = self._weighted(x)
+        if chol is not None:
+            r = solve_triangular(chol[0], r, lower=True)
+        return np.concatenate([r.real, r.imag])
+
+    def objective(self, x: FloatArray) -> float:
+        """The criterion value V(theta) of the chosen method."""
+        m = self.method
+        if m in ("ls", "bcls", "wbcls"):
+            return float(np.sum(self.residuals(x) ** 2))
+        if m == "gaussian":
+            w = self.variances(x)
+            e = self.data.y - self.moments(x).mean
+            return float(np.sum(e * e / w + np.log(w)))
+        r, chol = self._weighted(x)
+        if m == "asml":
+            assert chol is not None
+            z = solve_triangular(chol[0], r, lower=True)
+            return float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(chol[0]).real)))
+        # asml-diag (23): R(f, f) = sum_k w_k is the same at every frequency (notes 2).
+        rho = float(np.sum(self.variances(x)))
+        return float(np.sum(np.abs(r) ** 2) / rho + r.size * np.log(rho))
+
+    def grad_y(self, x: FloatArray) -> FloatArray:
+        """dV/dy at the data: the input to the delta-method covariance."""
+        d, m = self.data, self.method
+        if m == "gaussian":
+            return 2 * (d.y - self.moments(x).mean) / self.variances(x)
+        r, chol = self._weighted(x)
+        if chol is not None:
+            r = cho_solve(chol, r)
+        elif m == "asml-diag":
+            r = r / float(np.sum(self.variances(x)))
+        return 2 * adjoint_dtft(r, d.T, self.freqs, d.N).real

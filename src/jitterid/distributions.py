@@ -1,0 +1,1009 @@
+"""Sampling-jitter laws: characteristic function, density, sampler and moments.
+
+Sample ``k`` is taken at ``k T + tau_k`` with ``tau_k`` i.i.d. with pdf ``p(tau)``. Everything
+the rest of the package needs about the jitter is collected in a :class:`JitterLaw`:
+
+* the characteristic function with the paper's sign convention (footnote 3 of Eng & Gustafsson,
+  used in Lemma 1, eq. (13)),
+
+  .. math:: \\varphi(f) = E[e^{-i 2 \\pi f \\tau}],  \\qquad f \\text{ in Hz},
+
+* the density ``p(tau)`` on a finite support, together with *breakpoints* between which the
+  density is analytic, so that expectations ``E[g(tau)]`` can be computed to machine precision
+  by Gauss-Legendre panels (:meth:`JitterLaw.quadrature`, :meth:`JitterLaw.expect`),
+* an exact sampler and the first two moments.
+
+Concrete laws: :class:`NoJitter`, :class:`Uniform` (15a), :class:`Gaussian` (15b),
+:class:`SumOfUniforms` (the paper's family (26), extended to real ``n``) and
+:class:`CustomJitter` (any user density on a bounded interval).
+
+For the model structures with a parameterised jitter law (JOE (2c), JBJ (2d)) a
+:class:`JitterFamily` maps a parameter vector to a law, and carries bounds and starting values
+for a numerical search: :class:`UniformFamily`, :class:`GaussianFamily`,
+:class:`SumOfUniformsFamily`.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.polynomial.legendre import leggauss
+from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import BSpline
+
+from jitterid import _checks
+
+__all__ = [
+    "CustomJitter",
+    "Gaussian",
+    "GaussianFamily",
+    "JitterFamily",
+    "JitterLaw",
+    "NoJitter",
+    "SumOfUniforms",
+    "SumOfUniformsFamily",
+    "Uniform",
+    "UniformFamily",
+]
+
+#: Half-width of the effective support of :class:`Gaussian`, in standard deviations. The mass
+#: outside ``[-8.5 sigma, 8.5 sigma]`` is ``2 Phi(-8.5) = 1.9e-17``, below double precision.
+GAUSS_SUPPORT_SIGMAS = 8.5
+
+#: Largest ``n`` accepted by :class:`SumOfUniforms` (``n + 1`` uniforms). Beyond a few tens the
+#: law is Gaussian to within plotting accuracy anyway (see Fig. 4 of the paper).
+N_MAX = 50.0
+
+#: Distance from an integer below which ``n + 1`` is treated as that integer.
+_INTEGER_TOL = 1e-12
+
+#: Default number of Gauss-Legendre nodes per panel.
+_GL_NODES = 64
+
+#: Lower bound on scale parameters (a, sigma) of the families, unless the caller sets one.
+_SCALE_FLOOR = 1e-12
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------
+
+
+def _size(size: int | Sequence[int]) -> tuple[int, ...]:
+    """Validate a numpy-style ``size`` (int or tuple of ints >= 0)."""
+    if isinstance(size, (int, np.integer)) and not isinstance(size, bool):
+        return (_checks.count(size, "size", minimum=0),)
+    if isinstance(size, (tuple, list)):
+        return tuple(_checks.count(s, "size", minimum=0) for s in size)
+    raise TypeError(f"size must be an int or a tuple of ints (numpy style); got {size!r}")
+
+
+def _gl_panels(
+    edges: NDArray[np.float64], nodes_per_panel: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gauss-Legendre nodes and weights on each panel ``[edges[i], edges[i+1]]``."""
+    x0, w0 = leggauss(nodes_per_panel)
+    lo = edges[:-1, None]
+    half = 0.5 * np.diff(edges)[:, None]
+    nodes = lo + half * (x0 + 1.0)
+    weights = half * w0
+    return nodes.ravel(), weights.ravel()
+
+
+def _fourier_sum(
+    f: NDArray[np.float64], nodes: NDArray[np.float64], weights: NDArray[np.float64]
+) -> NDArray[np.complex128]:
+    """``sum_j weights_j exp(-i 2 pi f nodes_j)`` for every ``f``, in memory-bounded chunks."""
+    flat = f.ravel()
+    out = np.empty(flat.shape, dtype=complex)
+    chunk = max(1, 2**22 // max(1, nodes.size))
+    for start in range(0, flat.size, chunk):
+        fs = flat[start : start + chunk]
+        out[start : start + chunk] = np.exp(-2j * np.pi * np.outer(fs, nodes)) @ weights
+    return out.reshape(f.shape)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}"
+
+
+# --------------------------------------------------------------------------------------------
+# base class
+# --------------------------------------------------------------------------------------------
+
+
+class JitterLaw(abc.ABC):
+    """Base class of the (immutable) laws of the sampling jitter ``tau``.
+
+    Subclasses are frozen dataclasses. Every law provides the characteristic function
+    :meth:`cf` with the paper's sign convention ``phi(f) = E[exp(-i 2 pi f tau)]`` (footnote 3,
+    Lemma 1), the density :meth:`pdf`, a sampler :meth:`sample`, the moments :attr:`mean`,
+    :attr:`var`, :attr:`std`, a finite :attr:`support` holding the mass and the
+    :meth:`breakpoints` between which the density is analytic.
+    """
+
+    # -- interface -----------------------------------------------------------------------------
+
+    @abc.abstractmethod
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        """Characteristic function ``phi(f) = E[exp(-i 2 pi f tau)]`` (paper, footnote 3).
+
+        Parameters
+        ----------
+        f : array_like of float
+            Frequencies in Hz (cycles per unit time), any shape.
+
+        Returns
+        -------
+        ndarray of complex
+            ``phi(f)``, same shape as ``f``.
+        """
+
+    @abc.abstractmethod
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        """Density ``p(tau)``, zero outside :attr:`support`; same shape as ``tau``."""
+
+    @abc.abstractmethod
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        """Draw i.i.d. jitter values.
+
+        Parameters
+        ----------
+        size : int or tuple of int
+            Output shape (numpy convention).
+        rng : numpy.random.Generator or int
+            Source of randomness, or a seed for :func:`numpy.random.default_rng`. ``None`` is
+            refused so that every simulation is reproducible.
+
+        Returns
+        -------
+        ndarray of float
+            Samples of ``tau`` with shape ``size``.
+        """
+
+    @property
+    @abc.abstractmethod
+    def var(self) -> float:
+        """Variance ``E[(tau - mean)^2]``."""
+
+    @property
+    @abc.abstractmethod
+    def support(self) -> tuple[float, float]:
+        """Finite interval ``(lo, hi)`` holding the mass of ``tau``."""
+
+    @abc.abstractmethod
+    def breakpoints(self) -> NDArray[np.float64]:
+        """Sorted points of ``[lo, hi]``, including ``lo`` and ``hi``, between which the density
+        is analytic (the knots of a piecewise-polynomial density)."""
+
+    @property
+    @abc.abstractmethod
+    def params(self) -> dict[str, float]:
+        """The law's parameters by name."""
+
+    # -- derived -------------------------------------------------------------------------------
+
+    @property
+    def mean(self) -> float:
+        """Mean ``E[tau]`` (zero for every symmetric law)."""
+        return 0.0
+
+    @property
+    def std(self) -> float:
+        """Standard deviation ``sqrt(var)``."""
+        return math.sqrt(self.var)
+
+    def quadrature(
+        self, nodes_per_panel: int = _GL_NODES
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Nodes and probability weights for ``E[g(tau)] ~= sum_j w_j g(tau_j)``.
+
+        Gauss-Legendre with ``nodes_per_panel`` nodes on every panel between consecutive
+        :meth:`breakpoints`, the weights multiplied by the density. Since the density is analytic
+        on each panel, the rule is exact to machine precision for smooth, slowly varying ``g``;
+        for ``g`` oscillating at frequency ``f`` use ``nodes_per_panel`` well above
+        ``pi |f| (panel width)``. The weights sum to 1 up to the quadrature error. This is the
+        time-domain route of Lemma 1: ``mu_k = E[s(kT + tau)]``.
+
+        Parameters
+        ----------
+        nodes_per_panel : int, default 64
+            Gauss-Legendre nodes per panel.
+
+        Returns
+        -------
+        tau : ndarray
+            Quadrature nodes, sorted.
+        weights : ndarray
+            Non-negative weights ``w_j = (GL weight) * p(tau_j)``.
+        """
+        n = _checks.count(nodes_per_panel, "nodes_per_panel", minimum=1)
+        nodes, w = _gl_panels(self.breakpoints(), n)
+        return nodes, w * self.pdf(nodes)
+
+    def expect(
+        self, g: Callable[[NDArray[np.float64]], ArrayLike], nodes_per_panel: int = _GL_NODES
+    ) -> Any:
+        """``E[g(tau)]`` by :meth:`quadrature`.
+
+        Parameters
+        ----------
+        g : callable
+            Vectorised function; ``g(tau)`` for a 1-D array ``tau`` of nodes must return an array
+            whose *last* axis runs over the nodes (extra leading axes are allowed).
+        nodes_per_panel : int, default 64
+            Gauss-Legendre nodes per panel.
+
+        Returns
+        -------
+        float, complex or ndarray
+            The expectation (leading axes of ``g``'s output are kept).
+        """
+        if not callable(g):
+            raise TypeError(f"g must be a callable g(tau); got {type(g).__name__}")
+        nodes, w = self.quadrature(nodes_per_panel)
+        vals = np.asarray(g(nodes))
+        if vals.shape[-1:] != nodes.shape:
+            raise ValueError(
+                f"g must be vectorised: g(tau) for {nodes.size} nodes returned shape "
+                f"{vals.shape}; make its last axis run over tau"
+            )
+        return vals @ w
+
+    def __str__(self) -> str:
+        args = ", ".join(f"{k}={_fmt(v)}" for k, v in self.params.items())
+        lo, hi = self.support
+        return (
+            f"{type(self).__name__}({args}): mean {_fmt(self.mean)}, std {_fmt(self.std)}, "
+            f"support [{_fmt(lo)}, {_fmt(hi)}]"
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# concrete laws
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NoJitter(JitterLaw):
+    """No jitter: ``tau = 0`` almost surely, ``phi(f) = 1`` (the OE/BJ case of the paper, where
+    ``mu_W = d_N``, see the remark after Lemma 1).
+
+    The law is a point mass, so it has no density: :meth:`pdf` raises
+    :class:`NotImplementedError`. :meth:`quadrature` returns the single node 0 with weight 1, so
+    :meth:`expect` gives ``g(0)`` and generic code using those two methods needs no special case.
+    The support is the degenerate interval ``(0, 0)`` and :meth:`breakpoints` is ``[0.0]``.
+    """
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        arr = _checks.real_array(f, "f")
+        return np.ones(arr.shape, dtype=complex)
+
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        raise NotImplementedError(
+            "NoJitter is a point mass at tau = 0 and has no density; use cf(), quadrature() or "
+            "expect() (which gives g(0)), or special-case NoJitter"
+        )
+
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        shape = _size(size)
+        _checks.generator(rng)
+        return np.zeros(shape)
+
+    @property
+    def var(self) -> float:
+        return 0.0
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (0.0, 0.0)
+
+    def breakpoints(self) -> NDArray[np.float64]:
+        return np.array([0.0])
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {}
+
+    def quadrature(
+        self, nodes_per_panel: int = _GL_NODES
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The point mass: node ``[0.0]`` with weight ``[1.0]`` (``nodes_per_panel`` ignored)."""
+        _checks.count(nodes_per_panel, "nodes_per_panel", minimum=1)
+        return np.array([0.0]), np.array([1.0])
+
+
+@dataclass(frozen=True)
+class Uniform(JitterLaw):
+    """Uniform jitter ``tau ~ U(-a, a)``, ``a > 0``.
+
+    ``phi(f) = sinc(2 f a) = sin(2 pi f a) / (2 pi f a)`` (the form of eq. (15a), where
+    ``a = 1``), variance ``a^2 / 3``. This is (26) with ``n = 0``.
+
+    Parameters
+    ----------
+    a : float
+        Half-width of the support, ``> 0``.
+    """
+
+    a: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "a", _checks.positive(self.a, "a"))
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        arr = _checks.real_array(f, "f")
+        return np.sinc(2.0 * arr * self.a).astype(complex)
+
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        t = _checks.real_array(tau, "tau")
+        return np.where(np.abs(t) <= self.a, 0.5 / self.a, 0.0)
+
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        shape = _size(size)
+        gen = _checks.generator(rng)
+        return gen.uniform(-self.a, self.a, size=shape)
+
+    @property
+    def var(self) -> float:
+        return self.a**2 / 3.0
+
+    @property
+    def std(self) -> float:
+        return self.a / math.sqrt(3.0)
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (-self.a, self.a)
+
+    def breakpoints(self) -> NDArray[np.float64]:
+        return np.array([-self.a, self.a])
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"a": self.a}
+
+
+@dataclass(frozen=True)
+class Gaussian(JitterLaw):
+    """Gaussian jitter ``tau ~ N(0, sigma^2)``, ``sigma > 0``.
+
+    ``phi(f) = exp(-2 pi^2 sigma^2 f^2)`` (eq. (15b), where ``sigma^2 = 1/3``).
+
+    The *effective* support is ``[-8.5 sigma, 8.5 sigma]`` (:data:`GAUSS_SUPPORT_SIGMAS`): the
+    mass outside it is ``1.9e-17``, below double-precision resolution. :meth:`pdf` is zero
+    outside it (so the quadrature of :meth:`JitterLaw.quadrature` sees the same law), while
+    :meth:`cf`, :meth:`sample`, :attr:`var` are those of the untruncated Gaussian.
+
+    Parameters
+    ----------
+    sigma : float
+        Standard deviation, ``> 0``.
+    """
+
+    sigma: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sigma", _checks.positive(self.sigma, "sigma"))
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        arr = _checks.real_array(f, "f")
+        return np.exp(-2.0 * np.pi**2 * self.sigma**2 * arr**2).astype(complex)
+
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        t = _checks.real_array(tau, "tau")
+        z = t / self.sigma
+        dens = np.exp(-0.5 * z**2) / (self.sigma * math.sqrt(2.0 * math.pi))
+        return np.where(np.abs(z) <= GAUSS_SUPPORT_SIGMAS, dens, 0.0)
+
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        shape = _size(size)
+        gen = _checks.generator(rng)
+        return gen.normal(0.0, self.sigma, size=shape)
+
+    @property
+    def var(self) -> float:
+        return self.sigma**2
+
+    @property
+    def std(self) -> float:
+        return self.sigma
+
+    @property
+    def support(self) -> tuple[float, float]:
+        h = GAUSS_SUPPORT_SIGMAS * self.sigma
+        return (-h, h)
+
+    def breakpoints(self) -> NDArray[np.float64]:
+        return np.array(self.support)
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"sigma": self.sigma}
+
+
+@dataclass(frozen=True)
+class SumOfUniforms(JitterLaw):
+    """The paper's jitter family (26), for real ``n`` in ``[0, 50]``.
+
+    For integer ``n``, ``tau`` is the sum of ``n + 1`` independent ``U(-a/(n+1), a/(n+1))``:
+    support ``[-a, a]``, variance ``a^2 / (3 (n + 1))`` and
+
+    .. math:: \\varphi(f) = \\operatorname{sinc}(2 f a / (n + 1))^{n + 1}           \\qquad (26)
+
+    (``n = 0`` uniform, ``n = 1`` triangular, in general a scaled Irwin-Hall density).
+
+    For non-integer ``n``, (26) is not a characteristic function (``sinc`` is negative between
+    its zeros, so its real power is undefined). This class then uses the following law, which is
+    continuous in ``n``, equals (26) at integer ``n``, has support ``[-a, a]`` and variance
+    ``a^2 / (3 (n + 1))`` *exactly*: with ``nu = n + 1`` and ``K = ceil(nu) - 1``, ``tau`` is
+    the sum of ``K`` independent ``U(-b, b)`` and one independent ``U(-c, c)``, where
+
+    .. math::
+
+        b = a \\frac{K + \\sqrt{K ((K + 1)/\\nu - 1)}}{K (K + 1)}, \\qquad c = a - K b,
+
+    so that ``K b + c = a`` and ``K b^2/3 + c^2/3 = a^2/(3 nu)``; ``c <= b``, and ``c -> 0`` as
+    ``nu`` decreases to an integer. Then ``phi(f) = sinc(2 f b)^K sinc(2 f c)``. At integer
+    ``nu`` (within ``1e-12``) the law is stored as ``nu`` equal uniforms of half-width
+    ``a / nu`` and no extra one; :attr:`components` gives the decomposition in use.
+
+    The density of the ``m`` equal uniforms is the scaled Irwin-Hall density, evaluated as a
+    cardinal B-spline (stable for all ``m <= 51``). With the extra uniform the density is the
+    moving average ``p(t) = (1 / 2c) int_{t-c}^{t+c} p_m(s) ds``, evaluated exactly (to rounding)
+    by Gauss-Legendre on the at most two polynomial pieces of ``p_m`` in ``[t - c, t + c]``
+    (``c < b`` so the window holds at most one knot). Unlike the equivalent CDF difference
+    ``(F_m(t + c) - F_m(t - c)) / 2c`` this has no cancellation, so it stays accurate however
+    small ``c`` is. The density is piecewise polynomial (degree ``m``) with knots
+    ``-m b + 2 j b +- c``, ``j = 0..m`` (:meth:`breakpoints`).
+
+    The law is continuous in ``n``. Just above an integer ``nu``, ``c`` grows linearly in the
+    distance; just below it, the widths ``b, c`` leave ``a / nu`` like the *square root* of the
+    distance ``eps`` (their first-order effect on ``phi`` cancels, so ``phi`` and the smooth
+    densities move like ``eps``, but the kinked triangle ``n = 1`` has its peak lowered by
+    about ``sqrt(eps / 2) / a``).
+
+    Parameters
+    ----------
+    n : float
+        Order, ``0 <= n <= 50`` (``n + 1`` uniforms for integer ``n``).
+    a : float
+        Half-width of the support, ``> 0``.
+    """
+
+    n: float
+    a: float
+    _m: int = field(init=False, repr=False, compare=False)
+    _b: float = field(init=False, repr=False, compare=False)
+    _c: float = field(init=False, repr=False, compare=False)
+    _spline: BSpline = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        n = _checks.positive(self.n, "n", allow_zero=True)
+        if n > N_MAX:
+            raise ValueError(
+                f"n must be at most {N_MAX:g} (beyond that the law is Gaussian to plotting "
+                f"accuracy; use Gaussian(a / sqrt(3 (n + 1))) instead); got {self.n!r}"
+            )
+        a = _checks.positive(self.a, "a")
+        object.__setattr__(self, "n", n)
+        object.__setattr__(self, "a", a)
+        nu = n + 1.0
+        r = round(nu)
+        if abs(nu - r) <= _INTEGER_TOL:
+            m, b, c = int(r), a / r, 0.0
+        else:
+            k = math.ceil(nu) - 1  # >= 1 here
+            s = math.sqrt(k * ((k + 1) / nu - 1.0))
+            # c = a (1 - s) / (K + 1), written without the cancellation in 1 - s
+            c = a * (nu - k) / (nu * (1.0 + s))
+            m, b = k, (a - c) / k
+        object.__setattr__(self, "_m", m)
+        object.__setattr__(self, "_b", b)
+        object.__setattr__(self, "_c", c)
+        spline = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
+        object.__setattr__(self, "_spline", spline)
+
+    @property
+    def components(self) -> tuple[int, float, float]:
+        """``(m, b, c)``: ``tau`` is the sum of ``m`` i.i.d. ``U(-b, b)`` and one ``U(-c, c)``
+        (``c = 0``: no extra uniform; this is the case at integer ``n``, with ``m = n + 1``)."""
+        return (self._m, self._b, self._c)
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        arr = _checks.real_array(f, "f")
+        out = np.sinc(2.0 * arr * self._b) ** self._m
+        if self._c > 0.0:
+            out = out * np.sinc(2.0 * arr * self._c)
+        return np.asarray(out, dtype=complex)
+
+    def _irwin_hall_pdf(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        m, b = self._m, self._b
+        u = (x + m * b) / (2.0 * b)
+        inside = (u >= 0.0) & (u <= m)
+        vals = self._spline(np.clip(u, 0.0, float(m)))
+        return np.where(inside, vals / (2.0 * b), 0.0)
+
+    def _window_mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``(1 / 2c) int_{x-c}^{x+c} p_m(s) ds`` for a 1-D array ``x``, exact to rounding."""
+        m, b, c = self._m, self._b, self._c
+        # the only knot of p_m that can lie in [x - c, x + c] is the one nearest to x (c < b);
+        # work with offsets from x so that tiny windows (c << |x|) lose no precision
+        knot = -m * b + 2.0 * b * np.clip(np.round((x + m * b) / (2.0 * b)), 0, m)
+        d = np.clip(knot - x, -c, c)
+        q = m // 2 + 1  # Gauss-Legendre with q nodes is exact for degree 2q - 1 >= m - 1
+        g, w = leggauss(q)
+        total = np.zeros_like(x)
+        for start, length in ((np.full_like(d, -c), c + d), (d, c - d)):
+            half = 0.5 * length
+            s = x[:, None] + (start[:, None] + half[:, None] * (g + 1.0))
+            total += half * (self._irwin_hall_pdf(s) @ w)
+        return total / (2.0 * c)
+
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        t = _checks.real_array(tau, "tau")
+        x = -np.abs(t).ravel()  # evaluate the symmetric law on one side: exact symmetry
+        dens = self._irwin_hall_pdf(x) if self._c == 0.0 else self._window_mean(x)
+        dens = dens.reshape(t.shape)
+        return np.where(np.abs(t) <= self.a, np.maximum(dens, 0.0), 0.0)
+
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        shape = _size(size)
+        gen = _checks.generator(rng)
+        out = np.zeros(shape)
+        for _ in range(self._m):
+            out += gen.uniform(-self._b, self._b, size=shape)
+        if self._c > 0.0:
+            out += gen.uniform(-self._c, self._c, size=shape)
+        return out
+
+    @property
+    def var(self) -> float:
+        return self.a**2 / (3.0 * (self.n + 1.0))
+
+    @property
+    def std(self) -> float:
+        return self.a / math.sqrt(3.0 * (self.n + 1.0))
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (-self.a, self.a)
+
+    def breakpoints(self) -> NDArray[np.float64]:
+        m, b, c = self._m, self._b, self._c
+        knots = -m * b + 2.0 * b * np.arange(m + 1.0)
+        pts = np.concatenate([knots - c, knots + c]) if c > 0.0 else knots
+        pts = np.clip(np.sort(pts), -self.a, self.a)
+        pts[0], pts[-1] = -self.a, self.a
+        keep = np.concatenate([[True], np.diff(pts) > 1e-13 * self.a])
+        pts = pts[keep]
+        pts[-1] = self.a
+        return pts
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"n": self.n, "a": self.a}
+
+
+@dataclass(frozen=True, eq=False, init=False, repr=False)
+class CustomJitter(JitterLaw):
+    """A user-supplied jitter density on a bounded interval.
+
+    On construction the density is normalised to unit mass (silently: any positive multiple of
+    a density is accepted) using Gauss-Legendre quadrature on each panel between consecutive
+    breakpoints (each panel cut into 8 sub-panels of 64 nodes). The mean, variance and
+    characteristic function are computed with the same kind of rule, so they are accurate to
+    machine precision when the density is analytic between the breakpoints; a density with an
+    undeclared kink converges only algebraically. For the characteristic function the
+    sub-panels are made narrow enough that ``|f| h <= 16`` (``h`` the sub-panel width, 64 nodes
+    each) for the largest ``|f|`` requested, so its cost grows linearly with ``max |f|``.
+
+    :meth:`sample` inverts the CDF tabulated on a uniform grid of about 8192 cells (cells cut at
+    the breakpoints, each cell integrated by 8-point Gauss-Legendre) with linear interpolation,
+    i.e. it samples exactly from the histogram of the density on that grid: the CDF error is at
+    most about ``h^2 max|p'| / 8`` with ``h = (hi - lo) / 8192`` (~1e-8 for a triangle).
+
+    Instances compare and hash by identity (a callable has no useful equality).
+
+    Parameters
+    ----------
+    pdf : callable
+        Vectorised ``pdf(tau) -> array`` (same shape as ``tau``), non-negative and finite on
+        ``[lo, hi]``; it is only ever called there. Need not be normalised.
+    support : tuple of float
+        ``(lo, hi)`` with ``lo < hi`` finite; the density is zero outside.
+    breakpoints : sequence of float, optional
+        Interior points of ``[lo, hi]`` where the density is not smooth (kinks, jumps).
+
+    Raises
+    ------
+    ValueError
+        If the density is negative or non-finite at a quadrature node, has zero mass, or is not
+        vectorised, or if ``support``/``breakpoints`` are invalid.
+    """
+
+    _density: Callable[[NDArray[np.float64]], ArrayLike]
+    _lo: float
+    _hi: float
+    _breaks: NDArray[np.float64]
+    _norm: float
+    _mean: float
+    _var: float
+    _nodes: NDArray[np.float64]
+    _weights: NDArray[np.float64]
+    _grid: NDArray[np.float64]
+    _grid_cdf: NDArray[np.float64]
+
+    _SUBPANELS: ClassVar[int] = 8
+    _CDF_CELLS: ClassVar[int] = 8192
+    _CF_FH_MAX: ClassVar[float] = 16.0
+
+    def __init__(
+        self,
+        pdf: Callable[[NDArray[np.float64]], ArrayLike],
+        support: tuple[float, float],
+        breakpoints: Sequence[float] = (),
+    ) -> None:
+        if not callable(pdf):
+            raise TypeError(f"pdf must be a callable pdf(tau); got {type(pdf).__name__}")
+        sup = _checks.real_array(support, "support")
+        if sup.shape != (2,):
+            raise ValueError(f"support must be a pair (lo, hi); got shape {sup.shape}")
+        lo, hi = float(sup[0]), float(sup[1])
+        if not lo < hi:
+            raise ValueError(f"support must satisfy lo < hi; got ({lo!r}, {hi!r})")
+        bp = _checks.real_array(breakpoints, "breakpoints").ravel()
+        if np.any((bp < lo) | (bp > hi)):
+            raise ValueError(
+                f"breakpoints must lie inside the support [{lo!r}, {hi!r}]; got {bp.tolist()}"
+            )
+        edges = np.unique(np.concatenate([[lo], bp, [hi]]))
+        object.__setattr__(self, "_density", pdf)
+        object.__setattr__(self, "_lo", lo)
+        object.__setattr__(self, "_hi", hi)
+        object.__setattr__(self, "_breaks", edges)
+
+        # quadrature rule: every panel cut into _SUBPANELS sub-panels of _GL_NODES nodes
+        nodes, w = _gl_panels(self._cut(self._SUBPANELS), _GL_NODES)
+        dens = self._call(nodes)
+        mass = float(w @ dens)
+        if not mass > 0.0:
+            raise ValueError(
+                f"pdf must have positive mass on the support [{lo!r}, {hi!r}]; it integrates "
+                f"to {mass!r}"
+            )
+        weights = w * dens / mass
+        mean = float(weights @ nodes)
+        var = float(weights @ (nodes - mean) ** 2)
+        object.__setattr__(self, "_norm", mass)
+        object.__setattr__(self, "_nodes", nodes)
+        object.__setattr__(self, "_weights", weights)
+        object.__setattr__(self, "_mean", mean)
+        object.__setattr__(self, "_var", var)
+
+        # tabulated CDF for the sampler
+        widths = np.diff(edges)
+        cells = np.maximum(16, np.round(self._CDF_CELLS * widths / (hi - lo)).astype(int))
+        grid = np.concatenate(
+            [np.linspace(edges[i], edges[i + 1], cells[i] + 1)[:-1] for i in range(edges.size - 1)]
+            + [[hi]]
+        )
+        gnodes, gw = _gl_panels(grid, 8)
+        cell_mass = (gw * self._call(gnodes)).reshape(-1, 8).sum(axis=1)
+        cdf = np.concatenate([[0.0], np.cumsum(cell_mass)])
+        object.__setattr__(self, "_grid", grid)
+        object.__setattr__(self, "_grid_cdf", cdf / cdf[-1])
+
+    def _cut(self, pieces: int) -> NDArray[np.float64]:
+        """Breakpoints with every panel cut into ``pieces`` equal sub-panels."""
+        e = self._breaks
+        parts = [np.linspace(e[i], e[i + 1], pieces + 1)[:-1] for i in range(e.size - 1)]
+        return np.concatenate([*parts, e[-1:]])
+
+    def _call(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Evaluate the user's density at points of the support, checking it."""
+        try:
+            vals = np.asarray(self._density(x), dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"pdf must be a vectorised function of a float array returning floats; calling "
+                f"it on an array of shape {x.shape} failed: {exc}"
+            ) from exc
+        if vals.shape != x.shape:
+            if vals.ndim == 0:
+                vals = np.full(x.shape, float(vals))
+            else:
+                raise ValueError(
+                    f"pdf must be vectorised: pdf(tau) must have the shape of tau; got "
+                    f"{vals.shape} for input of shape {x.shape}"
+                )
+        bad = ~np.isfinite(vals)
+        if np.any(bad):
+            raise ValueError(
+                f"pdf must be finite on the support; it is {vals[bad][0]!r} at tau = {x[bad][0]!r}"
+            )
+        neg = vals < 0.0
+        if np.any(neg):
+            raise ValueError(
+                f"pdf must be non-negative; it is {vals[neg][0]!r} at tau = {x[neg][0]!r}"
+            )
+        return vals
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        arr = _checks.real_array(f, "f")
+        fmax = float(np.max(np.abs(arr))) if arr.size else 0.0
+        widest = float(np.max(np.diff(self._breaks)))
+        pieces = math.ceil(fmax * widest / self._CF_FH_MAX)
+        if pieces <= self._SUBPANELS:
+            return _fourier_sum(arr, self._nodes, self._weights)
+        nodes, w = _gl_panels(self._cut(pieces), _GL_NODES)
+        return _fourier_sum(arr, nodes, w * self._call(nodes) / self._norm)
+
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        t = _checks.real_array(tau, "tau")
+        flat = t.ravel()
+        out = np.zeros(flat.shape)
+        inside = (flat >= self._lo) & (flat <= self._hi)
+        if np.any(inside):
+            out[inside] = self._call(flat[inside]) / self._norm
+        return out.reshape(t.shape)
+
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        shape = _size(size)
+        gen = _checks.generator(rng)
+        u = gen.random(shape)
+        return np.interp(u, self._grid_cdf, self._grid)
+
+    @property
+    def mean(self) -> float:
+        return self._mean
+
+    @property
+    def var(self) -> float:
+        return self._var
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (self._lo, self._hi)
+
+    def breakpoints(self) -> NDArray[np.float64]:
+        return self._breaks.copy()
+
+    def quadrature(
+        self, nodes_per_panel: int = _GL_NODES
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        n = _checks.count(nodes_per_panel, "nodes_per_panel", minimum=1)
+        nodes, w = _gl_panels(self._breaks, n)
+        return nodes, w * self._call(nodes) / self._norm
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"lo": self._lo, "hi": self._hi}
+
+    def __repr__(self) -> str:
+        name = getattr(self._density, "__name__", type(self._density).__name__)
+        return (
+            f"CustomJitter(pdf={name}, support=({self._lo!r}, {self._hi!r}), "
+            f"breakpoints={self._breaks[1:-1].tolist()})"
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# families
+# --------------------------------------------------------------------------------------------
+
+
+class JitterFamily(abc.ABC):
+    """A parameterised jitter law ``p_theta(tau)``, for the JOE (2c) and JBJ (2d) structures.
+
+    Attributes
+    ----------
+    param_names : tuple of str
+        Names of the jitter parameters, in the order :meth:`law` expects them.
+    bounds : tuple of (float, float)
+        For every parameter a *closed* interval ``[lo, hi]`` of admissible values, suitable
+        for ``scipy.optimize`` (``hi`` may be ``inf``). Scale parameters have a small positive
+        floor (``1e-12`` by default) instead of the excluded value 0.
+    """
+
+    param_names: ClassVar[tuple[str, ...]]
+
+    @property
+    @abc.abstractmethod
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        """Closed interval of admissible values for each parameter."""
+
+    @abc.abstractmethod
+    def _make(self, values: tuple[float, ...]) -> JitterLaw:
+        """Build the law from validated parameter values."""
+
+    @abc.abstractmethod
+    def _starts(self, T: float) -> list[tuple[float, ...]]:
+        """Unvalidated starting values."""
+
+    def law(self, params: Sequence[float]) -> JitterLaw:
+        """The jitter law at parameter vector ``params``.
+
+        Parameters
+        ----------
+        params : sequence of float
+            One value per name in :attr:`param_names`, inside :attr:`bounds`.
+
+        Returns
+        -------
+        JitterLaw
+
+        Raises
+        ------
+        ValueError
+            On a wrong number of parameters or a value outside its bounds (naming it).
+        """
+        try:
+            vals = np.asarray(params, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(
+                f"params must be a sequence of {len(self.param_names)} real numbers "
+                f"{self.param_names}; got {params!r}"
+            ) from exc
+        if vals.shape != (len(self.param_names),):
+            raise ValueError(
+                f"params must hold {len(self.param_names)} value(s) {self.param_names}; got "
+                f"shape {vals.shape}"
+            )
+        for name, v, (lo, hi) in zip(self.param_names, vals, self.bounds, strict=True):
+            if not (np.isfinite(v) and lo <= v <= hi):
+                raise ValueError(f"{name} must be finite and lie in [{lo:g}, {hi:g}]; got {v!r}")
+        return self._make(tuple(float(v) for v in vals))
+
+    def default_starts(self, T: float) -> list[tuple[float, ...]]:
+        """A coarse grid (3 to 6 points) of starting values for a multi-start search.
+
+        Parameters
+        ----------
+        T : float
+            Nominal sampling interval; the scale parameters are fractions of ``T/2``, clipped
+            into :attr:`bounds`.
+
+        Returns
+        -------
+        list of tuple of float
+            Distinct parameter vectors, each accepted by :meth:`law`.
+        """
+        t = _checks.positive(T, "T")
+        out: list[tuple[float, ...]] = []
+        for start in self._starts(t):
+            clipped = tuple(
+                float(min(max(v, lo), hi)) for v, (lo, hi) in zip(start, self.bounds, strict=True)
+            )
+            if clipped not in out:
+                out.append(clipped)
+        return out
+
+
+def _upper(x: float | None, name: str) -> float:
+    return math.inf if x is None else _checks.positive(x, name)
+
+
+@dataclass(frozen=True)
+class UniformFamily(JitterFamily):
+    """``U(-a, a)`` with unknown ``a`` (the family (26) at ``n = 0``).
+
+    Parameters
+    ----------
+    a_max : float or None
+        Upper bound on ``a`` (``None``: unbounded). A natural choice is ``T/2``.
+    a_min : float
+        Lower bound on ``a``, a small positive floor excluding 0; default ``1e-12``.
+        Lower it if time is measured in units where the jitter is that small.
+    """
+
+    a_max: float | None = None
+    a_min: float = _SCALE_FLOOR
+    param_names: ClassVar[tuple[str, ...]] = ("a",)
+
+    def __post_init__(self) -> None:
+        _upper(self.a_max, "a_max")
+        if not _checks.positive(self.a_min, "a_min") < _upper(self.a_max, "a_max"):
+            raise ValueError(f"a_min must be below a_max; got {self.a_min!r} >= {self.a_max!r}")
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        return ((float(self.a_min), _upper(self.a_max, "a_max")),)
+
+    def _make(self, values: tuple[float, ...]) -> JitterLaw:
+        return Uniform(values[0])
+
+    def _starts(self, T: float) -> list[tuple[float, ...]]:
+        top = min(T / 2.0, _upper(self.a_max, "a_max"))
+        return [(top / 4.0,), (top / 2.0,), (top,)]
+
+
+@dataclass(frozen=True)
+class GaussianFamily(JitterFamily):
+    """``N(0, sigma^2)`` with unknown ``sigma``.
+
+    Parameters
+    ----------
+    sigma_max : float or None
+        Upper bound on ``sigma`` (``None``: unbounded).
+    sigma_min : float
+        Lower bound, a small positive floor excluding 0; default ``1e-12``.
+    """
+
+    sigma_max: float | None = None
+    sigma_min: float = _SCALE_FLOOR
+    param_names: ClassVar[tuple[str, ...]] = ("sigma",)
+
+    def __post_init__(self) -> None:
+        _upper(self.sigma_max, "sigma_max")
+        if not _checks.positive(self.sigma_min, "sigma_min") < _upper(self.sigma_max, "sigma_max"):
+            raise ValueError(
+                f"sigma_min must be below sigma_max; got {self.sigma_min!r} >= {self.sigma_max!r}"
+            )
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        return ((float(self.sigma_min), _upper(self.sigma_max, "sigma_max")),)
+
+    def _make(self, values: tuple[float, ...]) -> JitterLaw:
+        return Gaussian(values[0])
+
+    def _starts(self, T: float) -> list[tuple[float, ...]]:
+        top = min(T / 4.0, _upper(self.sigma_max, "sigma_max"))
+        return [(top / 6.0,), (top * 0.4,), (top,)]
+
+
+@dataclass(frozen=True)
+class SumOfUniformsFamily(JitterFamily):
+    """The paper's family (26) with unknown ``(n, a)``, ``n`` real (see :class:`SumOfUniforms`).
+
+    Parameters
+    ----------
+    n_max : float
+        Upper bound on ``n``, at most 50; default 20.
+    a_max : float or None
+        Upper bound on ``a`` (``None``: unbounded). A natural choice is ``T/2``.
+    a_min : float
+        Lower bound on ``a``, a small positive floor excluding 0; default ``1e-12``.
+    """
+
+    n_max: float = 20.0
+    a_max: float | None = None
+    a_min: float = _SCALE_FLOOR
+    param_names: ClassVar[tuple[str, ...]] = ("n", "a")
+
+    def __post_init__(self) -> None:
+        n_max = _checks.positive(self.n_max, "n_max", allow_zero=True)
+        if n_max > N_MAX:
+            raise ValueError(f"n_max must be at most {N_MAX:g}; got {self.n_max!r}")
+        _upper(self.a_max, "a_max")
+        if not _checks.positive(self.a_min, "a_min") < _upper(self.a_max, "a_max"):
+            raise ValueError(f"a_min must be below a_max; got {self.a_min!r} >= {self.a_max!r}")
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        return ((0.0, float(self.n_max)), (float(self.a_min), _upper(self.a_max, "a_max")))
+
+    def _make(self, values: tuple[float, ...]) -> JitterLaw:
+        return SumOfUniforms(values[0], values[1])
+
+    def _starts(self, T: float) -> list[tuple[float, ...]]:
+        top = min(T / 2.0, _upper(self.a_max, "a_max"))
+        return [(n, a) for n in (0.0, 2.0, 8.0) for a in (top / 2.0, top)]

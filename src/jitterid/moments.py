@@ -1,0 +1,180 @@
+"""Mean and covariance of the measured DFT under jitter: Lemmas 1 and 2, time-domain path.
+
+Because the tau_k are independent, Lemma 1 and 2 have an O(N) time-domain form (notes,
+sections 1-2): with m_k = E[s(kT + tau)] and w_k = Var[s(kT + tau)] + sigma_v^2,
+
+    mu_Y(f)       = sum_k m_k exp(-i 2 pi f k T)                      (13), (14b)
+    R_Y(f, psi)   = sum_k w_k exp(-i 2 pi (f - psi) k T)              (17)-(19)
+    C_Y(f, psi)   = sum_k w_k exp(-i 2 pi (f + psi) k T)  (pseudo-covariance)
+
+The paper's own frequency-domain integrals are in :mod:`jitterid.spectral`; the tests
+check that both routes give the same numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._checks import count, positive, real_array
+from ._quadrature import DEFAULT_ORDER, jitter_nodes
+from .distributions import JitterLaw
+from .inputs import Input
+from .models import Response, TransferFunction
+from .spectral import dtft
+
+__all__ = [
+    "SampleMoments",
+    "dft_covariance",
+    "dft_pseudo_covariance",
+    "expected_dft",
+    "sample_moments",
+]
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+
+@dataclass(frozen=True)
+class SampleMoments:
+    """Per-sample moments of the jittered signal s(kT + tau_k).
+
+    Attributes
+    ----------
+    mean : ndarray, shape (N,)
+        m_k = E[s(kT + tau)].
+    var : ndarray, shape (N,)
+        Var[s(kT + tau)] (without measurement noise).
+    """
+
+    mean: FloatArray
+    var: FloatArray
+
+
+def sample_moments(
+    signal: Response,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    *,
+    order: int = DEFAULT_ORDER,
+) -> SampleMoments:
+    """m_k and Var[s(kT + tau)] by panel Gauss-Legendre quadrature over tau (notes 1-2).
+
+    The variance is computed as E[(s - m_k)^2] in a second pass over the same nodes, so it
+    does not suffer the cancellation of E[s^2] - m_k^2 when the jitter is small.
+    """
+    T = positive(T, "T")
+    N = count(N, "N", minimum=1)
+    signal.u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
+    mean = np.empty(N)
+    var = np.empty(N)
+    for ch in jitter_nodes(jitter, T, N, signal.breaks, signal.rate, order=order):
+        s = signal(ch.t)
+        m = ch.expect(s)
+        mean[ch.k0 : ch.k1] = m
+        var[ch.k0 : ch.k1] = ch.expect((s - m[ch.owner]) ** 2)
+    return SampleMoments(mean, var)
+
+
+def _frequencies(f: ArrayLike) -> FloatArray:
+    return np.atleast_1d(real_array(f, "f"))
+
+
+def expected_dft(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    f: ArrayLike,
+) -> ComplexArray:
+    """mu_Y(f) = E[Y_d(f)], eqs. (13)-(14b) with Lemma 1, computed in the time domain.
+
+    Parameters
+    ----------
+    system : TransferFunction
+        Continuous-time system, at rest before the input starts.
+    u : Input
+        Known input.
+    jitter : JitterLaw
+        Law of the sampling jitter tau_k.
+    T : float
+        Nominal sampling interval.
+    N : int
+        Number of samples.
+    f : array_like
+        Frequencies in Hz (any set, also above Nyquist).
+
+    Returns
+    -------
+    ndarray of complex, same length as ``f``
+    """
+    freqs = _frequencies(f)
+    mom = sample_moments(system.response(u), jitter, T, N)
+    return dtft(mom.mean, T, freqs)
+
+
+def _noise_var(noise_std: float) -> float:
+    return positive(noise_std, "noise_std", allow_zero=True) ** 2
+
+
+def dft_covariance(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    f: ArrayLike,
+    noise_std: float,
+    psi: ArrayLike | None = None,
+) -> ComplexArray:
+    """R_Y(f, psi) = Cov(Y_d(f), Y_d(psi)), eqs. (17)-(19) with Lemma 2, time-domain form.
+
+    Returns the matrix with rows over ``f`` and columns over ``psi`` (default ``psi = f``).
+    Includes the measurement-noise term sigma_v^2 sum_k exp(-i 2 pi (f - psi) k T).
+    """
+    freqs = _frequencies(f)
+    other = freqs if psi is None else _frequencies(psi)
+    mom = sample_moments(system.response(u), jitter, T, N)
+    w = mom.var + _noise_var(noise_std)
+    return covariance_from_variances(w, T, freqs, other)
+
+
+def dft_pseudo_covariance(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    f: ArrayLike,
+    noise_std: float,
+    psi: ArrayLike | None = None,
+) -> ComplexArray:
+    """C_Y(f, psi) = E[(Y(f) - mu(f))(Y(psi) - mu(psi))]: the pseudo-covariance (notes 2).
+
+    A circular complex Gaussian model, as in the paper's (22), ignores it; the real-valued
+    Gaussian criterion (method ``"gaussian"``) accounts for it.
+    """
+    freqs = _frequencies(f)
+    other = freqs if psi is None else _frequencies(psi)
+    mom = sample_moments(system.response(u), jitter, T, N)
+    w = mom.var + _noise_var(noise_std)
+    return covariance_from_variances(w, T, freqs, -other)
+
+
+def covariance_from_variances(
+    w: FloatArray, T: float, f: FloatArray, psi: FloatArray
+) -> ComplexArray:
+    """sum_k w_k exp(-i 2 pi (f - psi) k T) for every pair (f, psi).
+
+    The sum depends on f - psi only, so it is evaluated once per distinct difference: on
+    an evenly spaced set (such as the DFT grid (24)) that is 2F - 1 sums instead of F^2.
+    """
+    diff = f[:, None] - psi[None, :]
+    # Differences that agree to ~1e-12 cycles over the record are the same frequency.
+    scale = 1e-12 / (T * max(w.size, 1))
+    uniq, inverse = np.unique(np.round(diff.ravel() / scale), return_inverse=True)
+    return dtft(w, T, uniq * scale)[inverse].reshape(diff.shape)

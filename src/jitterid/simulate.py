@@ -1,0 +1,125 @@
+"""Jittered sampling of a known system's output: y_k = s(kT + tau_k) + v_k, eq. (1a)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._checks import count, generator, positive, real_array
+from .distributions import JitterLaw
+from .inputs import Input
+from .models import TransferFunction
+
+__all__ = ["SampledData", "simulate"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class SampledData:
+    """Samples requested on the grid t_k = k T, k = 0..N-1, and what is known about them.
+
+    Attributes
+    ----------
+    y : ndarray, shape (N,)
+        The measured samples.
+    T : float
+        Nominal sampling interval (s).
+    u : Input
+        The known continuous-time input that drove the system.
+    noise_std : float or None
+        Standard deviation of the white measurement noise v_k, if known; ``None`` lets
+        the estimators that need it estimate it.
+    instants : ndarray or None
+        The true sampling instants kT + tau_k. For diagnostics of simulated data only: no
+        estimator reads it.
+    """
+
+    y: FloatArray
+    T: float
+    u: Input
+    noise_std: float | None = None
+    instants: FloatArray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        y = real_array(self.y, "y", ndim=1)
+        if y.size < 4:
+            raise ValueError(f"y must hold at least 4 samples; got {y.size}")
+        T = positive(self.T, "T")
+        if not isinstance(self.u, Input):
+            raise TypeError(f"u must be a jitterid input; got {type(self.u).__name__}")
+        if self.noise_std is not None:
+            object.__setattr__(self, "noise_std", positive(self.noise_std, "noise_std", allow_zero=True))
+        if self.instants is not None:
+            inst = real_array(self.instants, "instants", ndim=1)
+            if inst.size != y.size:
+                raise ValueError(
+                    f"instants must have one entry per sample: len(y) = {y.size}, "
+                    f"len(instants) = {inst.size}"
+                )
+            inst.setflags(write=False)
+            object.__setattr__(self, "instants", inst)
+        y.setflags(write=False)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "T", T)
+
+    @property
+    def N(self) -> int:
+        return int(self.y.size)
+
+    @property
+    def t_nominal(self) -> FloatArray:
+        """The requested instants k T."""
+        return self.T * np.arange(self.N)
+
+
+def simulate(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    noise_std: float,
+    rng: np.random.Generator | int,
+) -> SampledData:
+    """Sample the exact output of ``system`` to ``u`` at jittered instants, eq. (1a).
+
+    y_k = s(kT + tau_k) + v_k with tau_k i.i.d. from ``jitter`` and v_k ~ N(0, noise_std^2).
+
+    Parameters
+    ----------
+    system : TransferFunction
+        Stable continuous-time system, at rest before the input starts.
+    u : Input
+        Known input; must last past the last possible instant (N-1) T + max tau.
+    jitter : JitterLaw
+        Law of the sampling-time jitter tau_k.
+    T : float
+        Nominal sampling interval (> 0).
+    N : int
+        Number of samples (>= 4).
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    rng : numpy.random.Generator or int
+        Source of randomness; the jitter is drawn first, then the noise.
+
+    Returns
+    -------
+    SampledData
+        With ``instants`` holding the true sampling instants (for diagnostics).
+    """
+    T = positive(T, "T")
+    N = count(N, "N", minimum=4)
+    noise_std = positive(noise_std, "noise_std", allow_zero=True)
+    if not isinstance(jitter, JitterLaw):
+        raise TypeError(f"jitter must be a jitterid jitter law; got {type(jitter).__name__}")
+    gen = generator(rng)
+    u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
+    tau = np.asarray(jitter.sample(N, gen), dtype=float)
+    instants = T * np.arange(N) + tau
+    s = system.response(u)(instants)
+    y = s + noise_std * gen.standard_normal(N)
+    return SampledData(y=y, T=T, u=u, noise_std=noise_std, instants=instants)
+

@@ -1,0 +1,174 @@
+"""Parameterised model structures g_theta for estimation, each with named parameters and bounds."""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._checks import count, real_array
+from .models import TransferFunction
+
+__all__ = ["KnownSystem", "ModelStructure", "PolePairGain", "RationalModel"]
+
+FloatArray = NDArray[np.float64]
+Bounds = tuple[tuple[float, float], ...]
+
+
+class ModelStructure(abc.ABC):
+    """A family of transfer functions G_theta with named parameters.
+
+    Subclasses define ``param_names``, ``bounds`` (closed, used by the optimiser), a map
+    ``system(params) -> TransferFunction``, and ``starts(T)``: a few starting points for the
+    ordinary output-error fit that initialises every estimator (paper, Section 4.5).
+    """
+
+    param_names: tuple[str, ...]
+    bounds: Bounds
+
+    @abc.abstractmethod
+    def system(self, params: ArrayLike) -> TransferFunction: ...
+
+    @abc.abstractmethod
+    def starts(self, T: float) -> list[FloatArray]: ...
+
+    def _check(self, params: ArrayLike) -> FloatArray:
+        x = np.atleast_1d(real_array(params, "params"))
+        if x.size != len(self.param_names):
+            raise ValueError(
+                f"params must have {len(self.param_names)} values {self.param_names}; got {x.size}"
+            )
+        for val, name, (lo, hi) in zip(x, self.param_names, self.bounds, strict=True):
+            if not lo <= val <= hi:
+                raise ValueError(f"parameter {name} = {val:g} is outside its bounds [{lo}, {hi}]")
+        return x
+
+
+@dataclass(frozen=True)
+class PolePairGain(ModelStructure):
+    """The paper's (27): G(s) = k0 / ((s - pr - i pi)(s - pr + i pi)), theta = (k0, pr, pi).
+
+    Bounds keep the system stable (pr <= -pr_min) with a true complex pair (pi >= pi_min).
+    """
+
+    pr_min: float = 1e-6
+    pi_min: float = 1e-3
+
+    @property
+    def param_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        return ("k0", "pr", "pi")
+
+    @property
+    def bounds(self) -> Bounds:  # type: ignore[override]
+        return ((-np.inf, np.inf), (-np.inf, -self.pr_min), (self.pi_min, np.inf))
+
+    def system(self, params: ArrayLike) -> TransferFunction:
+        k0, pr, pi = self._check(params)
+        return TransferFunction([k0], [1.0, -2.0 * pr, pr * pr + pi * pi])
+
+    def starts(self, T: float) -> list[FloatArray]:
+        # Pole pairs spread over the band below Nyquist (1/(2T) Hz); k0 = |p|^2 (unit DC gain).
+        out = []
+        for w in (0.1, 0.3, 0.9):
+            for zeta in (0.3, 0.7):
+                omega = w * np.pi / T
+                pr, pi = -zeta * omega, omega * np.sqrt(1 - zeta**2)
+                out.append(np.array([omega**2, pr, pi]))
+        return out
+
+
+@dataclass(frozen=True)
+class RationalModel(ModelStructure):
+    """G(s) = (b_m s^m + ... + b_0) / (s^n + a_{n-1} s^{n-1} + ... + a_0), monic denominator.
+
+    Parameters are named ``b{m}..b0`` then ``a{n-1}..a0`` (as MATLAB's tfest). Requires
+    ``num_order <= den_order`` (a proper model) and ``den_order >= 1``.
+    """
+
+    num_order: int
+    den_order: int
+
+    def __post_init__(self) -> None:
+        count(self.den_order, "den_order", minimum=1)
+        count(self.num_order, "num_order", minimum=0)
+        if self.num_order > self.den_order:
+            raise ValueError(
+                f"num_order ({self.num_order}) must not exceed den_order ({self.den_order}): "
+                "the model would be improper"
+            )
+
+    @property
+    def param_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        b = tuple(f"b{i}" for i in range(self.num_order, -1, -1))
+        a = tuple(f"a{i}" for i in range(self.den_order - 1, -1, -1))
+        return b + a
+
+    @property
+    def bounds(self) -> Bounds:  # type: ignore[override]
+        return tuple((-np.inf, np.inf) for _ in self.param_names)
+
+    def system(self, params: ArrayLike) -> TransferFunction:
+        x = self._check(params)
+        nb = self.num_order + 1
+        return TransferFunction(x[:nb], np.r_[1.0, x[nb:]])
+
+    def starts(self, T: float) -> list[FloatArray]:
+        # Real poles spread below Nyquist, numerator giving unit DC gain.
+        out = []
+        for w in (0.1, 0.3, 0.9):
+            poles = -w * np.pi / T * np.geomspace(1.0, 2.0, self.den_order)
+            den = np.real(np.poly(poles))
+            num = np.zeros(self.num_order + 1)
+            num[-1] = den[-1]
+            out.append(np.r_[num, den[1:]])
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class KnownSystem(ModelStructure):
+    """A fixed, known system (no free parameters), e.g. Table 1's G = 1/(s+2)."""
+
+    tf: TransferFunction
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.tf, TransferFunction):
+            raise TypeError(f"tf must be a TransferFunction; got {type(self.tf).__name__}")
+
+    @property
+    def param_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        return ()
+
+    @property
+    def bounds(self) -> Bounds:  # type: ignore[override]
+        return ()
+
+    def system(self, params: ArrayLike = ()) -> TransferFunction:
+        self._check(params) if np.size(params) else None
+        return self.tf
+
+    def starts(self, T: float) -> list[FloatArray]:
+        return [np.zeros(0)]
+
+
+def as_structure(system: ModelStructure | TransferFunction) -> ModelStructure:
+    """Accept a structure or a known TransferFunction (wrapped in :class:`KnownSystem`)."""
+    if isinstance(system, ModelStructure):
+        return system
+    if isinstance(system, TransferFunction):
+        return KnownSystem(system)
+    raise TypeError(
+        "system must be a model structure (PolePairGain(), RationalModel(m, n)) or a known "
+        f"TransferFunction; got {type(system).__name__}"
+    )
+
+
+def names_and_bounds(parts: Sequence[ModelStructure]) -> tuple[tuple[str, ...], Bounds]:
+    names: tuple[str, ...] = ()
+    bounds: Bounds = ()
+    for p in parts:
+        names += p.param_names
+        bounds += p.bounds
+    return names, bounds
