@@ -4,7 +4,7 @@ Sample ``k`` is taken at ``k T + tau_k`` with ``tau_k`` i.i.d. with pdf ``p(tau)
 the rest of the package needs about the jitter is collected in a :class:`JitterLaw`:
 
 * the characteristic function with the paper's sign convention (footnote 3 of Eng & Gustafsson,
-  used in Lemma 1, eq. (13)),
+  in Lemma 1, which turns (13) into ``mu_Y(f) = int S_c(psi) phi(-psi) d_N(f - psi) dpsi``),
 
   .. math:: \\varphi(f) = E[e^{-i 2 \\pi f \\tau}],  \\qquad f \\text{ in Hz},
 
@@ -61,6 +61,9 @@ N_MAX = 50.0
 
 #: Distance from an integer below which ``n + 1`` is treated as that integer.
 _INTEGER_TOL = 1e-12
+
+#: ``c / b`` from which :class:`SumOfUniforms` evaluates its density as a CDF difference.
+_WIDE_WINDOW = 1e-3
 
 #: Default number of Gauss-Legendre nodes per panel.
 _GL_NODES = 64
@@ -463,12 +466,14 @@ class SumOfUniforms(JitterLaw):
 
     The density of the ``m`` equal uniforms is the scaled Irwin-Hall density, evaluated as a
     cardinal B-spline (stable for all ``m <= 51``). With the extra uniform the density is the
-    moving average ``p(t) = (1 / 2c) int_{t-c}^{t+c} p_m(s) ds``, evaluated exactly (to rounding)
-    by Gauss-Legendre on the at most two polynomial pieces of ``p_m`` in ``[t - c, t + c]``
-    (``c < b`` so the window holds at most one knot). Unlike the equivalent CDF difference
-    ``(F_m(t + c) - F_m(t - c)) / 2c`` this has no cancellation, so it stays accurate however
-    small ``c`` is. The density is piecewise polynomial (degree ``m``) with knots
-    ``-m b + 2 j b +- c``, ``j = 0..m`` (:meth:`breakpoints`).
+    moving average ``p(t) = (1 / 2c) int_{t-c}^{t+c} p_m(s) ds``. For ``c >= 1e-3 b`` it is
+    evaluated as the CDF difference ``(F_m(t + c) - F_m(t - c)) / 2c`` (``F_m`` the B-spline's
+    antiderivative; cancellation costs at most 3 digits, absolute error ~1e-13 of the peak);
+    for narrower windows, where that difference would cancel, by Gauss-Legendre on the at most
+    two polynomial pieces of ``p_m`` in ``[t - c, t + c]`` (``c < b``, so the window holds at
+    most one knot), which is exact to rounding however small ``c`` is. The density is
+    piecewise polynomial (degree ``m``) with knots ``-m b + 2 j b +- c``, ``j = 0..m``
+    (:meth:`breakpoints`).
 
     The law is continuous in ``n``. Just above an integer ``nu``, ``c`` grows linearly in the
     distance; just below it, the widths ``b, c`` leave ``a / nu`` like the *square root* of the
@@ -490,6 +495,7 @@ class SumOfUniforms(JitterLaw):
     _b: float = field(init=False, repr=False, compare=False)
     _c: float = field(init=False, repr=False, compare=False)
     _spline: BSpline = field(init=False, repr=False, compare=False)
+    _spline_cdf: BSpline = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = _checks.positive(self.n, "n", allow_zero=True)
@@ -516,6 +522,7 @@ class SumOfUniforms(JitterLaw):
         object.__setattr__(self, "_c", c)
         spline = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
         object.__setattr__(self, "_spline", spline)
+        object.__setattr__(self, "_spline_cdf", spline.antiderivative())
 
     @property
     def components(self) -> tuple[int, float, float]:
@@ -537,9 +544,16 @@ class SumOfUniforms(JitterLaw):
         vals = self._spline(np.clip(u, 0.0, float(m)))
         return np.where(inside, vals / (2.0 * b), 0.0)
 
+    def _irwin_hall_cdf(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        m, b = self._m, self._b
+        u = np.clip((x + m * b) / (2.0 * b), 0.0, float(m))
+        return np.asarray(self._spline_cdf(u), dtype=float)
+
     def _window_mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``(1 / 2c) int_{x-c}^{x+c} p_m(s) ds`` for a 1-D array ``x``, exact to rounding."""
+        """``(1 / 2c) int_{x-c}^{x+c} p_m(s) ds`` for a 1-D array ``x <= 0``."""
         m, b, c = self._m, self._b, self._c
+        if c >= _WIDE_WINDOW * b:
+            return (self._irwin_hall_cdf(x + c) - self._irwin_hall_cdf(x - c)) / (2.0 * c)
         # the only knot of p_m that can lie in [x - c, x + c] is the one nearest to x (c < b);
         # work with offsets from x so that tiny windows (c << |x|) lose no precision
         knot = -m * b + 2.0 * b * np.clip(np.round((x + m * b) / (2.0 * b)), 0, m)

@@ -29,6 +29,11 @@ class ModelStructure(abc.ABC):
     param_names: tuple[str, ...]
     bounds: Bounds
 
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        """Indices of parameters that scale the output linearly (the numerator)."""
+        return ()
+
     @abc.abstractmethod
     def system(self, params: ArrayLike) -> TransferFunction: ...
 
@@ -64,6 +69,10 @@ class PolePairGain(ModelStructure):
     @property
     def bounds(self) -> Bounds:  # type: ignore[override]
         return ((-np.inf, np.inf), (-np.inf, -self.pr_min), (self.pi_min, np.inf))
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        return (0,)
 
     def system(self, params: ArrayLike) -> TransferFunction:
         k0, pr, pi = self._check(params)
@@ -109,6 +118,10 @@ class RationalModel(ModelStructure):
     @property
     def bounds(self) -> Bounds:  # type: ignore[override]
         return tuple((-np.inf, np.inf) for _ in self.param_names)
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        return tuple(range(self.num_order + 1))
 
     def system(self, params: ArrayLike) -> TransferFunction:
         x = self._check(params)

@@ -1,0 +1,150 @@
+"""fit(): the paper's estimators on its Table 2 experiment, bad input, failure reporting."""
+
+import numpy as np
+import pytest
+
+import jitterid as ji
+
+T, N, NOISE = 1.0, 200, 0.01
+TRUTH = np.array([6.25, -1.5, 2.0])
+
+
+def table2_data(seed):
+    rng = np.random.default_rng(seed)
+    truth = ji.PolePairGain().system(TRUTH)
+    u = ji.telegraph_input(N * T + 2, rng)
+    return ji.simulate(truth, u, ji.Uniform(0.5), T, N, NOISE, rng)
+
+
+@pytest.fixture(scope="module")
+def table2_small_monte_carlo():
+    """16 realizations of Table 2: LS, BCLS and the reduced AsML (23) on the same data."""
+    out = {"ls": [], "bcls": [], "asml-diag": []}
+    for seed in range(16):
+        data = table2_data(1000 + seed)
+        for method in out:
+            res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method=method)
+            assert res.success, res.message
+            out[method].append(res.x)
+    return {m: np.array(v) for m, v in out.items()}
+
+
+def test_ls_gain_is_biased_low_against_bcls_on_the_same_data(table2_small_monte_carlo):
+    est = table2_small_monte_carlo
+    diff = est["bcls"][:, 0] - est["ls"][:, 0]  # paired: same realization
+    t = diff.mean() / (diff.std(ddof=1) / np.sqrt(diff.size))
+    assert t > 3, (diff.mean(), t)
+    assert est["ls"][:, 0].mean() < TRUTH[0]
+
+
+@pytest.mark.parametrize("method", ["bcls", "asml-diag"])
+def test_jitter_aware_estimators_are_unbiased(table2_small_monte_carlo, method):
+    x = table2_small_monte_carlo[method]
+    se = x.std(axis=0, ddof=1) / np.sqrt(len(x))
+    assert np.all(np.abs(x.mean(axis=0) - TRUTH) < 3 * se), (x.mean(axis=0), se)
+
+
+@pytest.mark.parametrize("method", ["wbcls", "asml", "gaussian"])
+def test_other_methods_recover_the_truth_within_their_standard_errors(method):
+    data = table2_data(7)
+    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method=method)
+    assert res.success
+    se = np.array(list(res.stderr.values()))[:3]
+    assert np.all(np.isfinite(se)) and np.all(se > 0)
+    assert np.all(np.abs(res.x[:3] - TRUTH) < 4 * se), (res.x, se)
+
+
+def test_known_system_with_free_jitter_family_estimates_sigma():
+    """Table 1's problem: G known, (n, a) of the family (26) free."""
+    rng = np.random.default_rng(3)
+    g = ji.TransferFunction([1.0], [1.0, 2.0])
+    u = ji.telegraph_input(N * T + 2, rng)
+    law = ji.SumOfUniforms(0, 0.5)
+    data = ji.simulate(g, u, law, T, N, NOISE, rng)
+    res = ji.fit(data, g, ji.SumOfUniformsFamily(), method="bcls")
+    assert res.names == ("n", "a")
+    assert res.success
+    assert abs(res.jitter_std - law.std) < 0.1
+
+
+def test_joint_problem_names_follow_table_3_order():
+    data = table2_data(4)
+    res = ji.fit(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), method="bcls")
+    assert res.names == ("n", "a", "k0", "pr", "pi")
+    assert res.success
+
+
+def test_unknown_noise_is_estimated_by_likelihood_criteria():
+    d = table2_data(5)
+    data = ji.SampledData(d.y, d.T, d.u)  # noise level not given
+    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="gaussian")
+    assert res.names[-1] == "noise_std"
+    assert 0.003 < res.params["noise_std"] < 0.03
+
+
+def test_a_failed_search_is_reported_as_failed():
+    data = table2_data(6)
+    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="bcls", start=[1.0, -0.2, 0.5], max_nfev=2)
+    assert not res.success
+    assert res.status is ji.FitStatus.MAX_EVALUATIONS
+    assert "failed" in res.summary()
+
+
+def test_summary_lists_every_parameter():
+    res = ji.fit(table2_data(8), ji.PolePairGain(), ji.Uniform(0.5), method="bcls")
+    text = res.summary()
+    for name in ("k0", "pr", "pi"):
+        assert name in text
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "match"),
+    [
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), method="bcsl"), ValueError, "method"),
+        (lambda d: ji.fit(d, "polepair", ji.Uniform(0.5)), TypeError, "system"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), 0.5), TypeError, "jitter"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.SumOfUniformsFamily(), method="ls"), ValueError, "ls"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), start=[1, 2]), ValueError, "start"),
+        (lambda d: ji.fit(d.y, ji.PolePairGain(), ji.Uniform(0.5)), TypeError, "data"),
+    ],
+)
+def test_bad_fit_arguments(call, exc, match):
+    with pytest.raises(exc, match=match):
+        call(table2_data(9))
+
+
+def test_bad_data_is_refused():
+    u = ji.telegraph_input(20.0, 0)
+    with pytest.raises(ValueError, match="y contains"):
+        ji.SampledData([1.0, np.nan, 2.0, 3.0], 1.0, u)
+    with pytest.raises(ValueError, match="at least 4"):
+        ji.SampledData([1.0, 2.0], 1.0, u)
+    with pytest.raises(ValueError, match="T must"):
+        ji.SampledData([1.0, 2.0, 3.0, 4.0], 0.0, u)
+    with pytest.raises(ValueError, match="noise_std"):
+        ji.SampledData([1.0, 2.0, 3.0, 4.0], 1.0, u, noise_std=-1)
+    with pytest.raises(ValueError, match="instants"):
+        ji.SampledData([1.0, 2.0, 3.0, 4.0], 1.0, u, instants=[0.0, 1.0])
+
+
+def test_bad_simulation_arguments():
+    g = ji.TransferFunction([1.0], [1.0, 2.0])
+    u = ji.telegraph_input(20.0, 0)
+    with pytest.raises(ValueError, match="N must"):
+        ji.simulate(g, u, ji.Uniform(0.5), 1.0, 3, 0.01, 0)
+    with pytest.raises(ValueError, match="input ends"):
+        ji.simulate(g, u, ji.Uniform(0.5), 1.0, 40, 0.01, 0)
+    with pytest.raises(ValueError, match="noise_std"):
+        ji.simulate(g, u, ji.Uniform(0.5), 1.0, 10, -0.01, 0)
+    with pytest.raises(ValueError, match="not stable"):
+        ji.simulate(ji.TransferFunction([1.0], [1.0, -2.0]), u, ji.Uniform(0.5), 1.0, 10, 0.01, 0)
+    with pytest.raises(ValueError, match="a"):
+        ji.Uniform(-0.5)
+    with pytest.raises(ValueError, match="outside its bounds"):
+        ji.PolePairGain().system([1.0, 0.5, 2.0])
+
+
+def test_simulation_is_reproducible_from_the_seed():
+    a, b = table2_data(21), table2_data(21)
+    np.testing.assert_array_equal(a.y, b.y)
+    assert not np.array_equal(a.y, table2_data(22).y)
