@@ -43,8 +43,10 @@ def main() -> None:
             ji.expected_dft(truth, d.u, law, T, N, f)
             t_mu.append(time.perf_counter() - t0)
     mu = float(np.median(t_mu))
-    print(f"# jitterid core benchmark on {platform.node()} ({platform.processor() or platform.machine()}), "
-          f"{time.strftime('%Y-%m-%d')}")
+    print(
+        f"# jitterid core benchmark on {platform.node()} ({platform.processor() or platform.machine()}), "
+        f"{time.strftime('%Y-%m-%d')}"
+    )
     print(f"Table 2 experiment, N = {N}, 3 parameters, {args.runs} realizations")
     print(f"one mu_Y evaluation (expected_dft): median {mu * 1e3:.2f} ms")
     print(f"{'method':<10} {'median fit':>11} {'fit / mu_Y':>11} {'success':>8}")

@@ -148,3 +148,15 @@ def test_simulation_is_reproducible_from_the_seed():
     a, b = table2_data(21), table2_data(21)
     np.testing.assert_array_equal(a.y, b.y)
     assert not np.array_equal(a.y, table2_data(22).y)
+
+
+def test_rational_model_and_pole_pair_agree_on_the_same_data():
+    """Two parameterisations of one model class must reach the same BCLS optimum:
+    k0 / (s^2 - 2 pr s + pr^2 + pi^2) = b0 / (s^2 + a1 s + a0)."""
+    data = table2_data(10)
+    pp = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="bcls")
+    rm = ji.fit(data, ji.RationalModel(0, 2), ji.Uniform(0.5), method="bcls")
+    assert rm.names == ("b0", "a1", "a0")
+    k0, pr, pi = pp.x
+    np.testing.assert_allclose(rm.x, [k0, -2 * pr, pr**2 + pi**2], rtol=1e-4)
+    assert rm.cost == pytest.approx(pp.cost, rel=1e-6)

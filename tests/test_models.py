@@ -20,10 +20,7 @@ def ode_reference(tf: TransferFunction, u, t_eval: np.ndarray) -> np.ndarray:
     A, B, C, D = sps.tf2ss(tf.num, tf.den)
     order = A.shape[0]
     out = np.empty_like(t_eval)
-    if isinstance(u, PiecewiseConstant):
-        edges = u.times
-    else:
-        edges = np.array([u.start, u.end])
+    edges = u.times if isinstance(u, PiecewiseConstant) else np.array([u.start, u.end])
     x = np.zeros(order)
     for j in range(edges.size - 1):
         a, b = edges[j], edges[j + 1]

@@ -21,7 +21,8 @@ def mc_dft(system, u, law, T, N, f, noise_std, draws, rng):
 
 
 @pytest.mark.parametrize(
-    "law", [ji.Uniform(0.5), ji.Gaussian(0.2), ji.SumOfUniforms(2, 0.45), ji.SumOfUniforms(1.4, 0.5)]
+    "law",
+    [ji.Uniform(0.5), ji.Gaussian(0.2), ji.SumOfUniforms(2, 0.45), ji.SumOfUniforms(1.4, 0.5)],
 )
 def test_expected_dft_matches_brute_force_monte_carlo(law):
     rng = np.random.default_rng(11)
@@ -50,7 +51,10 @@ def test_covariance_and_pseudo_covariance_match_monte_carlo(law):
     C = ji.dft_pseudo_covariance(system, u, law, T, N, f, noise)
     Y = mc_dft(system, u, law, T, N, f, noise, 20000, rng)
     D = Y - Y.mean(axis=0)
-    for model, prods in ((R, D[:, :, None] * D[:, None, :].conj()), (C, D[:, :, None] * D[:, None, :])):
+    for model, prods in (
+        (R, D[:, :, None] * D[:, None, :].conj()),
+        (C, D[:, :, None] * D[:, None, :]),
+    ):
         est = prods.mean(axis=0)
         se_re = prods.real.std(axis=0) / np.sqrt(len(D))
         se_im = prods.imag.std(axis=0) / np.sqrt(len(D))
@@ -87,13 +91,23 @@ def test_time_domain_covariance_equals_literal_lemma_2_for_a_line_spectrum():
     law = ji.Uniform(0.5)
     f = np.array([0.0, 0.1, 0.26, 0.7])
     freqs = np.array([f0, -f0, f1, -f1])
-    coeffs = np.array(
-        [amp0 * np.exp(1j * ph0), -amp0 * np.exp(-1j * ph0), amp1 * np.exp(1j * ph1), -amp1 * np.exp(-1j * ph1)]
-    ) / 2j
+    coeffs = (
+        np.array(
+            [
+                amp0 * np.exp(1j * ph0),
+                -amp0 * np.exp(-1j * ph0),
+                amp1 * np.exp(1j * ph1),
+                -amp1 * np.exp(-1j * ph1),
+            ]
+        )
+        / 2j
+    )
     ref_mu = spectral.expected_dft_lines(freqs, coeffs, law, T, N, f)
     ref_R = spectral.dft_covariance_lines(freqs, coeffs, law, T, N, f, f, noise_std=0.02)
     np.testing.assert_allclose(ji.expected_dft(identity, u, law, T, N, f), ref_mu, atol=1e-10)
-    np.testing.assert_allclose(ji.dft_covariance(identity, u, law, T, N, f, 0.02), ref_R, atol=1e-10)
+    np.testing.assert_allclose(
+        ji.dft_covariance(identity, u, law, T, N, f, 0.02), ref_R, atol=1e-10
+    )
 
 
 def test_alias_example_of_figure_2_through_the_time_domain_path():
@@ -162,7 +176,12 @@ def test_input_too_short_for_the_jittered_record_is_refused():
 
 @pytest.mark.parametrize(
     ("kwargs", "match"),
-    [({"T": 0.0}, "T"), ({"N": 0}, "N"), ({"f": [np.nan]}, "f"), ({"noise_std": -1.0}, "noise_std")],
+    [
+        ({"T": 0.0}, "T"),
+        ({"N": 0}, "N"),
+        ({"f": [np.nan]}, "f"),
+        ({"noise_std": -1.0}, "noise_std"),
+    ],
 )
 def test_bad_arguments_name_themselves(kwargs, match):
     args = {

@@ -10,6 +10,7 @@ work is O(N) and is produced in chunks of samples so that memory stays bounded.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
@@ -51,7 +52,7 @@ def _relative_cuts(law: JitterLaw, max_panel: float) -> FloatArray:
     """The pdf's knots, subdivided so that no gap exceeds ``max_panel``."""
     knots = np.unique(np.asarray(law.breakpoints(), dtype=float))
     pieces = [knots[:1]]
-    for a, b in zip(knots[:-1], knots[1:], strict=True):
+    for a, b in itertools.pairwise(knots):
         n = max(1, int(np.ceil((b - a) / max_panel)))
         pieces.append(np.linspace(a, b, n + 1)[1:])
     return np.concatenate(pieces)

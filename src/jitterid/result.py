@@ -6,6 +6,7 @@ import enum
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -144,3 +145,23 @@ class FitResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def to_scipy(self) -> Any:
+        """The fitted G(s) as a ``scipy.signal.lti`` (transfer-function form; s in rad/s)."""
+        from scipy import signal
+
+        return signal.lti(self.system.num, self.system.den)
+
+    def to_control(self) -> Any:
+        """The fitted G(s) as a python-control ``TransferFunction`` (s in rad/s).
+
+        Needs the optional extra: ``pip install 'jitterid[control]'``.
+        """
+        try:
+            import control
+        except ImportError as exc:
+            raise ImportError(
+                "to_control() needs python-control, an optional dependency; install it with "
+                "pip install 'jitterid[control]' (or pip install control)"
+            ) from exc
+        return control.tf(self.system.num.tolist(), self.system.den.tolist())

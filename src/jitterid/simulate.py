@@ -51,7 +51,9 @@ class SampledData:
         if not isinstance(self.u, Input):
             raise TypeError(f"u must be a jitterid input; got {type(self.u).__name__}")
         if self.noise_std is not None:
-            object.__setattr__(self, "noise_std", positive(self.noise_std, "noise_std", allow_zero=True))
+            object.__setattr__(
+                self, "noise_std", positive(self.noise_std, "noise_std", allow_zero=True)
+            )
         if self.instants is not None:
             inst = real_array(self.instants, "instants", ndim=1)
             if inst.size != y.size:
@@ -122,4 +124,3 @@ def simulate(
     s = system.response(u)(instants)
     y = s + noise_std * gen.standard_normal(N)
     return SampledData(y=y, T=T, u=u, noise_std=noise_std, instants=instants)
-

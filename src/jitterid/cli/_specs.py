@@ -1,0 +1,168 @@
+"""Parse the command line's model and jitter specifications.
+
+Model: ``polepair`` (the paper's (27), k0 / ((s - pr)^2 + pi^2)) or ``tf:NUM,DEN`` for a
+rational model with NUM zeros and DEN poles (``RationalModel(NUM, DEN)``: parameters
+b_NUM..b_0 of the numerator, a_{DEN-1}..a_0 of the monic denominator). ``tf:0,2`` is
+b0 / (s^2 + a1 s + a0).
+
+Jitter: ``none``; a known law ``known:uniform:a=0.5``, ``known:gaussian:sigma=0.1``,
+``known:sum-of-uniforms:n=2,a=0.5``; or a family to estimate, ``uniform``, ``gaussian``,
+``sum-of-uniforms``, optionally bounded (``uniform:a_max=0.5``,
+``sum-of-uniforms:n_max=10,a_max=0.5``, ``gaussian:sigma_max=0.3``). Where only a law makes
+sense (``simulate``, ``bias``) the ``known:`` prefix may be left out.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..distributions import (
+    Gaussian,
+    GaussianFamily,
+    JitterFamily,
+    JitterLaw,
+    NoJitter,
+    SumOfUniforms,
+    SumOfUniformsFamily,
+    Uniform,
+    UniformFamily,
+)
+from ..structures import ModelStructure, PolePairGain, RationalModel
+
+__all__ = ["model_label", "parse_floats", "parse_jitter", "parse_model"]
+
+_LAWS: dict[str, tuple[type[JitterLaw], tuple[str, ...]]] = {
+    "uniform": (Uniform, ("a",)),
+    "gaussian": (Gaussian, ("sigma",)),
+    "sum-of-uniforms": (SumOfUniforms, ("n", "a")),
+}
+_FAMILIES: dict[str, tuple[type[JitterFamily], tuple[str, ...]]] = {
+    "uniform": (UniformFamily, ("a_max", "a_min")),
+    "gaussian": (GaussianFamily, ("sigma_max", "sigma_min")),
+    "sum-of-uniforms": (SumOfUniformsFamily, ("n_max", "a_max", "a_min")),
+}
+JITTER_HELP = (
+    "none | known:uniform:a=A | known:gaussian:sigma=S | known:sum-of-uniforms:n=N,a=A "
+    "(a known law) | uniform | gaussian | sum-of-uniforms (a family to estimate, optionally "
+    "bounded, e.g. uniform:a_max=0.5)"
+)
+
+
+def parse_model(spec: str) -> ModelStructure:
+    """``polepair`` or ``tf:NUM,DEN`` -> a model structure; ValueError with the fix otherwise."""
+    s = spec.strip().lower()
+    if s == "polepair":
+        return PolePairGain()
+    if s.startswith("tf:"):
+        parts = [p.strip() for p in s[3:].split(",")]
+        if len(parts) != 2 or not all(p.isdigit() for p in parts):
+            raise ValueError(
+                f"model {spec!r}: write tf:NUM,DEN with NUM zeros and DEN poles as whole "
+                "numbers, e.g. tf:0,2 for b0 / (s^2 + a1 s + a0)"
+            )
+        num, den = (int(p) for p in parts)
+        if den < 1 or num > den:
+            raise ValueError(
+                f"model {spec!r}: need DEN >= 1 poles and NUM <= DEN zeros (a proper model); "
+                "e.g. tf:0,2 or tf:1,2"
+            )
+        return RationalModel(num, den)
+    raise ValueError(f"unknown model {spec!r}; use 'polepair' or 'tf:NUM,DEN' (e.g. tf:0,2)")
+
+
+def model_label(structure: ModelStructure) -> str:
+    """A readable formula for the structure."""
+    if isinstance(structure, PolePairGain):
+        return "G(s) = k0 / ((s - pr)^2 + pi^2)"
+    if isinstance(structure, RationalModel):
+        b = " + ".join(
+            f"b{i} s^{i}" if i > 1 else (f"b{i} s" if i == 1 else "b0")
+            for i in range(structure.num_order, -1, -1)
+        )
+        a = " + ".join(
+            [f"s^{structure.den_order}" if structure.den_order > 1 else "s"]
+            + [
+                f"a{i} s^{i}" if i > 1 else (f"a{i} s" if i == 1 else "a0")
+                for i in range(structure.den_order - 1, -1, -1)
+            ]
+        )
+        return f"G(s) = ({b}) / ({a})"
+    return type(structure).__name__
+
+
+def parse_floats(text: str, name: str) -> list[float]:
+    """``"1,2.5,-3"`` -> [1.0, 2.5, -3.0]; ValueError naming ``name`` otherwise."""
+    out = []
+    for part in text.split(","):
+        try:
+            out.append(float(part))
+        except ValueError:
+            raise ValueError(
+                f"{name}: {part.strip()!r} is not a number; give comma-separated numbers, "
+                "e.g. 6.25,-1.5,2"
+            ) from None
+    return out
+
+
+def _kwargs(body: str, allowed: tuple[str, ...], what: str, spec: str) -> dict[str, float]:
+    out: dict[str, float] = {}
+    if not body:
+        return out
+    for item in body.split(","):
+        key, eq, value = item.partition("=")
+        key = key.strip()
+        if not eq or key not in allowed:
+            raise ValueError(
+                f"jitter {spec!r}: {item.strip()!r} is not a parameter of {what}; write "
+                + ",".join(f"{k}=VALUE" for k in allowed)
+            )
+        if key in out:
+            raise ValueError(f"jitter {spec!r}: {key} is given twice")
+        try:
+            out[key] = float(value)
+        except ValueError:
+            raise ValueError(f"jitter {spec!r}: {key}={value.strip()!r} is not a number") from None
+    return out
+
+
+def _law(name: str, body: str, spec: str) -> JitterLaw:
+    if name not in _LAWS:
+        raise ValueError(
+            f"jitter {spec!r}: unknown law {name!r}; use one of {sorted(_LAWS)}. {JITTER_HELP}"
+        )
+    cls, keys = _LAWS[name]
+    kw = _kwargs(body, keys, f"the {name} law", spec)
+    missing = [k for k in keys if k not in kw]
+    if missing:
+        raise ValueError(
+            f"jitter {spec!r}: the {name} law needs "
+            + ",".join(f"{k}=VALUE" for k in keys)
+            + f" (missing {', '.join(missing)})"
+        )
+    law: Any = cls(**kw)  # type: ignore[call-arg]
+    return law  # type: ignore[no-any-return]
+
+
+def parse_jitter(spec: str, *, law_only: bool = False) -> JitterLaw | JitterFamily:
+    """Parse a jitter specification (see the module notes); ValueError with the fix."""
+    s = spec.strip()
+    low = s.lower()
+    if low == "none":
+        return NoJitter()
+    if low.startswith("known:"):
+        name, _, body = s[6:].partition(":")
+        return _law(name.strip().lower(), body.strip(), spec)
+    name, _, body = s.partition(":")
+    name = name.strip().lower()
+    if law_only:
+        return _law(name, body.strip(), spec)
+    if name not in _FAMILIES:
+        raise ValueError(f"jitter {spec!r} is not recognised; use {JITTER_HELP}")
+    cls, keys = _FAMILIES[name]
+    if body and any(k.split("=")[0].strip() in _LAWS[name][1] for k in body.split(",")):
+        raise ValueError(
+            f"jitter {spec!r}: to fix the law write known:{s}; to estimate it write {name} "
+            f"(optionally bounded: {name}:{keys[0]}=VALUE)"
+        )
+    family: Any = cls(**_kwargs(body.strip(), keys, f"the {name} family", spec))  # type: ignore[call-arg]
+    return family  # type: ignore[no-any-return]

@@ -1,0 +1,653 @@
+"""Diagnostics around a fit: is jitter there, are the residuals white, does it matter here.
+
+* :func:`detect_jitter` - before a jitter-aware fit. Under jitter a sample is
+  y_k = s(kT + tau_k) + v_k ~ s(kT) + s'(kT) tau_k + v_k, so the residual of an ordinary fit
+  has variance sigma_v^2 + sigma_tau^2 s'(kT)^2: it grows with the squared slope of the
+  output. Regressing squared residuals on squared model slopes and testing the slope
+  coefficient (one-sided t test, H0: no jitter) detects jitter; the coefficient is the
+  implied jitter variance (first-order Taylor approximation, see the function's notes).
+* :func:`ljung_box`, :func:`input_correlation_test` and :func:`standardized_residuals` -
+  after a fit: residuals of a correct model are white and independent of the input.
+* :func:`ls_gain_factor` - the ordinary LS fit sees G(f) scaled by |phi(f)|, the jitter's
+  characteristic function (paper, Lemma 1 and (13)); :func:`bias_frequency` is where that
+  gain bias reaches a tolerance.
+* :func:`bode_band` and :func:`jitter_pdf_band` - confidence bands for the plots.
+
+Frequencies are in Hz; phases in degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import optimize, stats
+
+from ._checks import count, generator, real_array
+from .distributions import JitterFamily, JitterLaw, NoJitter
+from .models import TransferFunction
+from .moments import sample_moments
+from .result import FitResult
+from .simulate import SampledData
+from .structures import ModelStructure
+
+__all__ = [
+    "BodeBand",
+    "JitterDetection",
+    "PdfBand",
+    "ResidualTest",
+    "bias_frequency",
+    "bode_band",
+    "detect_jitter",
+    "input_correlation_test",
+    "jitter_pdf_band",
+    "ljung_box",
+    "ls_gain_factor",
+    "model_output",
+    "standardized_residuals",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+def _level(level: float) -> float:
+    if not isinstance(level, (int, float, np.floating)) or not 0 < float(level) < 1:
+        raise ValueError(f"level must be a number in (0, 1), e.g. 0.95; got {level!r}")
+    return float(level)
+
+
+def _system(model: FitResult | TransferFunction) -> TransferFunction:
+    if isinstance(model, FitResult):
+        return model.system
+    if isinstance(model, TransferFunction):
+        return model
+    raise TypeError(f"model must be a FitResult or a TransferFunction; got {type(model).__name__}")
+
+
+def _slope_system(tf: TransferFunction) -> TransferFunction:
+    """s G(s) for strictly proper G; for biproper G the direct term is dropped first."""
+    num = np.asarray(tf.num, float)
+    den = np.asarray(tf.den, float)
+    if num.size == den.size:
+        num = num - num[0] / den[0] * den
+        num[0] = 0.0
+    return TransferFunction(np.polymul(num, [1.0, 0.0]), den)
+
+
+def model_output(
+    model: FitResult | TransferFunction, data: SampledData
+) -> tuple[FloatArray, FloatArray]:
+    """The model's output s(kT) and slope s'(kT) at the nominal instants.
+
+    Parameters
+    ----------
+    model : FitResult or TransferFunction
+        The fitted system.
+    data : SampledData
+        Its input and grid.
+
+    Returns
+    -------
+    s, slope : ndarray, shape (N,)
+        The slope is exact (the response of s G(s)); for a biproper G the jumps of the
+        direct term at input switches are not slopes and are left out.
+    """
+    if not isinstance(data, SampledData):
+        raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
+    tf = _system(model)
+    t = data.t_nominal
+    return tf.response(data.u)(t), _slope_system(tf).response(data.u)(t)
+
+
+# ------------------------------------------------------------------------ detection
+
+
+@dataclass(frozen=True, eq=False)
+class JitterDetection:
+    """Result of :func:`detect_jitter`.
+
+    Attributes
+    ----------
+    statistic : float
+        t statistic of the slope coefficient (H0: no jitter).
+    pvalue : float
+        One-sided p-value: small values mean the residual variance grows with the slope.
+    jitter_std : float
+        Implied jitter std sqrt(max(beta, 0)) (s), a first-order approximation.
+    jitter_std_ci : tuple of float
+        Confidence interval of the implied std, from a heteroscedasticity-robust (HC3)
+        interval for beta, clipped at 0.
+    noise_std : float
+        Implied measurement-noise std sqrt(max(alpha, 0)) (y units).
+    coef : ndarray, shape (2,)
+        (alpha, beta) of r_k^2 = alpha + beta s'(kT)^2 + e_k.
+    level : float
+        Confidence level of ``jitter_std_ci``.
+    t, residuals, slopes : ndarray
+        Nominal instants, residuals y_k - s(kT) and model slopes s'(kT), for plots.
+    """
+
+    statistic: float
+    pvalue: float
+    jitter_std: float
+    jitter_std_ci: tuple[float, float]
+    noise_std: float
+    coef: FloatArray
+    level: float
+    t: FloatArray
+    residuals: FloatArray
+    slopes: FloatArray
+
+    def detected(self, alpha: float = 0.05) -> bool:
+        """True if the test rejects "no jitter" at significance ``alpha``."""
+        return bool(self.pvalue < _level(alpha))
+
+    def summary(self) -> str:
+        lo, hi = self.jitter_std_ci
+        pct = round(100 * self.level)
+        verdict = "jitter detected" if self.detected() else "no jitter detected"
+        return (
+            f"jitter detection ({verdict} at the 5% level): t = {self.statistic:.3f}, "
+            f"p = {self.pvalue:.3g}\n"
+            f"  implied jitter std {self.jitter_std:.4g} s, {pct}% interval "
+            f"[{lo:.4g}, {hi:.4g}] s (first-order approximation)\n"
+            f"  implied noise std {self.noise_std:.4g}"
+        )
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+def detect_jitter(
+    data: SampledData, model: FitResult | TransferFunction, *, level: float = 0.95
+) -> JitterDetection:
+    """Test for sampling jitter from the residuals of an ordinary fit.
+
+    Parameters
+    ----------
+    data : SampledData
+        The samples.
+    model : FitResult or TransferFunction
+        An ordinary fit that ignores jitter (``fit(data, structure, NoJitter(), "ls")``).
+    level : float
+        Confidence level of the implied jitter std's interval.
+
+    Returns
+    -------
+    JitterDetection
+
+    Notes
+    -----
+    Under H0 (no jitter, white noise) the squared residuals are homoscedastic, so the
+    classical OLS t test of the slope coefficient is valid (asymptotically, whatever the
+    noise distribution). The implied std uses the first-order expansion
+    Var s(kT + tau) ~ s'(kT)^2 sigma_tau^2, and the ordinary fit is itself biased by the
+    jitter, so it is accurate for small jitter (sigma_tau times the fastest pole well below
+    1) and biased low by about 10 % at the paper's largest level (U(-T/2, T/2), pole 2.5 rad/s);
+    fit a jitter family for an accurate std. The model must be right: an under-modelled
+    system leaves slope-correlated residuals that also raise the statistic.
+    """
+    level = _level(level)
+    s, slope = model_output(model, data)
+    r = data.y - s
+    z, x = r**2, slope**2
+    if np.ptp(x) <= 1e-12 * max(float(np.max(x)), 1e-300):
+        raise ValueError(
+            "the model output's slope is (nearly) constant, so variance growth with slope "
+            "cannot be tested; use an input that excites the system (switches, a multisine)"
+        )
+    n = z.size
+    X = np.column_stack([np.ones(n), x])
+    coef, *_ = np.linalg.lstsq(X, z, rcond=None)
+    e = z - X @ coef
+    xtx_inv = np.linalg.inv(X.T @ X)
+    s2 = float(e @ e) / (n - 2)
+    se = float(np.sqrt(s2 * xtx_inv[1, 1]))
+    tstat = float(coef[1] / se) if se > 0 else float(np.inf * np.sign(coef[1]))
+    pvalue = float(stats.t.sf(tstat, n - 2))
+    # HC3 robust variance for the interval (under jitter the errors are heteroscedastic).
+    h = np.einsum("ij,jk,ik->i", X, xtx_inv, X)
+    meat = (X * (e / (1 - h))[:, None] ** 2).T @ X
+    se_rob = float(np.sqrt((xtx_inv @ meat @ xtx_inv)[1, 1]))
+    zq = float(stats.norm.ppf(0.5 + level / 2))
+    lo, hi = coef[1] - zq * se_rob, coef[1] + zq * se_rob
+    return JitterDetection(
+        statistic=tstat,
+        pvalue=pvalue,
+        jitter_std=float(np.sqrt(max(coef[1], 0.0))),
+        jitter_std_ci=(float(np.sqrt(max(lo, 0.0))), float(np.sqrt(max(hi, 0.0)))),
+        noise_std=float(np.sqrt(max(coef[0], 0.0))),
+        coef=coef,
+        level=level,
+        t=data.t_nominal,
+        residuals=r,
+        slopes=slope,
+    )
+
+
+# ------------------------------------------------------------------------ residual checks
+
+
+@dataclass(frozen=True, eq=False)
+class ResidualTest:
+    """A chi-square test on residual correlations.
+
+    Attributes
+    ----------
+    name : str
+        Which test.
+    statistic, dof, pvalue : float
+        The statistic, its chi-square degrees of freedom and the p-value.
+    lags : ndarray
+        The lags tested.
+    values : ndarray
+        The normalised correlations at those lags (about N(0, 1/N) each under H0).
+    """
+
+    name: str
+    statistic: float
+    dof: int
+    pvalue: float
+    lags: NDArray[np.int64]
+    values: FloatArray
+
+    def passed(self, alpha: float = 0.05) -> bool:
+        """True if H0 (white / independent) is not rejected at significance ``alpha``."""
+        return bool(self.pvalue >= _level(alpha))
+
+    def summary(self) -> str:
+        verdict = "passes" if self.passed() else "FAILS"
+        return (
+            f"{self.name}: {verdict} at the 5% level (chi2 = {self.statistic:.3g}, "
+            f"dof {self.dof}, p = {self.pvalue:.3g})"
+        )
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+def _resid(residuals: ArrayLike, name: str = "residuals") -> FloatArray:
+    r = real_array(residuals, name, ndim=1)
+    if r.size < 8:
+        raise ValueError(f"{name} must hold at least 8 values; got {r.size}")
+    return r
+
+
+def _lags(lags: int | None, n: int) -> int:
+    if lags is None:
+        return max(1, min(20, n // 5))
+    lags = count(lags, "lags", minimum=1)
+    if lags >= n // 2:
+        raise ValueError(f"lags must be below N/2 = {n // 2}; got {lags}")
+    return lags
+
+
+def ljung_box(residuals: ArrayLike, lags: int | None = None) -> ResidualTest:
+    """Ljung-Box whiteness test: Q = N (N + 2) sum_k rho_k^2 / (N - k) ~ chi2(lags).
+
+    Parameters
+    ----------
+    residuals : array_like, shape (N,)
+        Residuals (standardised ones after a jitter-aware fit, see
+        :func:`standardized_residuals`, since jitter makes them heteroscedastic).
+    lags : int, optional
+        Number of autocorrelation lags (default min(20, N // 5)).
+
+    Returns
+    -------
+    ResidualTest
+    """
+    r = _resid(residuals)
+    n = r.size
+    m = _lags(lags, n)
+    c = r - r.mean()
+    denom = float(c @ c)
+    if denom == 0:
+        raise ValueError("residuals are constant; the whiteness test needs varying residuals")
+    k = np.arange(1, m + 1)
+    rho = np.array([c[j:] @ c[:-j] for j in k]) / denom
+    q = float(n * (n + 2) * np.sum(rho**2 / (n - k)))
+    return ResidualTest("Ljung-Box whiteness", q, m, float(stats.chi2.sf(q, m)), k, rho)
+
+
+def input_correlation_test(
+    residuals: ArrayLike, u_samples: ArrayLike, lags: int | None = None
+) -> ResidualTest:
+    """Test that residuals are uncorrelated with the input at lags 0..lags-1.
+
+    Regresses the residuals on the lagged input samples u_{k-j}; with white residuals
+    independent of the input, N R^2 ~ chi2(lags) (Ljung, System Identification, 16.6).
+
+    Parameters
+    ----------
+    residuals : array_like, shape (N,)
+    u_samples : array_like, shape (N,)
+        The input at the nominal instants (``data.u(data.t_nominal)``).
+    lags : int, optional
+        Number of lags (default min(20, N // 5)).
+
+    Returns
+    -------
+    ResidualTest
+        ``values`` are the normalised cross-correlations at each lag.
+    """
+    r = _resid(residuals)
+    u = real_array(u_samples, "u_samples", ndim=1)
+    if u.size != r.size:
+        raise ValueError(
+            f"u_samples must have one value per residual: {r.size} residuals, {u.size} inputs"
+        )
+    n = r.size
+    m = _lags(lags, n)
+    c = r - r.mean()
+    uc = u - u.mean()
+    U = np.column_stack([np.r_[np.zeros(j), uc[: n - j]] for j in range(m)])
+    if float(np.sum(uc**2)) == 0:
+        raise ValueError("the input is constant at the sampling instants; nothing to correlate")
+    beta, *_, rank, _ = np.linalg.lstsq(U, c, rcond=None)
+    fitted = U @ beta
+    stat = float(n * (fitted @ fitted) / (c @ c))
+    xc = (U.T @ c) / np.sqrt(float(c @ c) * float(uc @ uc))
+    return ResidualTest(
+        "residual-input independence",
+        stat,
+        int(rank),
+        float(stats.chi2.sf(stat, int(rank))),
+        np.arange(m),
+        xc,
+    )
+
+
+def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
+    """(y_k - E y_k) / sqrt(Var y_k) under the fitted system, jitter law and noise.
+
+    E y_k = E s(kT + tau) and Var y_k = Var s(kT + tau) + sigma_v^2 with tau from
+    ``result.jitter``. If the fit has no noise std (``result.noise_std == 0``), sigma_v^2 is
+    estimated as mean(r_k^2 - Var s(kT + tau)) (floored at a tiny positive value).
+
+    Parameters
+    ----------
+    data : SampledData
+    result : FitResult
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Independent with unit variance if the model is right.
+    """
+    if not isinstance(result, FitResult):
+        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
+    if not isinstance(data, SampledData):
+        raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
+    mom = sample_moments(result.system.response(data.u), result.jitter, data.T, data.N)
+    r = data.y - mom.mean
+    noise_var = result.noise_std**2
+    if noise_var <= 0:
+        noise_var = max(float(np.mean(r**2 - mom.var)), 1e-12 * float(np.mean(r**2)), 1e-300)
+    return np.asarray(r / np.sqrt(mom.var + noise_var), dtype=float)
+
+
+# ------------------------------------------------------------------------ LS gain bias
+
+
+def ls_gain_factor(jitter: JitterLaw, f: ArrayLike) -> FloatArray:
+    """|phi(f)|: the factor by which an ordinary LS fit sees the gain |G(i 2 pi f)|.
+
+    By Lemma 1 the expected DFT of jittered samples is that of the signal with its spectrum
+    multiplied by phi(-f), so a fit that ignores jitter estimates |G phi| instead of |G|;
+    the relative gain bias is |phi(f)| - 1 (in dB: 20 log10 |phi(f)|).
+
+    Parameters
+    ----------
+    jitter : JitterLaw
+        The (suspected) jitter law.
+    f : array_like
+        Frequencies in Hz.
+
+    Returns
+    -------
+    ndarray
+        |phi(f)| in [0, 1], same shape as ``f``.
+    """
+    if not isinstance(jitter, JitterLaw):
+        raise TypeError(
+            "jitter must be a jitter law such as Uniform(0.5) or Gaussian(0.1); "
+            f"got {type(jitter).__name__}"
+        )
+    freqs = real_array(f, "f")
+    return np.asarray(np.abs(jitter.cf(freqs)), dtype=float)
+
+
+def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
+    """The lowest frequency (Hz) where the LS gain factor |phi(f)| drops to 1 - tol.
+
+    Parameters
+    ----------
+    jitter : JitterLaw
+    tol : float
+        Relative gain bias, in (0, 1); 0.01 is a 1 % (0.087 dB) gain error.
+
+    Returns
+    -------
+    float
+        ``inf`` if there is no jitter (|phi| = 1 everywhere).
+    """
+    tol = _level(tol)
+    if not isinstance(jitter, JitterLaw):
+        raise TypeError(f"jitter must be a jitter law; got {type(jitter).__name__}")
+    if isinstance(jitter, NoJitter) or jitter.std == 0:
+        return float("inf")
+    # |phi| ~ 1 - 2 pi^2 sigma^2 f^2 near 0: bracket around that guess, then refine.
+    guess = np.sqrt(2 * tol) / (2 * np.pi * jitter.std)
+    grid = np.linspace(0.0, 20 * guess, 4001)[1:]
+    below = np.flatnonzero(ls_gain_factor(jitter, grid) <= 1 - tol)
+    if not below.size:
+        return float("inf")
+    i = int(below[0])
+    lo = 0.0 if i == 0 else float(grid[i - 1])
+    return float(
+        optimize.brentq(lambda v: float(ls_gain_factor(jitter, v)) - (1 - tol), lo, grid[i])
+    )
+
+
+# ------------------------------------------------------------------------ bands
+
+
+@dataclass(frozen=True, eq=False)
+class BodeBand:
+    """Frequency response of a fit with pointwise delta-method confidence bands.
+
+    Attributes
+    ----------
+    f : ndarray
+        Frequencies (Hz).
+    magnitude, magnitude_lo, magnitude_hi : ndarray
+        |G(i 2 pi f)| and its band (computed on log |G|, so it stays positive).
+    phase, phase_lo, phase_hi : ndarray
+        Unwrapped phase in degrees and its band.
+    level : float
+        Confidence level; NaN bands mean the covariance was unavailable.
+    """
+
+    f: FloatArray
+    magnitude: FloatArray
+    magnitude_lo: FloatArray
+    magnitude_hi: FloatArray
+    phase: FloatArray
+    phase_lo: FloatArray
+    phase_hi: FloatArray
+    level: float
+
+
+def _indices(result: FitResult, names: tuple[str, ...], what: str) -> list[int]:
+    missing = [n for n in names if n not in result.names]
+    if missing:
+        raise ValueError(
+            f"the {what} does not match the fit: parameters {missing} are not among the fit's "
+            f"{list(result.names)}; pass the structure or family that was given to fit()"
+        )
+    return [result.names.index(n) for n in names]
+
+
+def bode_band(
+    result: FitResult, structure: ModelStructure, f: ArrayLike, level: float = 0.95
+) -> BodeBand:
+    """Bode magnitude and phase of a fit with delta-method confidence bands.
+
+    Parameters
+    ----------
+    result : FitResult
+    structure : ModelStructure
+        The structure given to :func:`jitterid.fit` (to rebuild G from parameters).
+    f : array_like
+        Frequencies (Hz).
+    level : float
+        Confidence level.
+
+    Returns
+    -------
+    BodeBand
+        The band is x +- z se with se^2 = J C J^T, J the derivative of log G with respect to
+        the system parameters (central differences), C their covariance block.
+    """
+    level = _level(level)
+    if not isinstance(result, FitResult):
+        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
+    if not isinstance(structure, ModelStructure):
+        raise TypeError(f"structure must be a ModelStructure; got {type(structure).__name__}")
+    freqs = np.atleast_1d(real_array(f, "f"))
+    idx = _indices(result, tuple(structure.param_names), "structure")
+    theta = result.x[idx]
+    g0 = result.system.freqresp(freqs)
+    jac = np.empty((freqs.size, len(idx)), complex)
+    for i in range(len(idx)):
+        h = 1e-6 * max(abs(theta[i]), 1e-3)
+        up, down = theta.copy(), theta.copy()
+        up[i] += h
+        down[i] -= h
+        try:
+            g_up = structure.system(up).freqresp(freqs)
+        except ValueError:
+            g_up, h_up = g0, 0.0
+        else:
+            h_up = h
+        try:
+            g_down = structure.system(down).freqresp(freqs)
+        except ValueError:
+            g_down, h_down = g0, 0.0
+        else:
+            h_down = h
+        jac[:, i] = np.log(g_up / g_down) / (h_up + h_down)
+    cov = result.cov[np.ix_(idx, idx)]
+    zq = float(stats.norm.ppf(0.5 + level / 2))
+    var_log = np.einsum("fi,ij,fj->f", jac.real, cov, jac.real)
+    var_ph = np.einsum("fi,ij,fj->f", jac.imag, cov, jac.imag)
+    se_log = np.sqrt(np.maximum(var_log, 0.0))
+    se_ph = np.degrees(np.sqrt(np.maximum(var_ph, 0.0)))
+    mag = np.abs(g0)
+    phase = np.degrees(np.unwrap(np.angle(g0)))
+    return BodeBand(
+        f=freqs,
+        magnitude=mag,
+        magnitude_lo=mag * np.exp(-zq * se_log),
+        magnitude_hi=mag * np.exp(zq * se_log),
+        phase=phase,
+        phase_lo=phase - zq * se_ph,
+        phase_hi=phase + zq * se_ph,
+        level=level,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class PdfBand:
+    """Density of a (fitted) jitter law with a pointwise band.
+
+    Attributes
+    ----------
+    tau : ndarray
+        Jitter values (s).
+    pdf, lo, hi : ndarray
+        The fitted density and the pointwise band (equal to ``pdf`` for a known law).
+    level : float
+    fixed : tuple of str
+        Family parameters held at their estimate because their variance was unavailable
+        (e.g. on a bound); the band then understates the uncertainty.
+    """
+
+    tau: FloatArray
+    pdf: FloatArray
+    lo: FloatArray
+    hi: FloatArray
+    level: float
+    fixed: tuple[str, ...]
+
+
+def jitter_pdf_band(
+    result: FitResult,
+    family: JitterFamily | None,
+    tau: ArrayLike,
+    rng: np.random.Generator | int,
+    *,
+    level: float = 0.95,
+    n_draws: int = 400,
+) -> PdfBand:
+    """The fitted jitter density with a pointwise band from the parameters' covariance.
+
+    Draws the family's parameters from N(x, C) (clipped into the family's bounds) and
+    takes pointwise quantiles of the densities.
+
+    Parameters
+    ----------
+    result : FitResult
+    family : JitterFamily or None
+        The family given to :func:`jitterid.fit`; ``None`` for a known law (no band).
+    tau : array_like
+        Jitter values (s) at which to evaluate the density.
+    rng : numpy.random.Generator or int
+        Randomness for the draws (explicit).
+    level : float
+        Confidence level.
+    n_draws : int
+        Number of parameter draws.
+
+    Returns
+    -------
+    PdfBand
+    """
+    level = _level(level)
+    if not isinstance(result, FitResult):
+        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
+    n_draws = count(n_draws, "n_draws", minimum=10)
+    gen = generator(rng)
+    t = np.atleast_1d(real_array(tau, "tau"))
+    if result.jitter.std == 0:
+        raise ValueError("the fit's jitter law has zero spread (no jitter); there is no density")
+    pdf = np.asarray(result.jitter.pdf(t), float)
+    if family is None:
+        return PdfBand(t, pdf, pdf.copy(), pdf.copy(), level, ())
+    if not isinstance(family, JitterFamily):
+        raise TypeError(f"family must be a JitterFamily or None; got {type(family).__name__}")
+    idx = _indices(result, tuple(family.param_names), "jitter family")
+    x = result.x[idx]
+    cov = result.cov[np.ix_(idx, idx)].copy()
+    ok = np.isfinite(np.diag(cov))
+    fixed = tuple(n for n, good in zip(family.param_names, ok, strict=True) if not good)
+    cov[~ok, :] = 0.0
+    cov[:, ~ok] = 0.0
+    # Draw through a clipped eigendecomposition: a sandwich covariance may be slightly
+    # indefinite from rounding, which multivariate_normal would warn about.
+    w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+    draws = x + gen.standard_normal((n_draws, x.size)) @ (v * np.sqrt(np.maximum(w, 0.0))).T
+    lo_b, hi_b = np.array(family.bounds, float).T
+    draws = np.clip(draws, lo_b, hi_b)
+    dens = np.array([family.law(d).pdf(t) for d in draws])
+    q = (1 - level) / 2
+    return PdfBand(
+        t,
+        pdf,
+        np.quantile(dens, q, axis=0),
+        np.quantile(dens, 1 - q, axis=0),
+        level,
+        fixed,
+    )
