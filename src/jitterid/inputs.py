@@ -108,14 +108,19 @@ class PiecewiseConstant(Input):
     def fourier(self, psi: ArrayLike) -> NDArray[np.complex128]:
         """U(psi) = sum_j u_j int_{t_j}^{t_{j+1}} exp(-i 2 pi psi t) dt, exact."""
         psi = np.asarray(psi, dtype=float)
-        w = 2j * np.pi * psi[..., None]
+        flat = psi.ravel()
+        out = np.empty(flat.size, complex)
         t0, t1 = self.times[:-1], self.times[1:]
-        small = np.abs(w) * (t1 - t0) < 1e-6
-        # (e^{-w t0} - e^{-w t1}) / w, written with expm1 so that it stays accurate as w -> 0.
-        safe_w = np.where(small, 1.0, w)
-        seg = np.exp(-w * t0) * -np.expm1(-w * (t1 - t0)) / safe_w
-        seg = np.where(small, (t1 - t0) * np.exp(-w * 0.5 * (t0 + t1)), seg)
-        return np.asarray(seg @ self.levels, dtype=complex)
+        step = max(1, (1 << 20) // t0.size)  # bound the (psi, interval) temporaries
+        for lo in range(0, flat.size, step):
+            w = 2j * np.pi * flat[lo : lo + step, None]
+            small = np.abs(w) * (t1 - t0) < 1e-6
+            # (e^{-w t0} - e^{-w t1}) / w, with expm1 so that it stays accurate as w -> 0.
+            safe_w = np.where(small, 1.0, w)
+            seg = np.exp(-w * t0) * -np.expm1(-w * (t1 - t0)) / safe_w
+            seg = np.where(small, (t1 - t0) * np.exp(-w * 0.5 * (t0 + t1)), seg)
+            out[lo : lo + step] = seg @ self.levels
+        return out.reshape(psi.shape)
 
 
 @dataclass(frozen=True, eq=False)
