@@ -76,7 +76,11 @@ class Section:
         return v
 
     def number(
-        self, k: str, *, above: float | None = None, at_least: float | None = None,
+        self,
+        k: str,
+        *,
+        above: float | None = None,
+        at_least: float | None = None,
         default: Any = _MISSING,
     ) -> float:
         v = self.raw(k, default)
@@ -104,7 +108,9 @@ class Section:
             raise self.fail(k, f"must be true or false; got {v!r}")
         return v
 
-    def numbers(self, k: str, *, length: int | None = None, default: Any = _MISSING) -> tuple[float, ...]:
+    def numbers(
+        self, k: str, *, length: int | None = None, default: Any = _MISSING
+    ) -> tuple[float, ...]:
         v = self.raw(k, default)
         ok = isinstance(v, (list, tuple)) and all(
             isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v

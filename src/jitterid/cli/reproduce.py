@@ -1,0 +1,239 @@
+"""``jitterid reproduce TARGET`` (the paper's tables and figures) and ``jitterid run FILE.toml``."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..experiments import (
+    PAPER_EXPERIMENTS,
+    Experiment,
+    ExperimentError,
+    figures,
+    load_experiment,
+    packaged_path,
+)
+from ..experiments.report import markdown_report
+from ..experiments.runner import run_experiment, store_path
+from ..experiments.store import Store, StoreError
+from . import main
+
+__all__ = ["reproduce", "run"]
+
+FIGURES = ("fig1", "fig2", "fig3", "fig4", "fig5")
+TARGETS = (*PAPER_EXPERIMENTS, *FIGURES, "all")
+
+
+def _default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _common(f: Callable[..., Any]) -> Callable[..., Any]:
+    """The options shared by ``reproduce`` and ``run``."""
+    opts = [
+        click.option(
+            "--runs",
+            type=click.IntRange(min=1),
+            default=None,
+            help="Realizations per case (default: the definition's; the paper's 128).",
+        ),
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            default=None,
+            help="Local worker processes (default: one per CPU); 1 runs in this "
+            "process without Dask. Results do not depend on it.",
+        ),
+        click.option(
+            "--scheduler",
+            metavar="ADDRESS",
+            default=None,
+            help="Send realizations to a running Dask scheduler, e.g. "
+            "tcp://10.0.0.5:8786 (its workers need jitterid installed).",
+        ),
+        click.option(
+            "--out",
+            type=click.Path(file_okay=False, path_type=Path),
+            default=None,
+            help="Output folder for the .sqlite store, .csv, .md reports and .png "
+            "figures (default: out/reproduction or out/<experiment name>).",
+        ),
+        click.option(
+            "--resume",
+            is_flag=True,
+            help="Continue a store that already holds results: run only the "
+            "missing realizations (after a kill, or to add --runs).",
+        ),
+        click.option("--no-progress", is_flag=True, help="Hide the progress bar."),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+@dataclasses.dataclass(frozen=True)
+class _Options:
+    out: Path
+    workers: int
+    scheduler: str | None
+    resume: bool
+    progress: bool
+
+
+def _study(exp: Experiment, opt: _Options, command: str) -> Store:
+    """Run (or finish) ``exp``, write its CSV and Markdown report, return its open store."""
+    try:
+        summary = run_experiment(
+            exp,
+            opt.out,
+            workers=opt.workers,
+            scheduler=opt.scheduler,
+            resume=opt.resume,
+            progress=opt.progress,
+        )
+    except StoreError as exc:
+        raise click.ClickException(str(exc)) from exc
+    except OSError as exc:  # e.g. an unreachable --scheduler
+        raise click.ClickException(f"cannot run {exp.name}: {exc}") from exc
+    store = Store(summary.store, exp, resume=True)
+    estimates = store.estimates(exp.runs)
+    rate = summary.new / summary.wall_s if summary.wall_s > 0 else 0.0
+    where = f"Dask scheduler {opt.scheduler}" if opt.scheduler else f"{opt.workers} worker(s)"
+    note = (
+        f"{summary.new} new realizations in {summary.wall_s:.1f} s on {where}; "
+        f"{summary.already_done} were already stored"
+    )
+    report = opt.out / f"{exp.name}.md"
+    report.write_text(markdown_report(exp, estimates, command, note), encoding="utf-8")
+    csv_path = store.export_csv(opt.out / f"{exp.name}.csv", exp.runs)
+    click.echo(
+        f"{exp.name}: {summary.total} realizations ({summary.already_done} already stored, "
+        f"{summary.new} new, {rate:.2f}/s) -> {summary.store}, {report}, {csv_path}"
+    )
+    return store
+
+
+def _options(
+    out: Path | None,
+    default_out: Path,
+    workers: int | None,
+    scheduler: str | None,
+    resume: bool,
+    no_progress: bool,
+) -> _Options:
+    return _Options(
+        out if out is not None else default_out,
+        workers if workers is not None else _default_workers(),
+        scheduler,
+        resume,
+        not no_progress,
+    )
+
+
+def _command(words: list[str], runs: int, out: Path) -> str:
+    return " ".join(["jitterid", *words, "--runs", str(runs), "--out", str(out)])
+
+
+@main.command()
+@click.argument("target", type=click.Choice(TARGETS))
+@_common
+@click.option(
+    "--print-toml",
+    is_flag=True,
+    help="Print the packaged definition of TARGET (table1-3) to copy and edit, and exit.",
+)
+def reproduce(
+    target: str,
+    runs: int | None,
+    workers: int | None,
+    scheduler: str | None,
+    out: Path | None,
+    resume: bool,
+    no_progress: bool,
+    print_toml: bool,
+) -> None:
+    """Reproduce the paper's Tables 1-3 and Figures 1-5 (TARGET, or 'all').
+
+    Tables are Monte Carlo studies stored in OUT/tableN.sqlite (each realization committed at
+    once), exported to OUT/tableN.csv and reported with the paper's numbers side by side in
+    OUT/tableN.md. Figure 5 uses the Table 2 results (and runs Table 2 if they are missing).
+    """
+    if print_toml:
+        if target not in PAPER_EXPERIMENTS:
+            raise click.UsageError("--print-toml needs a table target (table1, table2, table3)")
+        click.echo(packaged_path(target).read_text(encoding="utf-8"), nl=False)
+        return
+    opt = _options(out, Path("out/reproduction"), workers, scheduler, resume, no_progress)
+    todo = [*PAPER_EXPERIMENTS, *FIGURES] if target == "all" else [target]
+    for item in todo:
+        if item in PAPER_EXPERIMENTS:
+            exp = _packaged(item, runs)
+            _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
+        elif item == "fig5":
+            exp = _packaged("table2", runs)
+            with _table2_results(exp, opt, target) as store:
+                path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
+            click.echo(f"fig5 -> {path}")
+        else:
+            click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
+    if any(t in FIGURES for t in todo):
+        _write_figure_index(opt.out)
+
+
+def _packaged(name: str, runs: int | None) -> Experiment:
+    exp = load_experiment(packaged_path(name))
+    return dataclasses.replace(exp, runs=runs) if runs is not None else exp
+
+
+def _table2_results(exp: Experiment, opt: _Options, target: str) -> Store:
+    """The Table 2 store in OUT, running or finishing Table 2 first if needed."""
+    path = store_path(exp, opt.out)
+    if path.exists():
+        with Store(path, exp, resume=True) as store:
+            done = store.done()
+        if all((c.name, r) in done for c in exp.cases for r in range(exp.runs)):
+            return Store(path, exp, resume=True)
+    return _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out))
+
+
+def _write_figure_index(out: Path) -> None:
+    lines = ["# Figures 1-5 of Eng & Gustafsson, reproduced", ""]
+    for name in FIGURES:
+        if (out / f"{name}.png").exists():
+            lines += [f"![{name}]({name}.png)", "", figures.CAPTIONS[name], ""]
+    (out / "figures.md").write_text("\n".join(lines), encoding="utf-8")
+
+
+@main.command()
+@click.argument("experiment", type=click.Path(dir_okay=False, path_type=Path))
+@_common
+def run(
+    experiment: Path,
+    runs: int | None,
+    workers: int | None,
+    scheduler: str | None,
+    out: Path | None,
+    resume: bool,
+    no_progress: bool,
+) -> None:
+    """Run the Monte Carlo study defined in EXPERIMENT (a TOML file).
+
+    Start from a packaged definition: `jitterid reproduce table2 --print-toml > my.toml`.
+    The file is checked completely before any work starts.
+    """
+    try:
+        exp = load_experiment(experiment)
+    except ExperimentError as exc:
+        raise click.ClickException(str(exc)) from exc
+    if runs is not None:
+        exp = dataclasses.replace(exp, runs=runs)
+    opt = _options(out, Path("out") / exp.name, workers, scheduler, resume, no_progress)
+    _study(exp, opt, _command(["run", str(experiment)], exp.runs, opt.out)).close()

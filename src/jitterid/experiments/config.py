@@ -1,0 +1,193 @@
+"""Monte Carlo experiment definitions: TOML files validated into an :class:`Experiment`.
+
+A definition names the true system and the model structure, the jitter law of every case,
+the input, T, N, the noise, the estimators, the number of realizations and the seed. The
+paper's three experiments ship as ``table1.toml``, ``table2.toml`` and ``table3.toml``
+(:func:`packaged_path`); copy one and edit it for a study of your own. Every key is
+checked when the file is loaded, and the library objects are built once, so a typo or a
+bad value fails at once with an :class:`ExperimentError` naming the key, before any work.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..distributions import (
+    Gaussian,
+    GaussianFamily,
+    JitterFamily,
+    JitterLaw,
+    NoJitter,
+    SumOfUniforms,
+    SumOfUniformsFamily,
+    Uniform,
+    UniformFamily,
+)
+from ..inputs import Input, Multisine, telegraph_input
+from ..models import TransferFunction
+from ..structures import ModelStructure, PolePairGain, RationalModel
+from ._schema import ExperimentError
+
+__all__ = [
+    "PAPER_EXPERIMENTS",
+    "Case",
+    "Experiment",
+    "ExperimentError",
+    "InputSpec",
+    "LawSpec",
+    "SystemSpec",
+    "packaged_path",
+]
+
+PAPER_EXPERIMENTS = ("table1", "table2", "table3")
+# law kind -> (class, parameter names); family kind -> (class, option names)
+LAWS: dict[str, tuple[Any, tuple[str, ...]]] = {
+    "uniform": (Uniform, ("a",)),
+    "gaussian": (Gaussian, ("sigma",)),
+    "sum_of_uniforms": (SumOfUniforms, ("n", "a")),
+    "none": (NoJitter, ()),
+}
+FAMILIES: dict[str, tuple[Any, tuple[str, ...]]] = {
+    "uniform": (UniformFamily, ("a_max", "a_min")),
+    "gaussian": (GaussianFamily, ("sigma_max", "sigma_min")),
+    "sum_of_uniforms": (SumOfUniformsFamily, ("n_max", "a_max", "a_min")),
+}
+Pairs = tuple[tuple[str, float], ...]
+
+
+@dataclass(frozen=True)
+class LawSpec:
+    """A jitter law by kind and parameters, e.g. ``sum_of_uniforms`` with n = 2, a = 0.5."""
+
+    kind: str
+    params: Pairs
+
+    def build(self) -> JitterLaw:
+        cls, _ = LAWS[self.kind]
+        return cls(**dict(self.params))
+
+
+@dataclass(frozen=True)
+class Case:
+    """One true jitter law of an experiment; ``paper_case`` is its block in the paper's table."""
+
+    name: str
+    law: LawSpec
+    paper_case: int | None = None
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """The known input of every realization, drawn anew for each (telegraph) or fixed."""
+
+    kind: str
+    margin: float
+    levels: tuple[float, ...] = (-0.5, 0.5)
+    mean_hold: float = 1.0
+    freqs: tuple[float, ...] = ()
+    amplitudes: tuple[float, ...] = ()
+    phases: tuple[float, ...] | None = None
+    steady_state: bool = False
+
+    def build(self, duration: float, rng: np.random.Generator) -> Input:
+        """The input on [0, duration) (a telegraph input draws from ``rng``)."""
+        if self.kind == "telegraph":
+            lo, hi = self.levels
+            return telegraph_input(duration, rng, levels=(lo, hi), mean_hold=self.mean_hold)
+        phases = None if self.phases is None else np.asarray(self.phases)
+        return Multisine(
+            np.asarray(self.freqs),
+            np.asarray(self.amplitudes),
+            duration,
+            phases=phases,
+            steady_state=self.steady_state,
+        )
+
+
+@dataclass(frozen=True)
+class SystemSpec:
+    """The true system and the model structure fitted to the data."""
+
+    structure: str
+    truth: Pairs = ()
+    num: tuple[float, ...] = ()
+    den: tuple[float, ...] = ()
+    num_order: int = 0
+    den_order: int = 0
+
+    def model(self) -> ModelStructure | TransferFunction:
+        """The structure passed to :func:`jitterid.fit` (a known TransferFunction for 'known')."""
+        if self.structure == "known":
+            return TransferFunction(np.asarray(self.num), np.asarray(self.den))
+        if self.structure == "pole_pair":
+            return PolePairGain()
+        return RationalModel(self.num_order, self.den_order)
+
+    def true_system(self) -> TransferFunction:
+        model = self.model()
+        if isinstance(model, TransferFunction):
+            return model
+        return model.system([v for _, v in self.truth])
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated Monte Carlo experiment (see the module docstring and the packaged TOMLs)."""
+
+    name: str
+    title: str
+    runs: int
+    seed: int
+    T: float
+    N: int
+    noise_std: float
+    noise_known: bool
+    input: InputSpec
+    system: SystemSpec
+    jitter_model: str
+    jitter_options: Pairs
+    cases: tuple[Case, ...]
+    methods: tuple[str, ...]
+    paper_table: int | None = None
+    paper_labels: tuple[tuple[str, str], ...] = ()
+    description: str = field(default="", compare=False)
+    source: str = field(default="", compare=False)
+
+    def estimation_jitter(self, case: Case) -> JitterLaw | JitterFamily:
+        """What the estimators are told about the jitter: the true law, or the free family."""
+        if self.jitter_model == "known":
+            return case.law.build()
+        cls, _ = FAMILIES[self.jitter_model]
+        return cls(**dict(self.jitter_options))
+
+    @property
+    def duration(self) -> float:
+        """Length of each realization's input: N T + ``input.margin``."""
+        return self.N * self.T + self.input.margin
+
+    def label(self, method: str) -> str:
+        """The paper's name for ``method`` (``asml-diag`` -> AsML), else ``method`` itself."""
+        return dict(self.paper_labels).get(method, method)
+
+    def fingerprint(self) -> str:
+        """Hash of everything that decides the numbers (not runs, titles or paper labels)."""
+        core = dataclasses.replace(
+            self, runs=0, title="", paper_table=None, paper_labels=(), description="", source=""
+        )
+        text = json.dumps(dataclasses.asdict(core), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def packaged_path(name: str) -> Path:
+    """Path of a packaged experiment definition (``table1``, ``table2``, ``table3``)."""
+    if name not in PAPER_EXPERIMENTS:
+        raise ValueError(f"name must be one of {', '.join(PAPER_EXPERIMENTS)}; got {name!r}")
+    return Path(str(resources.files("jitterid.experiments") / "data" / f"{name}.toml"))

@@ -1,0 +1,272 @@
+"""Reading TOML experiment definitions: every key checked, every library object built once.
+
+A typo or a bad value fails at once with an :class:`ExperimentError` naming the file and
+the dotted key (``table2.toml: sampling.N must be an integer >= 4; got 0``), before any
+work starts. Methods are checked against :data:`jitterid.criteria.METHODS` when the file
+is loaded, so a method added to the library is accepted without a change here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import re
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import criteria
+from ._schema import ExperimentError, Section
+from .config import (
+    FAMILIES,
+    LAWS,
+    Case,
+    Experiment,
+    InputSpec,
+    LawSpec,
+    Pairs,
+    SystemSpec,
+)
+
+__all__ = ["load_experiment", "parse_experiment"]
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+def load_experiment(path: str | Path) -> Experiment:
+    """Read and validate a TOML experiment definition.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+
+    Returns
+    -------
+    Experiment
+
+    Raises
+    ------
+    ExperimentError
+        On a TOML syntax error, an unknown or missing key or a bad value; the message names
+        the file and the key.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ExperimentError(f"experiment file {str(p)!r} does not exist; check the path")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ExperimentError(f"{p.name}: not valid TOML: {exc}") from exc
+    return parse_experiment(data, source=p.name)
+
+
+def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Experiment:
+    """Validate a parsed TOML document (see :func:`load_experiment`)."""
+    top = Section(
+        data,
+        "",
+        source,
+        ("experiment", "sampling", "input", "system", "jitter", "cases", "estimators", "paper"),
+    )
+    ex = top.table("experiment", ("name", "title", "description", "runs", "seed"))
+    name = ex.text("name")
+    if not _NAME.match(name):
+        raise ex.fail(
+            "name", f"must be letters, digits, '_', '-' or '.' (a file name); got {name!r}"
+        )
+    sa = top.table("sampling", ("T", "N", "noise_std", "noise_known"))
+    T, N = sa.number("T", above=0), sa.integer("N", minimum=4)
+    system = _system(
+        top.table("system", ("structure", "truth", "num", "den", "num_order", "den_order"))
+    )
+    jit = top.table("jitter", ("model", *{k for _, ks in FAMILIES.values() for k in ks}))
+    jitter_model, jitter_options = _jitter_model(jit)
+    cases = tuple(_case(c) for c in top.tables("cases", ("name", "law", "paper_case")))
+    if len({c.name for c in cases}) != len(cases):
+        raise top.fail("cases", "must have distinct names")
+    est = top.table("estimators", ("methods",))
+    methods = _methods(est, jitter_model, system)
+    paper_table, labels = _paper(top, methods)
+    exp = Experiment(
+        name=name,
+        title=ex.text("title", default=name),
+        description=_description(ex),
+        runs=ex.integer("runs", minimum=1),
+        seed=ex.integer("seed", minimum=0),
+        T=T,
+        N=N,
+        noise_std=sa.number("noise_std", at_least=0),
+        noise_known=sa.flag("noise_known", default=True),
+        input=_input(
+            top.table(
+                "input",
+                (
+                    "kind",
+                    "margin",
+                    "levels",
+                    "mean_hold",
+                    "freqs",
+                    "amplitudes",
+                    "phases",
+                    "steady_state",
+                ),
+            )
+        ),
+        system=system,
+        jitter_model=jitter_model,
+        jitter_options=jitter_options,
+        cases=cases,
+        methods=methods,
+        paper_table=paper_table,
+        paper_labels=labels,
+        source=source,
+    )
+    _check_coverage(exp, top)
+    return exp
+
+
+def _description(sec: Section) -> str:
+    text = sec.raw("description", "")
+    if not isinstance(text, str):
+        raise sec.fail("description", f"must be a string; got {text!r}")
+    return text
+
+
+def _system(sec: Section) -> SystemSpec:
+    kind = sec.text("structure", choices=("known", "pole_pair", "rational"))
+    if kind == "known":
+        spec = SystemSpec(kind, num=sec.numbers("num"), den=sec.numbers("den"))
+        for k in ("truth", "num_order", "den_order"):
+            if sec.has(k):
+                raise sec.fail(k, "is not used by structure 'known' (give num and den); remove it")
+    else:
+        for k in ("num", "den"):
+            if sec.has(k):
+                raise sec.fail(k, f"is not used by structure '{kind}' (give truth); remove it")
+        orders = {}
+        if kind == "rational":
+            orders = {
+                "num_order": sec.integer("num_order", minimum=0),
+                "den_order": sec.integer("den_order", minimum=1),
+            }
+        spec = SystemSpec(kind, **orders)  # type: ignore[arg-type]
+        names = _built(sec, "structure", spec.model).param_names
+        truth = sec.table("truth", names)
+        spec = dataclasses.replace(spec, truth=tuple((n, truth.number(n)) for n in names))
+    _built(sec, "truth" if spec.truth else "den", spec.true_system)
+    return spec
+
+
+def _jitter_model(sec: Section) -> tuple[str, Pairs]:
+    model = sec.text("model", choices=("known", *FAMILIES))
+    allowed = FAMILIES[model][1] if model != "known" else ()
+    for k in sec.data:
+        if k != "model" and k not in allowed:
+            raise sec.fail(
+                k,
+                f"is not an option of jitter model '{model}' (options: "
+                f"{', '.join(allowed) or 'none'}); remove it",
+            )
+    opts = tuple((k, sec.number(k, above=0)) for k in allowed if sec.has(k))
+    if model != "known":
+        _built(sec, "model", lambda: FAMILIES[model][0](**dict(opts)))
+    return model, opts
+
+
+def _case(sec: Section) -> Case:
+    name = sec.text("name")
+    if not _NAME.match(name):
+        raise sec.fail("name", f"must be letters, digits, '_', '-' or '.'; got {name!r}")
+    raw = sec.raw("law")
+    kind = Section(
+        raw, sec.key("law"), sec.source, ("kind", *{p for _, ps in LAWS.values() for p in ps})
+    ).text("kind", choices=LAWS)
+    law_sec = Section(raw, sec.key("law"), sec.source, ("kind", *LAWS[kind][1]))
+    spec = LawSpec(kind, tuple((p, law_sec.number(p, at_least=0)) for p in LAWS[kind][1]))
+    _built(law_sec, "kind", spec.build)
+    paper = sec.integer("paper_case", minimum=1) if sec.has("paper_case") else None
+    return Case(name, spec, paper)
+
+
+def _methods(sec: Section, jitter_model: str, system: SystemSpec) -> tuple[str, ...]:
+    methods = sec.texts("methods")
+    for i, m in enumerate(methods):
+        if m not in criteria.METHODS:
+            close = difflib.get_close_matches(m, criteria.METHODS, n=1, cutoff=0.5)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise sec.fail(
+                f"methods[{i}]",
+                f"is {m!r}, not a method{hint}; choose from {', '.join(criteria.METHODS)}",
+            )
+    if len(set(methods)) != len(methods):
+        raise sec.fail("methods", f"lists a method twice: {methods}")
+    if "ls" in methods and jitter_model != "known":
+        raise sec.fail(
+            "methods",
+            "includes 'ls', which ignores the jitter and cannot estimate "
+            "a jitter family; remove it or set jitter.model = 'known'",
+        )
+    if "ls" in methods and system.structure == "known":
+        raise sec.fail(
+            "methods",
+            "includes 'ls', which has nothing to estimate when the system "
+            "is known and the jitter is known; remove it",
+        )
+    return methods
+
+
+def _paper(
+    top: Section, methods: tuple[str, ...]
+) -> tuple[int | None, tuple[tuple[str, str], ...]]:
+    if not top.has("paper"):
+        return None, ()
+    sec = top.table("paper", ("table", "estimators"))
+    table = sec.integer("table", minimum=1)
+    est = sec.table("estimators", methods, default={})
+    return table, tuple((m, est.text(m)) for m in methods if est.has(m))
+
+
+def _input(sec: Section) -> InputSpec:
+    kind = sec.text("kind", choices=("telegraph", "multisine"))
+    margin = sec.number("margin", above=0, default=2.0)
+    if kind == "telegraph":
+        levels = sec.numbers("levels", length=2, default=[-0.5, 0.5])
+        return InputSpec(
+            kind, margin, levels=levels, mean_hold=sec.number("mean_hold", above=0, default=1.0)
+        )
+    freqs = sec.numbers("freqs")
+    amps = sec.numbers("amplitudes", length=len(freqs))
+    phases = sec.numbers("phases", length=len(freqs)) if sec.has("phases") else None
+    spec = InputSpec(
+        kind,
+        margin,
+        freqs=freqs,
+        amplitudes=amps,
+        phases=phases,
+        steady_state=sec.flag("steady_state", default=False),
+    )
+    _built(sec, "freqs", lambda: spec.build(10.0, np.random.default_rng(0)))
+    return spec
+
+
+def _check_coverage(exp: Experiment, top: Section) -> None:
+    """The input must last past the last jittered instant (N-1) T + max tau of every case."""
+    for case in exp.cases:
+        hi = case.law.build().support[1]
+        if (exp.N - 1) * exp.T + hi >= exp.duration:
+            raise top.fail(
+                "input.margin",
+                f"= {exp.input.margin:g} is too short for case "
+                f"'{case.name}' (jitter up to {hi:g} s): it must exceed {hi - exp.T:g}",
+            )
+
+
+def _built(sec: Section, key: str, make: Any) -> Any:
+    """Build a library object, turning its own error into one that names ``key``."""
+    try:
+        return make()
+    except (ValueError, TypeError) as exc:
+        raise sec.fail(key, f"gives an invalid model: {exc}") from exc

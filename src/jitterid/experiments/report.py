@@ -1,0 +1,234 @@
+"""Monte Carlo summaries and Markdown reports, with the paper's numbers side by side.
+
+For every case, estimator and parameter the report gives the mean, the standard deviation
+and the standard error of the mean (SEM = std / sqrt(n)) over the converged fits, the
+paper's mean and std where it has them (``data/paper_tables.csv``, transcribed from the
+paper), and flags every difference beyond Monte Carlo error: |z| > 3, where z divides the
+difference by the combined standard errors of both studies (the paper's: its std / sqrt(128)
+for a mean, std / sqrt(2 * 127) for a std, the latter exact only for normal estimates).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+
+import numpy as np
+
+from .config import Case, Experiment
+from .store import Estimate
+
+__all__ = ["Stat", "Summary", "markdown_report", "paper_numbers", "summarize", "true_values"]
+
+PAPER_RUNS = 128
+Z_FLAG = 3.0
+
+
+@dataclass(frozen=True)
+class Stat:
+    """Sample statistics of one parameter over n converged fits."""
+
+    n: int
+    mean: float
+    std: float
+
+    @property
+    def sem(self) -> float:
+        return self.std / math.sqrt(self.n) if self.n > 0 else math.nan
+
+    @classmethod
+    def of(cls, values: Sequence[float]) -> Stat:
+        v = np.asarray(values, dtype=float)
+        if v.size == 0:
+            return cls(0, math.nan, math.nan)
+        return cls(int(v.size), float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else math.nan)
+
+
+@dataclass(frozen=True)
+class Summary:
+    """One estimator on one case: statistics per parameter and how the fits ended."""
+
+    stats: dict[str, Stat]
+    total: int
+    converged: int
+    errors: int
+    median_fit_s: float
+
+
+def _values(e: Estimate, family: bool) -> dict[str, float]:
+    return {**e.params, "sigma": e.jitter_std} if family else dict(e.params)
+
+
+def summarize(exp: Experiment, estimates: Sequence[Estimate]) -> dict[tuple[str, str], Summary]:
+    """Statistics per (case name, method) over the converged fits (``success``)."""
+    family = exp.jitter_model != "known"
+    out = {}
+    for case in exp.cases:
+        for m in exp.methods:
+            rows = [e for e in estimates if e.case_name == case.name and e.method == m]
+            ok = [_values(e, family) for e in rows if e.success]
+            names = list(ok[0]) if ok else []
+            out[case.name, m] = Summary(
+                stats={p: Stat.of([v[p] for v in ok]) for p in names},
+                total=len(rows),
+                converged=len(ok),
+                errors=sum(e.status == "ERROR" for e in rows),
+                median_fit_s=float(np.median([e.elapsed_s for e in rows])) if rows else math.nan,
+            )
+    return out
+
+
+def true_values(exp: Experiment, case: Case) -> dict[str, float]:
+    """theta0 of a case: the system's truth, and for a free jitter family its true
+    parameters (when the true law is a member) and sigma."""
+    truth = dict(exp.system.truth)
+    if exp.jitter_model == "known":
+        return truth
+    law = case.law.build()
+    jitter = dict(case.law.params) if case.law.kind == exp.jitter_model else {}
+    return {**jitter, **truth, "sigma": float(law.std)}
+
+
+@cache
+def _paper_rows() -> tuple[tuple[int, int, str, str, str, float], ...]:
+    text = (resources.files("jitterid.experiments") / "data" / "paper_tables.csv").read_text()
+    lines = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
+    return tuple(
+        (
+            int(r["table"]),
+            int(r["case"]),
+            r["estimator"],
+            r["statistic"],
+            r["parameter"],
+            float(r["value"]),
+        )
+        for r in csv.DictReader(lines)
+    )
+
+
+def paper_numbers(table: int) -> dict[tuple[int, str, str, str], float]:
+    """The paper's numbers of one table: ``{(case, estimator, statistic, parameter): value}``
+    with statistic ``mean`` or ``std`` (estimator ``-``, statistic ``true`` for theta0)."""
+    return {(c, e, s, p): v for t, c, e, s, p, v in _paper_rows() if t == table}
+
+
+def _z(a: float, b: float, se_a: float, se_b: float) -> float:
+    se = math.hypot(se_a, 0.0 if math.isnan(se_b) else se_b)
+    return (a - b) / se if se > 0 else math.nan
+
+
+def _fmt(x: float | None) -> str:
+    return "—" if x is None or math.isnan(x) else f"{x:.4f}"
+
+
+def _case_block(exp: Experiment, case: Case, summ: dict[tuple[str, str], Summary]) -> list[str]:
+    paper = paper_numbers(exp.paper_table) if exp.paper_table and case.paper_case else {}
+    truth = true_values(exp, case)
+    names: list[str] = []
+    for m in exp.methods:
+        names += [p for p in summ[case.name, m].stats if p not in names]
+    ref = f" (paper case {case.paper_case})" if case.paper_case and exp.paper_table else ""
+    law = case.law.build()
+    lines = [
+        f"### Case `{case.name}`{ref}",
+        "",
+        f"True jitter law: {law}.",
+        "",
+        "| estimator | statistic | " + " | ".join(names) + " |",
+        "|---|---|" + "---:|" * len(names),
+        "| θ⁰ | true | " + " | ".join(_fmt(truth.get(p)) for p in names) + " |",
+    ]
+    flags: list[str] = []
+    for m in exp.methods:
+        s, label = summ[case.name, m], exp.label(m)
+        key = (case.paper_case or 0, label)
+        pm = {p: paper.get((*key, "mean", p)) for p in names}
+        ps = {p: paper.get((*key, "std", p)) for p in names}
+        cells_m, cells_s, cells_b = [], [], []
+        for p in names:
+            st = s.stats.get(p, Stat(0, math.nan, math.nan))
+            cm, cs = f"{_fmt(st.mean)} ± {_fmt(st.sem)}", _fmt(st.std)
+            if pm[p] is not None:
+                psem = (ps[p] or math.nan) / math.sqrt(PAPER_RUNS)
+                z = _z(st.mean, pm[p], st.sem, psem)  # type: ignore[arg-type]
+                if abs(z) > Z_FLAG:
+                    cm, flags = f"**{cm}** ⚑", [*flags, f"{label} mean of {p}: z = {z:+.1f}"]
+            if ps[p] is not None and st.n > 1:
+                se_s = st.std / math.sqrt(2 * (st.n - 1))
+                z = _z(st.std, ps[p], se_s, ps[p] / math.sqrt(2 * (PAPER_RUNS - 1)))  # type: ignore[arg-type, operator]
+                if abs(z) > Z_FLAG:
+                    cs, flags = f"**{cs}** ⚑", [*flags, f"{label} std of {p}: z = {z:+.1f}"]
+            cells_m.append(cm)
+            cells_s.append(cs)
+            tv = truth.get(p)
+            cells_b.append(
+                f"{(st.mean - tv) / st.sem:+.1f}" if tv is not None and st.sem > 0 else "—"
+            )
+        name = f"{label} (`{m}`)" if label != m else f"`{m}`"
+        if paper:
+            lines.append(
+                f"| {name} | mean, paper | " + " | ".join(_fmt(pm[p]) for p in names) + " |"
+            )
+        lines.append(f"| {name} | mean ± SEM, here | " + " | ".join(cells_m) + " |")
+        if paper:
+            lines.append(
+                f"| {name} | std, paper | " + " | ".join(_fmt(ps[p]) for p in names) + " |"
+            )
+        lines.append(f"| {name} | std, here | " + " | ".join(cells_s) + " |")
+        lines.append(f"| {name} | (mean − θ⁰) / SEM, here | " + " | ".join(cells_b) + " |")
+    lines += [
+        "",
+        "| estimator | converged / run | errors | median fit time (s) |",
+        "|---|---:|---:|---:|",
+    ]
+    for m in exp.methods:
+        s = summ[case.name, m]
+        lines.append(
+            f"| {exp.label(m)} | {s.converged} / {s.total} | {s.errors} | {s.median_fit_s:.2f} |"
+        )
+    if flags:
+        lines += [
+            "",
+            "Beyond Monte Carlo error (|z| > 3) against the paper: " + "; ".join(flags) + ".",
+        ]
+    elif paper:
+        lines += ["", "No difference from the paper beyond Monte Carlo error (|z| > 3)."]
+    return [*lines, ""]
+
+
+def markdown_report(
+    exp: Experiment, estimates: Sequence[Estimate], command: str, wall_note: str = ""
+) -> str:
+    """The Markdown report of one experiment (see the module docstring)."""
+    summ = summarize(exp, estimates)
+    methods = ", ".join(
+        f"{exp.label(m)} (`{m}`)" if exp.label(m) != m else f"`{m}`" for m in exp.methods
+    )
+    lines = [
+        f"# {exp.title}",
+        "",
+        f"Generated by `{command}`" + (f" ({wall_note})" if wall_note else "") + ".",
+        "",
+        exp.description.strip(),
+        "",
+        (
+            f"- Settings: T = {exp.T:g} s, N = {exp.N}, noise std {exp.noise_std:g}"
+            f" ({'known' if exp.noise_known else 'estimated'}), input `{exp.input.kind}`, "
+            f"{exp.runs} realizations per case, seed {exp.seed}."
+        ),
+        f"- Estimators: {methods}.",
+        f"- Jitter model: `{exp.jitter_model}` {dict(exp.jitter_options) or ''}".rstrip() + ".",
+        (
+            "- Statistics over the converged fits; SEM = std/√n. ⚑ marks a difference from the "
+            "paper beyond Monte Carlo error (|z| > 3 with both studies' standard errors; the paper "
+            "used 128 realizations). The last row of each estimator is the bias in SEMs."
+        ),
+        "",
+    ]
+    for case in exp.cases:
+        lines += _case_block(exp, case, summ)
+    return "\n".join(lines).rstrip() + "\n"
