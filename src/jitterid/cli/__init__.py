@@ -17,3 +17,4 @@ def main() -> None:
 
 
 # Command modules register themselves on ``main`` when imported (one line each below).
+from . import reproduce as _reproduce  # noqa: E402,F401
