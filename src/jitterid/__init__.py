@@ -7,6 +7,21 @@ criterion. Frequencies are in Hz throughout.
 """
 
 from .criteria import default_frequencies
+from .diagnostics import (
+    BodeBand,
+    JitterDetection,
+    PdfBand,
+    ResidualTest,
+    bias_frequency,
+    bode_band,
+    detect_jitter,
+    input_correlation_test,
+    jitter_pdf_band,
+    ljung_box,
+    ls_gain_factor,
+    model_output,
+    standardized_residuals,
+)
 from .distributions import (
     CustomJitter,
     Gaussian,
@@ -21,12 +36,15 @@ from .distributions import (
 )
 from .estimate import fit
 from .inputs import Input, Multisine, PiecewiseConstant, telegraph_input, zoh_input
+from .io import DataFileError, Dataset, Source, load, save_data, save_input
+from .likelihood import ExactLikelihood, crb, gaussian_bound, log_density
 from .models import Response, TransferFunction
 from .moments import SampleMoments, dft_covariance, dft_pseudo_covariance, expected_dft, sample_moments
 from .result import FitResult, FitStatus
 from .simulate import SampledData, simulate
 from .spectral import dirichlet, dtft
 from .structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
+from .uncertainty import MagnitudeBand, magnitude_band
 
 __version__ = "0.1.0"
 
@@ -65,4 +83,37 @@ __all__ = [
     "simulate",
     "telegraph_input",
     "zoh_input",
+]
+
+# Data files and diagnostics (issue 5).
+__all__ += [
+    "BodeBand",
+    "DataFileError",
+    "Dataset",
+    "JitterDetection",
+    "PdfBand",
+    "ResidualTest",
+    "Source",
+    "bias_frequency",
+    "bode_band",
+    "detect_jitter",
+    "input_correlation_test",
+    "jitter_pdf_band",
+    "ljung_box",
+    "load",
+    "ls_gain_factor",
+    "model_output",
+    "save_data",
+    "save_input",
+    "standardized_residuals",
+]
+
+# Exact likelihood, Cramer-Rao bound and confidence bands (issue 4).
+__all__ += [
+    "ExactLikelihood",
+    "MagnitudeBand",
+    "crb",
+    "gaussian_bound",
+    "log_density",
+    "magnitude_band",
 ]

@@ -12,6 +12,7 @@ method         criterion                                                        
 ``asml``       (Y - mu)^H R^{-1} (Y - mu) + ln det R                                 (22)
 ``asml-diag``  sum_f |Y - mu|^2 / R(f, f) + ln R(f, f)                               (23)
 ``gaussian``   sum_k (y_k - m_k)^2 / w_k + ln w_k: the exact real Gaussian criterion  notes 3
+``ml``         -2 sum_k ln p(y_k | theta): the exact likelihood (:mod:`.likelihood`)   notes 4
 =============  ====================================================================  =========
 
 The parameter vector is ordered: jitter-family parameters (if the law is free), then the
@@ -29,6 +30,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from .distributions import JitterFamily, JitterLaw, NoJitter
+from .likelihood import ExactLikelihood
 from .models import TransferFunction
 from .moments import SampleMoments, covariance_from_variances, sample_moments
 from .simulate import SampledData
@@ -40,12 +42,12 @@ __all__ = ["METHODS", "Problem", "default_frequencies"]
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
-METHODS = ("ls", "bcls", "wbcls", "asml", "asml-diag", "gaussian")
+METHODS = ("ls", "bcls", "wbcls", "asml", "asml-diag", "gaussian", "ml")
 LEAST_SQUARES = ("ls", "bcls", "wbcls")
 # Methods whose criterion needs the measurement-noise variance.
-NEEDS_NOISE = ("wbcls", "asml", "asml-diag", "gaussian")
+NEEDS_NOISE = ("wbcls", "asml", "asml-diag", "gaussian", "ml")
 # Of those, the ones that can estimate it (a ln det term makes it identifiable).
-ESTIMATES_NOISE = ("asml", "asml-diag", "gaussian")
+ESTIMATES_NOISE = ("asml", "asml-diag", "gaussian", "ml")
 
 
 def default_frequencies(N: int, T: float) -> FloatArray:
@@ -76,6 +78,7 @@ class Problem:
     names: tuple[str, ...] = field(init=False)
     bounds: tuple[tuple[float, float], ...] = field(init=False)
     Y: ComplexArray = field(init=False)
+    likelihood: ExactLikelihood | None = field(init=False, default=None)
     _cache: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -90,6 +93,10 @@ class Problem:
             bounds += ((1e-12, np.inf),)
         self.names, self.bounds = names, bounds
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
+        if self.method == "ml":
+            d = self.data
+            noise = None if self.estimates_noise else self.noise_std
+            self.likelihood = ExactLikelihood(self.structure, self.jitter, d.u, d.T, d.N, noise)
 
     @property
     def estimates_noise(self) -> bool:
@@ -153,6 +160,9 @@ class Problem:
             w = self.variances(x)
             e = self.data.y - self.moments(x).mean
             return float(np.sum(e * e / w + np.log(w)))
+        if m == "ml":
+            assert self.likelihood is not None
+            return -2 * self.likelihood.loglik(x, self.data.y)
         r, chol = self._weighted(x)
         if m == "asml":
             assert chol is not None
@@ -167,6 +177,9 @@ class Problem:
         d, m = self.data, self.method
         if m == "gaussian":
             return 2 * (d.y - self.moments(x).mean) / self.variances(x)
+        if m == "ml":
+            assert self.likelihood is not None
+            return -2 * self.likelihood.dlogpdf_dy(x, d.y)
         r, chol = self._weighted(x)
         if chol is not None:
             r = cho_solve(chol, r)

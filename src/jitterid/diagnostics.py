@@ -152,7 +152,7 @@ class JitterDetection:
             f"p = {self.pvalue:.3g}\n"
             f"  implied jitter std {self.jitter_std:.4g} s, {pct}% interval "
             f"[{lo:.4g}, {hi:.4g}] s (first-order approximation)\n"
-            f"  implied noise std {self.noise_std:.4g}"
+            f"  residual std at zero slope {self.noise_std:.4g} (the noise std if that holds)"
         )
 
     def __str__(self) -> str:
@@ -180,13 +180,19 @@ def detect_jitter(
     Notes
     -----
     Under H0 (no jitter, white noise) the squared residuals are homoscedastic, so the
-    classical OLS t test of the slope coefficient is valid (asymptotically, whatever the
-    noise distribution). The implied std uses the first-order expansion
-    Var s(kT + tau) ~ s'(kT)^2 sigma_tau^2, and the ordinary fit is itself biased by the
-    jitter, so it is accurate for small jitter (sigma_tau times the fastest pole well below
-    1) and biased low by about 10 % at the paper's largest level (U(-T/2, T/2), pole 2.5 rad/s);
-    fit a jitter family for an accurate std. The model must be right: an under-modelled
-    system leaves slope-correlated residuals that also raise the statistic.
+    classical OLS t test of the slope coefficient is valid asymptotically, whatever the
+    noise distribution. Measured in the paper's setting (N = 200, 4000 data sets, ordinary
+    fits): false-alarm rate 5.9 % +- 0.4 % at nominal 5 % and 1.2 % at nominal 1 %, slightly
+    liberal because squared residuals and squared slopes are both right-skewed; power 1.00 at
+    the paper's jitter levels (std 0.096 to 0.289 s) and 0.97-0.99 at std 0.012 s.
+
+    The implied std uses the first-order expansion Var s(kT + tau) ~ s'(kT)^2 sigma_tau^2,
+    and the ordinary fit is itself biased by the jitter, so it reads low: by about 3 % for
+    small jitter and 8 % for U(-0.5, 0.5) with this system (fastest pole 2.5 rad/s), and its
+    interval under-covers (measured 88 % at nominal 95 % for small jitter, 73 % for
+    U(-0.5, 0.5)). Fit a jitter family for an accurate std with a calibrated interval. The
+    model must be right: an under-modelled system leaves slope-correlated residuals that
+    also raise the statistic.
     """
     level = _level(level)
     s, slope = model_output(model, data)
@@ -218,7 +224,7 @@ def detect_jitter(
         jitter_std=float(np.sqrt(max(coef[1], 0.0))),
         jitter_std_ci=(float(np.sqrt(max(lo, 0.0))), float(np.sqrt(max(hi, 0.0)))),
         noise_std=float(np.sqrt(max(coef[0], 0.0))),
-        coef=coef,
+        coef=np.asarray(coef, dtype=float),
         level=level,
         t=data.t_nominal,
         residuals=r,
@@ -363,8 +369,10 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
     """(y_k - E y_k) / sqrt(Var y_k) under the fitted system, jitter law and noise.
 
     E y_k = E s(kT + tau) and Var y_k = Var s(kT + tau) + sigma_v^2 with tau from
-    ``result.jitter``. If the fit has no noise std (``result.noise_std == 0``), sigma_v^2 is
-    estimated as mean(r_k^2 - Var s(kT + tau)) (floored at a tiny positive value).
+    ``result.jitter``. If the fit has no noise std (``result.noise_std == 0``, e.g. ``bcls``
+    without one), sigma_v^2 is its maximum-likelihood value given the residuals r_k and the
+    jitter variances (a 1-D search), so that samples where the output is flat and the jitter
+    variance vanishes are not divided by ~0.
 
     Parameters
     ----------
@@ -384,8 +392,23 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
     r = data.y - mom.mean
     noise_var = result.noise_std**2
     if noise_var <= 0:
-        noise_var = max(float(np.mean(r**2 - mom.var)), 1e-12 * float(np.mean(r**2)), 1e-300)
+        noise_var = _ml_noise_variance(r, mom.var)
     return np.asarray(r / np.sqrt(mom.var + noise_var), dtype=float)
+
+
+def _ml_noise_variance(r: FloatArray, var: FloatArray) -> float:
+    """argmax over s >= 0 of the Gaussian likelihood of r_k ~ N(0, var_k + s)."""
+    power = float(np.mean(r**2))
+    if power == 0:
+        return 1e-300
+    lo, hi = np.log(1e-12 * power), np.log(10 * power)
+
+    def nll(log_s: float) -> float:
+        w = var + np.exp(log_s)
+        return float(np.sum(np.log(w) + r**2 / w))
+
+    sol = optimize.minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+    return float(np.exp(sol.x))
 
 
 # ------------------------------------------------------------------------ LS gain bias
@@ -491,31 +514,44 @@ def _indices(result: FitResult, names: tuple[str, ...], what: str) -> list[int]:
 
 
 def bode_band(
-    result: FitResult, structure: ModelStructure, f: ArrayLike, level: float = 0.95
+    result: FitResult,
+    f: ArrayLike,
+    level: float = 0.95,
+    *,
+    structure: ModelStructure | None = None,
 ) -> BodeBand:
     """Bode magnitude and phase of a fit with delta-method confidence bands.
 
     Parameters
     ----------
     result : FitResult
-    structure : ModelStructure
-        The structure given to :func:`jitterid.fit` (to rebuild G from parameters).
     f : array_like
         Frequencies (Hz).
     level : float
         Confidence level.
+    structure : ModelStructure, optional
+        The structure given to :func:`jitterid.fit`, to rebuild G from parameters; default
+        the one the result records (``result.structure``).
 
     Returns
     -------
     BodeBand
         The band is x +- z se with se^2 = J C J^T, J the derivative of log G with respect to
-        the system parameters (central differences), C their covariance block.
+        the system parameters (central differences), C their covariance block: the
+        magnitude band is computed on log |G| (so it stays positive), the phase band on
+        arg G. :func:`jitterid.uncertainty.magnitude_band` linearises |G| itself; the two
+        agree to first order in the band's relative width.
     """
     level = _level(level)
     if not isinstance(result, FitResult):
         raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
+    if structure is None:
+        structure = getattr(result, "structure", None)
     if not isinstance(structure, ModelStructure):
-        raise TypeError(f"structure must be a ModelStructure; got {type(structure).__name__}")
+        raise TypeError(
+            "structure must be the ModelStructure given to fit() (PolePairGain(), "
+            f"RationalModel(m, n)); got {type(structure).__name__}"
+        )
     freqs = np.atleast_1d(real_array(f, "f"))
     idx = _indices(result, tuple(structure.param_names), "structure")
     theta = result.x[idx]
@@ -594,8 +630,8 @@ def jitter_pdf_band(
 ) -> PdfBand:
     """The fitted jitter density with a pointwise band from the parameters' covariance.
 
-    Draws the family's parameters from N(x, C) (clipped into the family's bounds) and
-    takes pointwise quantiles of the densities.
+    Draws the family's parameters from N(x, C) restricted to the family's bounds (draws
+    outside are discarded) and takes pointwise quantiles of the densities.
 
     Parameters
     ----------
@@ -614,6 +650,12 @@ def jitter_pdf_band(
     Returns
     -------
     PdfBand
+
+    Raises
+    ------
+    ValueError
+        If fewer than 10 % of the draws lie inside the bounds: the normal approximation of
+        the estimate is then too poor for a band.
     """
     level = _level(level)
     if not isinstance(result, FitResult):
@@ -638,10 +680,17 @@ def jitter_pdf_band(
     # Draw through a clipped eigendecomposition: a sandwich covariance may be slightly
     # indefinite from rounding, which multivariate_normal would warn about.
     w, v = np.linalg.eigh(0.5 * (cov + cov.T))
-    draws = x + gen.standard_normal((n_draws, x.size)) @ (v * np.sqrt(np.maximum(w, 0.0))).T
+    root = (v * np.sqrt(np.maximum(w, 0.0))).T
     lo_b, hi_b = np.array(family.bounds, float).T
-    draws = np.clip(draws, lo_b, hi_b)
-    dens = np.array([family.law(d).pdf(t) for d in draws])
+    draws = x + gen.standard_normal((10 * n_draws, x.size)) @ root
+    inside = draws[np.all((draws >= lo_b) & (draws <= hi_b), axis=1)]
+    if inside.shape[0] < n_draws:
+        raise ValueError(
+            f"only {inside.shape[0]} of {10 * n_draws} draws of {family.param_names} from their "
+            "normal approximation lie inside the family's bounds; the estimate is too uncertain "
+            "for a density band (the standard errors are larger than the distance to a bound)"
+        )
+    dens = np.array([family.law(d).pdf(t) for d in inside[:n_draws]])
     q = (1 - level) / 2
     return PdfBand(
         t,

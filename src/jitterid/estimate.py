@@ -4,7 +4,9 @@ The search follows Section 4.5: an ordinary output-error fit that ignores the ji
 the system's starting point; for a free jitter law a small grid of starting values is
 tried; the weighted and likelihood criteria start from the BCLS estimate. Least-squares
 criteria are minimised by scipy's trust-region Gauss-Newton/Levenberg-Marquardt
-(``least_squares``), the others by L-BFGS-B; both respect the bounds.
+(``least_squares``), the exact likelihood (``ml``) by the damped Newton iteration of
+:meth:`jitterid.likelihood.ExactLikelihood.maximise`, the others by L-BFGS-B; all respect
+the bounds.
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ from threadpoolctl import threadpool_limits
 
 from ._checks import real_array
 from .criteria import (
-    ESTIMATES_NOISE,
     LEAST_SQUARES,
     METHODS,
     NEEDS_NOISE,
@@ -73,6 +74,8 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
     x0 = np.clip(x0, lo, hi)
     if x0.size == 0:
         return x0, problem.objective(x0), FitStatus.CONVERGED, "no free parameters", 1
+    if problem.method == "ml":
+        return _run_ml(problem, x0, max_nfev)
     if problem.method in LEAST_SQUARES:
 
         def resid(x: FloatArray) -> FloatArray:
@@ -116,6 +119,29 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
     return x, cost, status, msg, nfev
 
 
+def _run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
+    """Maximise the exact likelihood; the quadrature rule, designed at the start, is
+    re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6."""
+    lik, y = problem.likelihood, problem.data.y
+    assert lik is not None
+    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max_nfev)
+    for _ in range(3):
+        lik.design(x)
+        fresh = lik.loglik(x, y)
+        nfev += 1
+        if abs(fresh - loglik) <= 1e-6 * max(1.0, abs(fresh)):
+            break
+        x, loglik, ok, msg, n = lik.maximise(y, x, max_evaluations=max(max_nfev - nfev, 2))
+        nfev += n
+    status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
+    if not ok and nfev >= max_nfev:
+        status = FitStatus.MAX_EVALUATIONS
+    cost = -2 * lik.loglik(x, y)
+    if not np.isfinite(cost):
+        status = FitStatus.NOT_FINITE
+    return x, cost, status, msg, nfev
+
+
 def fit(
     data: SampledData,
     system: ModelStructure | TransferFunction,
@@ -139,8 +165,9 @@ def fit(
     jitter : JitterLaw or JitterFamily
         A known jitter law (OE structure (2a)) or a family with free parameters (JOE, (2c)).
     method : str
-        ``"ls"`` (8), ``"bcls"`` (14), ``"wbcls"`` (20), ``"asml"`` (22), ``"asml-diag"`` (23)
-        or ``"gaussian"`` (the exact real-valued Gaussian criterion, notes section 3).
+        ``"ls"`` (8), ``"bcls"`` (14), ``"wbcls"`` (20), ``"asml"`` (22), ``"asml-diag"`` (23),
+        ``"gaussian"`` (the exact real-valued Gaussian criterion, notes section 3) or ``"ml"``
+        (the exact likelihood, notes section 4; :mod:`jitterid.likelihood`).
     start : array_like, optional
         Starting vector in the result's ``names`` order. Default: an ordinary OE fit that
         ignores the jitter (Section 4.5) and, for a free jitter law, a grid of starts.
@@ -148,8 +175,8 @@ def fit(
         Frequency set in Hz. Default (24): f_k = k/(NT), k = 0..floor(N/2)-1.
     noise_std : float, optional
         Measurement-noise std; default ``data.noise_std``. When neither is given, the
-        ``asml``/``asml-diag``/``gaussian`` criteria estimate it as a parameter and ``wbcls``
-        uses a plug-in estimate from the BCLS residuals.
+        ``asml``/``asml-diag``/``gaussian``/``ml`` criteria estimate it as a parameter and
+        ``wbcls`` uses a plug-in estimate from the BCLS residuals. ``ml`` needs it > 0.
     max_nfev : int
         Evaluation budget for each search.
 
@@ -196,6 +223,11 @@ def _fit(
     if f.size < 1:
         raise ValueError("freqs must hold at least one frequency")
     noise = data.noise_std if noise_std is None else noise_std
+    if method == "ml" and noise is not None and not noise > 0:
+        raise ValueError(
+            "method 'ml' needs measurement noise: the exact likelihood of noise-free samples "
+            f"is singular (noise_std = {noise!r}); pass a positive noise_std"
+        )
     make = partial(Problem, data, structure, jitter, freqs=f)
 
     theta_sys, rms = _oe_start(data, structure)
@@ -226,7 +258,10 @@ def _fit(
             if method == "wbcls" and noise is None:
                 noise = _noise_from_residuals(pre, x_pre)
             problem = make(method=method, noise_std=noise if method in NEEDS_NOISE else None)
-            x0 = np.r_[x_pre, max(rms, 1e-6)] if problem.estimates_noise else x_pre
+            noise0 = max(rms, 1e-6)
+            if method == "ml":  # the likelihood's cost grows like 1/noise: start close
+                noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * rms, 1e-12)
+            x0 = np.r_[x_pre, noise0] if problem.estimates_noise else x_pre
             best = _run(problem, x0, max_nfev)
         else:
             problem = pre
@@ -245,6 +280,7 @@ def _fit(
         noise_std=noise_used,
         freqs=f,
         _covariance=partial(sandwich_covariance, problem, np.asarray(x, float)),
+        structure=structure,
     )
 
 

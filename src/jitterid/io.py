@@ -344,7 +344,7 @@ def _read(path: PathLike, role: str) -> _Table:
         raise DataFileError(f"{p}: no such file (the {role} file)")
     if p.suffix.lower() == ".npz":
         return _read_npz(p)
-    if p.suffix.lower() in (".csv", ".txt"):
+    if p.suffix.lower() == ".csv":
         return _read_csv(p)
     raise DataFileError(
         f"{p}: unknown file type {p.suffix!r}; the {role} file must be .csv or .npz"
@@ -440,7 +440,9 @@ def _time_scale(tab: _Table, default: str = "s") -> float:
 def _zoh_from_table(tab: _Table, t0: float, T: float, n: int) -> PiecewiseConstant:
     T_in = tab.meta.get("T")
     scale = _time_scale(tab)
-    first, T_file = _grid(tab, T / scale if T_in is None else float(T_in), scale)
+    if T_in is None and "k" in tab.columns:
+        T_in = T / scale  # an index column counts samples of the data's grid
+    first, T_file = _grid(tab, None if T_in is None else float(T_in), scale)
     if abs(T_file - T) > GRID_TOL * T:
         raise tab.fail(
             f"the input grid has T = {T_file:g} s but the data have T = {T:g} s; a zero-order-hold "
@@ -459,7 +461,7 @@ def _zoh_from_table(tab: _Table, t0: float, T: float, n: int) -> PiecewiseConsta
             f"the input covers samples {start}..{start + m - 1} of the data grid but the data have "
             f"samples 0..{n - 1}; the input must cover every sample"
         )
-    return PiecewiseConstant(T * (start + np.arange(m + 1)), tab.columns["u"])
+    return PiecewiseConstant(T * (start + np.arange(m + 1.0)), tab.columns["u"])
 
 
 def _switches_from_table(
@@ -565,7 +567,7 @@ def load(
                 f"{tab.path} has an input column 'u' and an input file {input} was also given; "
                 "keep one of them"
             )
-        u: Input = PiecewiseConstant(T_s * np.arange(n + 1), tab.columns["u"])
+        u: Input = PiecewiseConstant(T_s * np.arange(n + 1.0), tab.columns["u"])
         u_unit = str(tab.meta.get("u_unit", ""))
     elif input is None:
         raise tab.fail(
@@ -600,11 +602,9 @@ def load(
 def _write(path: Path, columns: Mapping[str, FloatArray], meta: Mapping[str, Any]) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".npz":
-        np.savez(
-            path,
-            metadata=np.array(json.dumps(dict(meta))),
-            **{k: np.asarray(v, float) for k, v in columns.items()},
-        )
+        arrays: dict[str, Any] = {k: np.asarray(v, float) for k, v in columns.items()}
+        arrays["metadata"] = np.array(json.dumps(dict(meta)))
+        np.savez(path, **arrays)
         return path
     if path.suffix.lower() != ".csv":
         raise ValueError(f"path must end in .csv or .npz; got {path.name!r}")

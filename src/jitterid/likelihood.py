@@ -26,9 +26,11 @@ With posterior weights pi_j = w_j N(y; s_j, sigma_v^2) / p(y) (sum 1 per sample)
     d ln p / d sigma_v = sum_j pi_j ((y - s_j)^2 / sigma_v^3 - 1 / sigma_v)
     d ln p / d y       = -sum_j pi_j (y - s_j) / sigma_v^2,
 
-ds/dtheta by forward differences of the signal at the (fixed) nodes; the jitter-family
-parameters move the nodes, and their score is a forward difference of ln p itself. The
-Fisher information of one record is
+ds/dtheta at the (fixed) nodes from the modal form of the response, with the same
+exponentials as s (:class:`_NodeSignal`; forward differences of s for inputs that are not
+piecewise constant); the jitter-family parameters move the nodes, and their score is a
+forward difference of ln p itself. :meth:`ExactLikelihood.maximise` uses these scores with
+a Gauss-Newton observed information. The Fisher information of one record is
 
     I(theta) = sum_k int p_k(y) g_k(y) g_k(y)^T dy,   g_k = grad_theta ln p_k(y),        (L3)
 
@@ -72,7 +74,7 @@ FloatArray = NDArray[np.float64]
 DEFAULT_ORDER = 8  # Gauss-Legendre nodes per panel
 DEFAULT_PANEL = 4.0  # panel length <= DEFAULT_PANEL * sigma_v / local max |s'|
 _SLOPE_SAFETY = 1.25
-_NODE_BUDGET = 20_000_000  # refuse rules larger than this (memory and time)
+_PANEL_BUDGET = 20_000_000  # refuse rules with more panels (memory and time)
 _CHUNK = 2048  # samples per node chunk
 _Y_STEP = 0.5  # y-grid spacing of (L3) in units of sigma_v
 _Y_TAIL = 9.0  # y-grid margin in units of sigma_v
@@ -80,10 +82,72 @@ _LOG_SQRT_2PI = 0.5 * np.log(2 * np.pi)
 
 
 # ---------------------------------------------------------------------------- signal at nodes
+_Modal = tuple[float, NDArray[np.complex128], NDArray[np.complex128]]
+
+
+def _kept(modal: _Modal) -> _Modal:
+    """(D, rho, p) over the poles with Im p >= 0; rho doubles the residue of a complex pair,
+    so that s = D u + Re sum rho x (the conjugate pole's term is the conjugate)."""
+    d, r, p = modal
+    keep = p.imag >= 0
+    return d, r[keep] * np.where(p[keep].imag > 0, 2.0, 1.0), p[keep]
+
+
+def _modal_gradient(
+    structure: ModelStructure, theta: FloatArray, tf: TransferFunction
+) -> tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]] | None:
+    """d(D, rho, p)/d theta by central differences of the modal form (poles matched by
+    proximity); None if the matching is ambiguous (then the caller differentiates s)."""
+    p0 = _kept(tf._modal)[2]
+    n = theta.size
+    dd, drho, dp = np.empty(n), np.empty((n, p0.size), complex), np.empty((n, p0.size), complex)
+    lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
+    for i in range(n):
+        h = 1e-6 * max(abs(float(theta[i])), 1e-2)
+        c = float(np.clip(theta[i], lo[i] + h, hi[i] - h))
+        parts = []
+        for v in (c + h, c - h):
+            th = theta.copy()
+            th[i] = v
+            d, rho, p = _kept(structure.system(th)._modal)
+            if p.size != p0.size:
+                return None
+            j = np.argmin(np.abs(p[None, :] - p0[:, None]), axis=1)
+            if np.unique(j).size != j.size:
+                return None
+            parts.append((d, rho[j], p[j]))
+        (dp_, rp, pp), (dm, rm, pm) = parts
+        dd[i], drho[i], dp[i] = (dp_ - dm) / (2 * h), (rp - rm) / (2 * h), (pp - pm) / (2 * h)
+    return dd, drho, dp
+
+
+def _pole_sensitivity(tf: TransferFunction, u: PiecewiseConstant) -> NDArray[np.complex128]:
+    """dX/dp of the modal states at the input's switch times, kept poles, shape (J+1, nk).
+
+    X(p) is analytic in p; shifting every pole by the same real -delta keeps the
+    denominator real, and a one-sided second-order difference stays on the stable side.
+    """
+    p = tf._modal[2]
+    pk = p[p.imag >= 0]
+    delta = 1e-5 * float(np.max(np.abs(p)))
+    states = []
+    for shift in (0.0, delta, 2 * delta):
+        moved = TransferFunction(np.ones(1), np.real(np.poly(p - shift)))
+        q = moved._modal[2]
+        j = np.argmin(np.abs(q[None, :] - (pk - shift)[:, None]), axis=1)
+        states.append(moved.response(u)._switch_states[:, j])
+    return (3 * states[0] - 4 * states[1] + states[2]) / (2 * delta)
+
+
 class _NodeSignal:
-    """s(t) at a fixed set of instants, for any system: the input's segment of every instant
-    is found once, so each new system costs a few real exponentials per node and pole pair.
-    Same modal formula as :class:`jitterid.models.Response` (tested against it)."""
+    """s(t) and ds/dtheta at a fixed set of instants, for any system.
+
+    The input's segment of every instant is found once, so a new system costs a few real
+    exponentials per node and pole pair: the modal formula of :class:`jitterid.models.Response`
+    (tested against it), x = e^{p dt} X_j + u_j expm1(p dt) / p on the segment starting at the
+    switch time t_j with state X_j. Its pole derivative, from the same exponentials, is
+    dx/dp = e^{p dt} (dt X_j + dX_j/dp) + u_j (dt e^{p dt} / p - expm1(p dt) / p^2).
+    """
 
     def __init__(self, u: Input, t: FloatArray) -> None:
         self.u, self.t = u, t
@@ -96,25 +160,71 @@ class _NodeSignal:
             self.level = np.where(self.inside, u.levels[self.seg], 0.0)
             self.dt = (t - u.times[self.seg])[:, None]
 
+    @property
+    def analytic(self) -> bool:
+        """Whether :meth:`gradient` is available (piecewise-constant inputs)."""
+        return isinstance(self.u, PiecewiseConstant)
+
+    def _pole_terms(
+        self, tf: TransferFunction, dX: NDArray[np.complex128] | None = None
+    ) -> Iterator[tuple[complex, complex, FloatArray, FloatArray, FloatArray, FloatArray]]:
+        """Per kept pole: (rho, p, Re x, Im x, Re dx/dp, Im dx/dp) at the nodes (dx/dp only
+        with ``dX``; else zeros). Real arithmetic on 1-D arrays: numpy's complex expm1 and
+        small complex matmuls are ~10x slower. Nodes before the input starts get x = 0."""
+        _, rho, pk = _kept(tf._modal)
+        cols = np.flatnonzero(tf._modal[2].imag >= 0)
+        X = tf.response(self.u)._switch_states
+        dt = self.dt[:, 0]
+        for k, (rk, p) in enumerate(zip(rho, pk, strict=True)):
+            a, half = dt * p.real, 0.5 * dt * p.imag
+            sh, ch = np.sin(half), np.cos(half)
+            ea = np.where(self.inside, np.exp(a), 0.0)
+            cb, sb = 1 - 2 * sh * sh, 2 * sh * ch
+            er, ei = ea * cb, ea * sb  # e^{p dt}
+            mr, mi = np.expm1(a) * cb - 2 * sh * sh, ea * sb  # expm1(p dt)
+            Xj = X[self.seg, cols[k]]
+            q = 1 / p
+            lr, li = self.level * q.real, self.level * q.imag  # u_j / p
+            xr = er * Xj.real - ei * Xj.imag + mr * lr - mi * li
+            xi = er * Xj.imag + ei * Xj.real + mr * li + mi * lr
+            if dX is None:
+                yield rk, p, xr, xi, np.zeros(0), np.zeros(0)
+                continue
+            # dx/dp = e (dt X + dX) + u (dt e / p - expm1 / p^2)
+            W = dt * Xj + dX[self.seg, k]
+            q2 = q * q
+            vr = dt * (er * q.real - ei * q.imag) - (mr * q2.real - mi * q2.imag)
+            vi = dt * (er * q.imag + ei * q.real) - (mr * q2.imag + mi * q2.real)
+            zr = er * W.real - ei * W.imag + self.level * vr
+            zi = er * W.imag + ei * W.real + self.level * vi
+            yield rk, p, xr, xi, zr, zi
+
     def __call__(self, tf: TransferFunction) -> FloatArray:
-        resp = tf.response(self.u)  # validates the system (stable, distinct poles)
         if not isinstance(self.u, PiecewiseConstant):
-            return resp(self.t)
-        d, r, p = tf._modal
-        out = d * self.level
-        if p.size:
-            # Conjugate pairs give conjugate terms: keep Im p >= 0 and double the pairs.
-            keep = p.imag >= 0
-            pk, rk = p[keep], r[keep] * np.where(p[keep].imag > 0, 2.0, 1.0)
-            a, b = self.dt * pk.real, self.dt * pk.imag
-            ea, cb, sb = np.exp(a), np.cos(b), np.sin(b)
-            # x = e^{p dt} x_j + u_j expm1(p dt) / p, expm1 from real parts (accurate near 0;
-            # numpy's complex expm1 is ~10x slower than this).
-            em = (np.expm1(a) * cb - 2 * np.sin(0.5 * b) ** 2) + 1j * (ea * sb)
-            x = (ea * (cb + 1j * sb)) * resp._switch_states[:, keep][self.seg]
-            x += self.level[:, None] * (em / pk)
-            out = out + np.where(self.inside, (x @ rk).real, 0.0)
-        return np.asarray(out, dtype=float)
+            return tf.response(self.u)(self.t)
+        s = tf._modal[0] * self.level
+        for rk, _, xr, xi, _, _ in self._pole_terms(tf):
+            s = s + (rk.real * xr - rk.imag * xi)
+        return np.asarray(s, dtype=float)
+
+    def gradient(
+        self,
+        tf: TransferFunction,
+        dmodal: tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]],
+        dX: NDArray[np.complex128],
+    ) -> tuple[FloatArray, FloatArray]:
+        """s at the nodes and ds/dtheta, shape (n_params, n_nodes), given the modal gradient
+        (:func:`_modal_gradient`) and the switch-state pole sensitivity (:func:`_pole_sensitivity`)."""
+        assert isinstance(self.u, PiecewiseConstant)
+        dd, drho, dp = dmodal
+        s = tf._modal[0] * self.level
+        D = dd[:, None] * self.level[None, :]
+        for k, (rk, _, xr, xi, zr, zi) in enumerate(self._pole_terms(tf, dX)):
+            s = s + (rk.real * xr - rk.imag * xi)
+            for i in range(dd.size):
+                c1, c2 = drho[i, k], rk * dp[i, k]  # ds = Re(drho x + rho dp dx/dp)
+                D[i] += c1.real * xr - c1.imag * xi + c2.real * zr - c2.imag * zi
+        return np.asarray(s, dtype=float), D
 
 
 def _panel_cuts(
@@ -134,7 +244,7 @@ def _panel_cuts(
     pad = np.r_[0.0, 0.0, cell, 0.0, 0.0]
     local = _SLOPE_SAFETY * np.max(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
     cum = np.r_[0.0, np.cumsum(local * np.diff(grid))] / (panel * sigma)
-    if cum[-1] > _NODE_BUDGET:
+    if cum[-1] > _PANEL_BUDGET:
         raise ValueError(
             f"the exact likelihood would need ~{cum[-1]:.3g} quadrature panels (the signal is "
             f"steep relative to noise_std = {sigma:g}); raise `panel` (less accurate) or use "
@@ -255,6 +365,12 @@ class ExactLikelihood:
 
     # -------------------------------------------------------------- parameters and rule
     @property
+    def model(self) -> ModelStructure:
+        """The model structure (a known system is wrapped in a KnownSystem)."""
+        assert isinstance(self.structure, ModelStructure)
+        return self.structure
+
+    @property
     def n_jitter(self) -> int:
         return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
 
@@ -263,13 +379,16 @@ class ExactLikelihood:
         x = np.atleast_1d(real_array(x, "x"))
         if x.shape != (len(self.names),):
             raise ValueError(f"x must hold {len(self.names)} values {self.names}; got {x.shape}")
-        nj, ns = self.n_jitter, len(self.structure.param_names)
-        assert isinstance(self.structure, ModelStructure)
-        law = self.jitter.law(x[:nj]) if isinstance(self.jitter, JitterFamily) else self.jitter
+        nj, ns = self.n_jitter, len(self.model.param_names)
+        law = (
+            self.jitter.law(x[:nj].tolist())
+            if isinstance(self.jitter, JitterFamily)
+            else self.jitter
+        )
         sigma = float(x[-1]) if self.noise_std is None else self.noise_std
         if not sigma > 0:
             raise ValueError(f"noise_std must be > 0 for the likelihood; got {sigma!r}")
-        return law, self.structure.system(x[nj : nj + ns]), sigma
+        return law, self.model.system(x[nj : nj + ns]), sigma
 
     def design(self, x: ArrayLike) -> None:
         """(Re-)design the quadrature rule for the signal and noise level at ``x``."""
@@ -350,29 +469,137 @@ class ExactLikelihood:
         1e-7), noise std analytic, jitter-family parameters by forward differences of ln p.
         """
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
-        law, tf, sigma = self.split(x)
-        evals = [_evaluate(nd, nd.signal(tf), y, sigma) for nd in self._nodes(x, law, tf)]
-        logp = np.empty(self.N)
-        for ev in evals:
-            logp[ev.nodes.k0 : ev.nodes.k1] = ev.logp
-        G = np.empty((self.N, x.size))
-        nj, ns = self.n_jitter, len(self.structure.param_names)
-        for i in range(x.size):
-            if i >= nj + ns:  # noise std
-                for ev in evals:
-                    nd = ev.nodes
-                    G[nd.k0 : nd.k1, i] = np.add.reduceat(ev.post * (ev.e**2 - 1), nd.starts) / sigma
-                continue
-            xi, h = _shifted(x, i, 1e-7, self.bounds[i])
-            if i < nj:
-                G[:, i] = (self.logpdf(xi, y) - logp) / h
-                continue
-            tfi = self.split(xi)[1]
-            for ev in evals:
-                nd = ev.nodes
-                ds = (nd.signal(tfi) - ev.s) / h
-                G[nd.k0 : nd.k1, i] = np.add.reduceat(ev.post * ev.e * ds, nd.starts) / sigma
+        logp, G, _ = self._terms(x, y, information=False)
         return logp, G
+
+    def _terms(
+        self, x: FloatArray, y: FloatArray, *, information: bool
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """ln p per sample, per-sample scores and (optionally) the observed information.
+
+        The information -d^2 ln L is sum_k [g_k g_k^T - E_post(a a^T + da)] with a_j the
+        gradient of ln(w_j N(y_k; s_j, sigma_v^2)); for the parameters that leave the nodes in
+        place (system, noise) the second term is kept, without d^2 s / d theta^2 (whose
+        posterior mean is zero-mean noise: Gauss-Newton); for jitter-family parameters only
+        the outer products remain (BHHH).
+        """
+        law, tf, sigma = self.split(x)
+        nj, p = self.n_jitter, x.size
+        ns = len(self.model.param_names)
+        noise = self.noise_std is None
+        shifted = [_shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj + ns)]
+        dX: NDArray[np.complex128] | None = None
+        logp, G, C = np.empty(self.N), np.empty((self.N, p)), np.zeros((p, p))
+        nodes = self._nodes(x, law, tf)
+        dmodal = None
+        if ns and nodes[0].signal.analytic:
+            assert isinstance(self.u, PiecewiseConstant)
+            dmodal = _modal_gradient(self.model, x[nj : nj + ns], tf)
+            dX = _pole_sensitivity(tf, self.u) if dmodal is not None else None
+        for nd in nodes:
+            if dmodal is not None:
+                assert dX is not None
+                s, D = nd.signal.gradient(tf, dmodal, dX)
+            else:
+                s, D = nd.signal(tf), np.empty((ns, nd.t.size))
+                for i, (xi, h) in enumerate(shifted[nj:]):
+                    D[i] = (nd.signal(self.split(xi)[1]) - s) / h
+            ev = _evaluate(nd, s, y, sigma)
+            rows = slice(nd.k0, nd.k1)
+            logp[rows] = ev.logp
+            A = D * (ev.e / sigma)
+            if noise:
+                A = np.vstack([A, (ev.e**2 - 1) / sigma])
+            if A.shape[0]:
+                G[rows, nj:] = np.add.reduceat(A * ev.post, nd.starts, axis=1).T
+            if information:
+                e2, pi = ev.e**2, ev.post
+                C[nj : nj + ns, nj : nj + ns] += (D * (pi * (1 - e2))) @ D.T / sigma**2
+                if noise:
+                    cross = D @ (pi * ev.e * (3 - e2)) / sigma**2
+                    C[nj : nj + ns, -1] += cross
+                    C[-1, nj : nj + ns] += cross
+                    C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
+        for i in range(nj):
+            xi, h = shifted[i]
+            G[:, i] = (self.logpdf(xi, y) - logp) / h
+        return logp, G, G.T @ G + C
+
+    def maximise(
+        self, y: ArrayLike, x0: ArrayLike, *, max_evaluations: int = 200, tol: float = 1e-8
+    ) -> tuple[FloatArray, float, bool, str, int]:
+        """Maximise ln L from ``x0`` inside the bounds (Levenberg-Marquardt-damped Newton).
+
+        The Newton matrix M is the observed information of :meth:`_terms` (Gauss-Newton for
+        the system and noise parameters: within ~1% of the exact Hessian at the optimum on
+        the paper's experiments); the step solves (M + lam diag M) d = g, and lam is divided
+        by 4 after a step that gains at least 3/4 of the predicted gain g.d - d.M.d / 2 and
+        multiplied by 4 (at least to 1e-3) after one that gains less than 1/4 of it; a step
+        gaining less than 1e-4 of the prediction is rejected. Parameters on
+        a bound whose gradient points outwards are held there. Converged when the Newton
+        decrement g^T M^{-1} g (twice the remaining gain in ln L) is below ``tol``.
+
+        The likelihood need not be differentiable in the jitter-family parameters (the
+        non-integer extension of :class:`SumOfUniforms` has a kink at every integer n). After
+        a rejected step, a Newton step in the system/noise parameters alone is tried; a point
+        where that block is stationary and the damped full step keeps failing (lam > 1e6) is
+        reported as converged, with a message saying so.
+
+        Returns
+        -------
+        x, loglik, converged, message, evaluations
+        """
+        y = self._data(y)
+        lo, hi = np.array(self.bounds, dtype=float).reshape(-1, 2).T
+        x = np.clip(np.atleast_1d(real_array(x0, "x0")), lo, hi)
+        logp, G, M = self._terms(x, y, information=True)
+        f, n, lam = float(np.sum(logp)), 1, 0.0
+        inner = np.arange(x.size) >= self.n_jitter  # parameters that leave the nodes in place
+        while n < max_evaluations:
+            g = G.sum(axis=0)
+            free = ~(((x <= lo) & (g < 0)) | ((x >= hi) & (g > 0)))
+            dec = float(g @ _newton_step(M, G, g, free))
+            if dec <= tol:
+                return x, f, True, f"converged: Newton decrement {dec:.2g} <= {tol:g}", n
+            trials = [(free, lam)]
+            if lam > 0 and self.n_jitter:
+                trials.append((free & inner, 0.0))
+            accepted = False
+            for block, damping in trials:
+                step = _newton_step(M, G, g, block, damping)
+                xn = np.clip(x + step, lo, hi)
+                d = xn - x
+                pred = float(g @ d - 0.5 * d @ M @ d)
+                gain = -np.inf
+                if pred > 0:
+                    n += 1
+                    try:
+                        # With jitter parameters the scores cost several likelihoods: try
+                        # the value first, so that a rejected step costs only one.
+                        if self.n_jitter:
+                            gain = self.loglik(xn, y) - f
+                        if not self.n_jitter or gain >= 1e-4 * pred:
+                            logp_n, G_n, M_n = self._terms(xn, y, information=True)
+                            gain = float(np.sum(logp_n)) - f
+                    except ValueError:  # e.g. an unstable system
+                        pass
+                if block is free:  # trust-region rule on the ratio gain / predicted gain
+                    lam = lam / 4 if gain >= 0.75 * pred else lam
+                    lam = lam if gain >= 0.25 * pred else max(4 * lam, 1e-3)
+                if gain >= 1e-4 * pred:
+                    x, f, G, M, accepted = xn, f + gain, G_n, M_n, True
+                    break
+            if not accepted and lam > 1e6:
+                inner_dec = float(g @ _newton_step(M, G, g, free & inner))
+                if self.n_jitter and inner_dec <= tol:
+                    msg = (
+                        f"converged: stationary in the system/noise parameters (decrement "
+                        f"{inner_dec:.2g}) and no ascent in the jitter parameters, where the "
+                        "likelihood is not differentiable (e.g. SumOfUniformsFamily at integer n)"
+                    )
+                    return x, f, True, msg, n
+                return x, f, False, "no step increases the likelihood (damping exhausted)", n
+        return x, f, False, f"evaluation budget ({max_evaluations}) used up", n
 
     def fisher(self, x: ArrayLike) -> FloatArray:
         """Fisher information (L3) of the N samples at ``x``, in :attr:`names` order."""
@@ -409,6 +636,32 @@ class ExactLikelihood:
                 g = (L[1::2] - L[2::2]) / steps[:, None]
                 info += (g * (np.exp(L[0]) * dy)) @ g.T
         return 0.5 * (info + info.T)
+
+
+def _newton_step(
+    M: FloatArray, G: FloatArray, g: FloatArray, free: NDArray[np.bool_], damping: float = 0.0
+) -> FloatArray:
+    """Solve (M + damping diag M) d = g on the free parameters (zero elsewhere); the centred
+    score outer products replace M where it is not positive definite."""
+    step = np.zeros_like(g)
+    idx = np.flatnonzero(free)
+    if idx.size == 0:
+        return step
+    Gc = G[:, idx] - G[:, idx].mean(axis=0)
+    for mat in (M[np.ix_(idx, idx)], Gc.T @ Gc):
+        d = np.sqrt(np.abs(np.diag(mat)))
+        if np.any(d == 0) or not np.all(np.isfinite(mat)):
+            continue
+        scaled = mat / np.outer(d, d) + (damping + 1e-12) * np.eye(idx.size)
+        try:
+            L = np.linalg.cholesky(scaled)
+        except np.linalg.LinAlgError:
+            continue
+        step[idx] = np.linalg.solve(L.T, np.linalg.solve(L, g[idx] / d)) / d
+        return step
+    scale = np.sum(G[:, idx] ** 2, axis=0)  # last resort: scaled steepest ascent
+    step[idx] = g[idx] / np.where(scale > 0, scale, 1.0) / (1.0 + damping)
+    return step
 
 
 def _segment(nd: _Nodes, k: int) -> tuple[int, int]:
@@ -519,7 +772,7 @@ def _inverse(info: FloatArray, names: tuple[str, ...]) -> FloatArray:
             f"the Fisher information of parameters {names} is singular: some parameter is not "
             "identifiable from this experiment (fix it, or change the input or the structure)"
         )
-    return np.linalg.inv(info)
+    return np.asarray(np.linalg.inv(info), dtype=float)
 
 
 def crb(
@@ -568,8 +821,14 @@ def crb(
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
     lik = ExactLikelihood(
-        structure, jitter, input, T, N, None if estimate_noise else noise_std,
-        order=order, panel=panel,
+        structure,
+        jitter,
+        input,
+        T,
+        N,
+        None if estimate_noise else noise_std,
+        order=order,
+        panel=panel,
     )
     if estimate_noise:
         x = np.r_[x, float(noise_std)]

@@ -85,6 +85,11 @@ def plot_bode(
         out[f"{name} phase"] = ax_ph.semilogx(band.f, np.degrees(np.unwrap(np.angle(g))), **style)[
             0
         ]
+    from matplotlib.ticker import FuncFormatter
+
+    plain = FuncFormatter(lambda v, _: f"{v:g}")  # 0.8, not 8 x 10^-1, on narrow log ranges
+    ax_mag.yaxis.set_major_formatter(plain)
+    ax_mag.yaxis.set_minor_formatter(plain)
     ax_mag.set_ylabel("|G(i 2π f)|")
     ax_ph.set_ylabel("phase (deg)")
     ax_ph.set_xlabel("frequency f (Hz)")
@@ -139,7 +144,10 @@ def plot_jitter_pdf(
         )[0]
     ax.set_xlabel("jitter τ (s)")
     ax.set_ylabel("density p(τ) (1/s)")
-    ax.set_ylim(bottom=0)
+    # Keep the estimate readable when the band's upper edge runs off (a nearly degenerate
+    # law among the draws): the band then leaves the top of the axes.
+    top = 2.5 * max(float(np.max(band.pdf)), float(np.max(truth.pdf(band.tau))) if truth else 0.0)
+    ax.set_ylim(bottom=0, top=min(top, 1.15 * max(float(np.max(band.hi)), float(np.max(band.pdf)))))
     ax.legend(loc="upper right", fontsize="small")
     ax.grid(True, alpha=0.3)
     return out

@@ -14,6 +14,7 @@ from scipy import stats
 
 from .distributions import JitterLaw
 from .models import TransferFunction
+from .structures import ModelStructure
 
 __all__ = ["FitResult", "FitStatus"]
 
@@ -46,7 +47,7 @@ class FitResult:
     ----------
     method : str
         The criterion minimised (``"ls"``, ``"bcls"``, ``"wbcls"``, ``"asml"``,
-        ``"asml-diag"``, ``"gaussian"``).
+        ``"asml-diag"``, ``"gaussian"``, ``"ml"``).
     names : tuple of str
         Parameter names in vector order: jitter-family parameters, system parameters,
         then ``noise_std`` if it was estimated.
@@ -76,12 +77,16 @@ class FitResult:
         Delta-method (sandwich) covariance of ``x``: H^{-1} G diag(w) G^T H^{-1}, with H
         the criterion's Hessian, G = d^2 V / d theta dy and w the per-sample variances
         (model-based; robust squared residuals for ``ls``, whose model ignores jitter).
+        For ``ml`` the inverse observed information (-d^2 ln L / d theta^2)^{-1}.
         Parameters on a bound get NaN rows and columns.
     stderr : dict
         ``{name: sqrt(cov[i, i])}``.
     jitter_std : float
         Standard deviation of the (fitted) jitter law; for the family (26) it equals
         a / sqrt(3 (n + 1)), the paper's sigma.
+    structure : ModelStructure or None
+        The model structure fitted (to rebuild G from parameters, e.g. for
+        :func:`jitterid.uncertainty.magnitude_band`); None if not recorded.
     """
 
     method: str
@@ -96,6 +101,7 @@ class FitResult:
     noise_std: float
     freqs: FloatArray = field(repr=False)
     _covariance: Callable[[], FloatArray] = field(repr=False)
+    structure: ModelStructure | None = field(default=None, repr=False)
 
     @property
     def success(self) -> bool:

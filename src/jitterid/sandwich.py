@@ -9,10 +9,15 @@ the samples are independent with variances w_k,
 This holds for every criterion of the library, whether or not it is a likelihood, so every
 estimator gets honest error bars by one route. For least-squares criteria H is the
 Gauss-Newton matrix 2 J^T J; otherwise a central finite-difference Hessian.
+
+The exact likelihood (``ml``, V = -2 ln L) gets the inverse observed information instead,
+Cov = (-d^2 ln L)^{-1} = 2 H^{-1}, since the score is not linear in y; ``robust=True`` gives
+the Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -53,6 +58,8 @@ def sandwich_covariance(problem: Problem, x: FloatArray, robust: bool | None = N
 
     ``robust`` uses squared residuals (y_k - m_k)^2 for the variances (White's HC0) instead
     of the model's w_k; the default is robust only for ``ls``, whose model has no jitter.
+    For ``ml``: the inverse observed information, or with ``robust`` the Huber-White
+    sandwich of the per-sample scores (module docstring).
     """
     p = x.size
     cov = np.full((p, p), np.nan)
@@ -70,6 +77,8 @@ def sandwich_covariance(problem: Problem, x: FloatArray, robust: bool | None = N
         return out
 
     z0, hz = x[idx], h[idx]
+    if problem.method == "ml":
+        return _ml_covariance(problem, x, idx, embed, z0, hz, bool(robust), cov)
     G = np.empty((idx.size, problem.data.N))
     for i in range(idx.size):
         dz = np.zeros(idx.size)
@@ -86,14 +95,36 @@ def sandwich_covariance(problem: Problem, x: FloatArray, robust: bool | None = N
         H = _hessian(lambda z: problem.objective(embed(z)), z0, hz)
     if robust is None:
         robust = problem.method == "ls"
-    if robust:
-        w = (problem.data.y - problem.moments(x).mean) ** 2
-    else:
-        w = problem.variances(x)
+    w = (problem.data.y - problem.moments(x).mean) ** 2 if robust else problem.variances(x)
     B = (G * w) @ G.T
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
         return cov
     cov[np.ix_(idx, idx)] = Hinv @ B @ Hinv.T
+    return cov
+
+
+def _ml_covariance(
+    problem: Problem,
+    x: FloatArray,
+    idx: NDArray[np.intp],
+    embed: Callable[[FloatArray], FloatArray],
+    z0: FloatArray,
+    hz: FloatArray,
+    robust: bool,
+    cov: FloatArray,
+) -> FloatArray:
+    """Inverse observed information of the exact likelihood (or its Huber-White sandwich)."""
+    H = _hessian(lambda z: problem.objective(embed(z)), z0, hz)  # of V = -2 ln L
+    try:
+        Hinv = np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        return cov
+    if robust:
+        assert problem.likelihood is not None
+        g = problem.likelihood.scores(x, problem.data.y)[1][:, idx]
+        cov[np.ix_(idx, idx)] = Hinv @ (4 * g.T @ g) @ Hinv.T
+    else:
+        cov[np.ix_(idx, idx)] = 2 * Hinv
     return cov

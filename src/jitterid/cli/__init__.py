@@ -17,4 +17,5 @@ def main() -> None:
 
 
 # Command modules register themselves on ``main`` when imported (one line each below).
-from . import reproduce as _reproduce  # noqa: E402,F401
+from . import data as _data  # noqa: F401
+from . import reproduce as _reproduce  # noqa: F401

@@ -145,7 +145,7 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
     f = np.geomspace(1.0 / (data.N * data.T), 0.5 / data.T, 300)
     fig = Figure(figsize=(6.4, 6.0), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
-    band = bode_band(res, rep.structure, f, rep.level)
+    band = bode_band(res, f, rep.level, structure=rep.structure)
     refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": rep.ordinary.system}
     plot_bode(band, refs, label=f"{res.method} estimate", ax=axes)
     axes[0].set_title(f"Bode plot, {100 * rep.level:g}% delta-method band", fontsize="medium")
@@ -153,12 +153,19 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
     names["bode"] = "bode.png"
 
     if res.jitter.std > 0:
-        hi = 1.3 * min(res.jitter.support[1], 4 * res.jitter.std)
+        hi = 1.5 * min(res.jitter.support[1], 4 * res.jitter.std)
         family = rep.jitter if isinstance(rep.jitter, JitterFamily) else None
-        pband = jitter_pdf_band(res, family, np.linspace(-hi, hi, 401), rep.seed, level=rep.level)
+        tau = np.linspace(-hi, hi, 601)
+        label = "estimated" if family else "assumed (known)"
+        try:
+            pband = jitter_pdf_band(res, family, tau, rep.seed, level=rep.level, n_draws=2000)
+        except ValueError as exc:  # too uncertain for a band: show the estimate alone
+            pband = jitter_pdf_band(res, None, tau, rep.seed, level=rep.level)
+            label = "estimated (no band: too uncertain)"
+            names["jitter_pdf_note"] = str(exc)
         fig = Figure(figsize=(6.4, 4.0), layout="constrained")
         ax = fig.subplots()
-        plot_jitter_pdf(pband, label="estimated" if family else "assumed (known)", ax=ax)
+        plot_jitter_pdf(pband, label=label, ax=ax)
         fig.savefig(out / "jitter_pdf.png", dpi=110)
         names["jitter_pdf"] = "jitter_pdf.png"
 
@@ -197,7 +204,9 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
     """The Markdown report."""
     res, ds, det = rep.result, rep.dataset, rep.detection
     data = ds.data
-    files = ", ".join(f"{s.role} `{Path(s.path).name}` (sha256 `{s.sha256[:16]}…`)" for s in ds.sources)
+    files = ", ".join(
+        f"{s.role} `{Path(s.path).name}` (sha256 `{s.sha256[:16]}…`)" for s in ds.sources
+    )
     lo, hi = det.jitter_std_ci
     pct = f"{100 * rep.level:g}%"
     law = res.jitter
@@ -205,8 +214,10 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         "# jitterid fit report",
         "",
         f"- **Data**: {files}",
-        f"- **Grid**: N = {data.N} samples, T = {data.T:g} s (Nyquist {0.5 / data.T:g} Hz), "
-        f"first sample at file time {ds.t0:g} s; output unit `{ds.units['y'] or '-'}`",
+        (
+            f"- **Grid**: N = {data.N} samples, T = {data.T:g} s (Nyquist {0.5 / data.T:g} Hz), "
+            f"first sample at file time {ds.t0:g} s; output unit `{ds.units['y'] or '-'}`"
+        ),
         f"- **Model**: `{rep.model_spec}`, {rep.model_label}",
         f"- **Jitter**: `{rep.jitter_spec}`; **method**: `{res.method}`",
         f"- **Status**: {res.status.value} ({res.nfev} evaluations)",
@@ -214,15 +225,21 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         "",
         "## 1. Is there jitter?",
         "",
-        "An ordinary fit that ignores jitter leaves residuals whose variance grows with the "
-        "squared slope of the output when the sampling instants jitter. Regressing squared "
-        "residuals on squared model slopes:",
+        (
+            "An ordinary fit that ignores jitter leaves residuals whose variance grows with the "
+            "squared slope of the output when the sampling instants jitter. Regressing squared "
+            "residuals on squared model slopes:"
+        ),
         "",
-        f"- one-sided t = {det.statistic:.3f}, **p = {det.pvalue:.3g}** "
-        f"({'jitter detected' if det.detected() else 'no jitter detected'} at the 5% level)",
-        f"- implied jitter std {det.jitter_std:.3g} s, {pct} interval [{lo:.3g}, {hi:.3g}] s "
-        "(first-order approximation, biased low for large jitter; the fit below is the "
-        "accurate estimate)",
+        (
+            f"- one-sided t = {det.statistic:.3f}, **p = {det.pvalue:.3g}** "
+            f"({'jitter detected' if det.detected() else 'no jitter detected'} at the 5% level)"
+        ),
+        (
+            f"- implied jitter std {det.jitter_std:.3g} s, {pct} interval [{lo:.3g}, {hi:.3g}] s "
+            "(first-order approximation, biased low for large jitter; the fit below is the "
+            "accurate estimate)"
+        ),
         "",
         *_image("residuals of the ordinary fit", figs.get("residuals")),
         "## 2. Estimate",
@@ -232,8 +249,10 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         f"- jitter law: {law} ({'estimated' if isinstance(rep.jitter, JitterFamily) else 'assumed'})",
         f"- noise std: {res.noise_std:.4g}"
         + (" (estimated)" if "noise_std" in res.names else " (given or unused)"),
-        f"- G(s) numerator {np.array2string(res.system.num, precision=5)}, denominator "
-        f"{np.array2string(res.system.den, precision=5)} (s in rad/s)",
+        (
+            f"- G(s) numerator {np.array2string(res.system.num, precision=5)}, denominator "
+            f"{np.array2string(res.system.den, precision=5)} (s in rad/s)"
+        ),
         "- poles: "
         + ", ".join(
             f"{p.real:.4g}{p.imag:+.4g}i rad/s (|p| = {abs(p) / (2 * np.pi):.4g} Hz)"
@@ -248,13 +267,17 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         fb = bias_frequency(law, 0.01)
         ny = 0.5 / data.T
         lines += [
-            f"Under the {'fitted' if isinstance(rep.jitter, JitterFamily) else 'assumed'} jitter "
-            f"law an ordinary fit sees the gain scaled by |φ(f)|: {ls_gain_factor(law, ny):.3f} at "
-            f"Nyquist ({ny:g} Hz); the gain bias reaches 1% at {fb:.3g} Hz.",
+            (
+                f"Under the {'fitted' if isinstance(rep.jitter, JitterFamily) else 'assumed'} jitter "
+                f"law an ordinary fit sees the gain scaled by |φ(f)|: {ls_gain_factor(law, ny):.3f} at "
+                f"Nyquist ({ny:g} Hz); the gain bias reaches 1% at {fb:.3g} Hz."
+            ),
             "",
         ]
     if "jitter_pdf" in figs:
         lines += ["## 4. Jitter density", "", f"![jitter pdf]({figs['jitter_pdf']})", ""]
+        if "jitter_pdf_note" in figs:
+            lines += [f"No band is drawn: {figs['jitter_pdf_note']}.", ""]
     lines += ["## 5. Residual checks (after fitting)", ""]
     lines += [f"- {c.summary()}" for c in rep.checks]
     lines += [
@@ -264,8 +287,8 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         "## 6. Export",
         "",
         "```python",
-        "import json, scipy.signal",
-        "r = json.load(open('result.json'))",
+        "import json, pathlib, scipy.signal",
+        "r = json.loads(pathlib.Path('result.json').read_text())",
         "G = scipy.signal.lti(r['system']['num'], r['system']['den'])  # s in rad/s",
         "```",
         "",
@@ -277,7 +300,10 @@ def write_outputs(rep: FitReport, out: Path, *, plots: bool = True) -> list[Path
     """Write result.json, report.md and (with ``plots``) the figures into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "result.json"]
-    (out / "result.json").write_text(json.dumps(result_json(rep), indent=2) + "\n", encoding="utf-8")
+    (out / "result.json").write_text(
+        json.dumps(result_json(rep), indent=2) + "\n", encoding="utf-8"
+    )
     figs = _figures(rep, out) if plots else {}
     (out / "report.md").write_text(report_markdown(rep, figs), encoding="utf-8")
-    return [*written, out / "report.md", *(out / v for v in figs.values())]
+    pngs = [out / v for k, v in figs.items() if v.endswith(".png")]
+    return [*written, out / "report.md", *pngs]

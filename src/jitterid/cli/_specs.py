@@ -139,8 +139,8 @@ def _law(name: str, body: str, spec: str) -> JitterLaw:
             + ",".join(f"{k}=VALUE" for k in keys)
             + f" (missing {', '.join(missing)})"
         )
-    law: Any = cls(**kw)  # type: ignore[call-arg]
-    return law  # type: ignore[no-any-return]
+    law: Any = cls(**kw)
+    return law
 
 
 def parse_jitter(spec: str, *, law_only: bool = False) -> JitterLaw | JitterFamily:
@@ -164,5 +164,5 @@ def parse_jitter(spec: str, *, law_only: bool = False) -> JitterLaw | JitterFami
             f"jitter {spec!r}: to fix the law write known:{s}; to estimate it write {name} "
             f"(optionally bounded: {name}:{keys[0]}=VALUE)"
         )
-    family: Any = cls(**_kwargs(body.strip(), keys, f"the {name} family", spec))  # type: ignore[call-arg]
-    return family  # type: ignore[no-any-return]
+    family: Any = cls(**_kwargs(body.strip(), keys, f"the {name} family", spec))
+    return family

@@ -54,11 +54,20 @@ def _clean_errors(what: str) -> Iterator[None]:
         raise click.ClickException(f"{what}: {exc}") from None
 
 
-def _spec(parser: object, value: str, param: str, **kw: object) -> object:
+@contextmanager
+def _param(hint: str) -> Iterator[None]:
+    """Turn a ValueError/TypeError while parsing option ``hint`` into a usage error."""
     try:
-        return parser(value, **kw)  # type: ignore[operator]
+        yield
     except (ValueError, TypeError) as exc:
-        raise click.BadParameter(str(exc), param_hint=param) from None
+        raise click.BadParameter(str(exc), param_hint=hint) from None
+
+
+def _law(spec: str) -> JitterLaw:
+    with _param("'--jitter'"):
+        law = parse_jitter(spec, law_only=True)
+    assert isinstance(law, JitterLaw)
+    return law
 
 
 def _positive(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
@@ -105,8 +114,10 @@ def _load(data_path: str, input_path: str | None, T: float | None, noise: float 
 # ------------------------------------------------------------------------------ simulate
 
 
-@main.command()
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory.")
+@main.command(short_help="Write a synthetic jittered data set (the paper's setting).")
+@click.option(
+    "--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory."
+)
 @click.option("--model", "model_spec", default="polepair", show_default=True, help=MODEL_HELP)
 @click.option(
     "--params",
@@ -133,9 +144,13 @@ def _load(data_path: str, input_path: str | None, T: float | None, noise: float 
     help="telegraph: the paper's random +-amplitude switching, saved as switch times; "
     "zoh: the same sampled on the grid and held (a DAC), saved as t,u.",
 )
-@click.option("--hold", type=float, default=1.0, show_default=True, callback=_positive, help="Mean hold (s).")
+@click.option(
+    "--hold", type=float, default=1.0, show_default=True, callback=_positive, help="Mean hold (s)."
+)
 @click.option("--amplitude", type=float, default=0.5, show_default=True, callback=_positive)
-@click.option("--format", "fmt", type=click.Choice(["csv", "npz"]), default="csv", show_default=True)
+@click.option(
+    "--format", "fmt", type=click.Choice(["csv", "npz"]), default="csv", show_default=True
+)
 def simulate(
     out: str,
     model_spec: str,
@@ -155,18 +170,19 @@ def simulate(
     Defaults are the paper's Section 5.2 setting: G = 6.25 / ((s + 1.5)^2 + 4), T = 1 s,
     N = 200, telegraph input +-0.5 with mean hold 1 s, jitter U(-0.5, 0.5), noise std 0.01.
     """
-    structure = _spec(parse_model, model_spec, "'--model'")
-    law = _spec(parse_jitter, jitter_spec, "'--jitter'", law_only=True)
-    assert isinstance(law, JitterLaw)
-    theta = _spec(parse_floats, params, "'--params'", name="--params")
+    with _param("'--model'"):
+        structure = parse_model(model_spec)
+    law = _law(jitter_spec)
+    with _param("'--params'"):
+        theta = parse_floats(params, "--params")
+        system = structure.system(theta)
     with _clean_errors("cannot simulate"):
-        system = structure.system(theta)  # type: ignore[attr-defined]
         rng = np.random.default_rng(seed)
         reach = (n_samples - 1) * T + max(law.support[1], 0.0)
         if input_kind == "telegraph":
             u = telegraph_input(reach + T, rng, levels=(-amplitude, amplitude), mean_hold=hold)
         else:
-            m = int(math.ceil(reach / T)) + 1
+            m = math.ceil(reach / T) + 1
             tele = telegraph_input(m * T, rng, levels=(-amplitude, amplitude), mean_hold=hold)
             u = zoh_input(tele(T * np.arange(m)), T)
         data = simulate_data(system, u, law, T, n_samples, noise_std, rng)
@@ -175,10 +191,15 @@ def simulate(
         input_file = save_input(out_dir / f"input.{fmt}", u, T=T if input_kind == "zoh" else None)
         truth = {
             "model": model_spec,
-            "param_names": list(structure.param_names),  # type: ignore[attr-defined]
-            "params": dict(zip(structure.param_names, theta, strict=True)),  # type: ignore[attr-defined]
+            "param_names": list(structure.param_names),
+            "params": dict(zip(structure.param_names, theta, strict=True)),
             "system": {"num": system.num.tolist(), "den": system.den.tolist()},
-            "jitter": {"spec": jitter_spec, "law": type(law).__name__, **law.params, "std": law.std},
+            "jitter": {
+                "spec": jitter_spec,
+                "law": type(law).__name__,
+                **law.params,
+                "std": law.std,
+            },
             "noise_std": noise_std,
             "N": n_samples,
             "T": T,
@@ -193,13 +214,15 @@ def simulate(
 # ------------------------------------------------------------------------------ detect
 
 
-@main.command()
+@main.command(short_help="Test DATA for sampling jitter before fitting.")
 @_data_arg
 @_input_opt
 @_model_opt
 @_T_opt
 @click.option("--level", type=float, default=0.95, show_default=True, callback=_level)
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write the residual plot (PNG).")
+@click.option(
+    "--plot", "plot_path", type=click.Path(dir_okay=False), help="Write the residual plot (PNG)."
+)
 def detect(
     data_path: str,
     input_path: str | None,
@@ -213,13 +236,16 @@ def detect(
     Fits the model ignoring jitter, regresses the squared residuals on the squared model
     slope and prints the one-sided p-value and the implied jitter std.
     """
-    structure = _spec(parse_model, model_spec, "'--model'")
+    with _param("'--model'"):
+        structure = parse_model(model_spec)
     ds = _load(data_path, input_path, T, None)
     with _clean_errors("the ordinary fit failed"):
-        ls = fit_model(ds.data, structure, NoJitter(), "ls")  # type: ignore[arg-type]
+        ls = fit_model(ds.data, structure, NoJitter(), "ls")
         det = detect_jitter(ds.data, ls, level=level)
     click.echo(f"ordinary LS fit (jitter ignored): {ls.status.value}")
-    click.echo("  " + ", ".join(f"{k} = {v:.5g} ± {ls.stderr[k]:.2g}" for k, v in ls.params.items()))
+    click.echo(
+        "  " + ", ".join(f"{k} = {v:.5g} ± {ls.stderr[k]:.2g}" for k, v in ls.params.items())
+    )
     click.echo(det.summary())
     if plot_path:
         from matplotlib.figure import Figure
@@ -236,17 +262,27 @@ def detect(
 # ------------------------------------------------------------------------------ fit
 
 
-@main.command()
+@main.command(short_help="Fit a model to DATA accounting for jitter; write a report.")
 @_data_arg
 @_input_opt
 @_model_opt
 @click.option("--jitter", "jitter_spec", required=True, help=JITTER_HELP)
 @click.option("--method", type=click.Choice(METHODS), default="bcls", show_default=True)
-@click.option("--noise-std", type=float, callback=_nonneg, help="Known measurement-noise std (y units).")
+@click.option(
+    "--noise-std", type=float, callback=_nonneg, help="Known measurement-noise std (y units)."
+)
 @_T_opt
-@click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory.")
+@click.option(
+    "--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory."
+)
 @click.option("--level", type=float, default=0.95, show_default=True, callback=_level)
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="For the pdf band draws.")
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="For the pdf band draws.",
+)
 @click.option("--plots/--no-plots", default=True, show_default=True)
 def fit(
     data_path: str,
@@ -269,9 +305,10 @@ def fit(
     """
     from .. import __version__
 
-    structure = _spec(parse_model, model_spec, "'--model'")
-    jitter = _spec(parse_jitter, jitter_spec, "'--jitter'")
-    assert isinstance(jitter, (JitterLaw, JitterFamily))
+    with _param("'--model'"):
+        structure = parse_model(model_spec)
+    with _param("'--jitter'"):
+        jitter = parse_jitter(jitter_spec)
     if method == "ls" and isinstance(jitter, JitterFamily):
         raise click.UsageError(
             "--method ls ignores jitter, so it cannot estimate a jitter family; use another "
@@ -279,8 +316,8 @@ def fit(
         )
     ds = _load(data_path, input_path, T, noise_std)
     with _clean_errors("the fit failed"):
-        ls = fit_model(ds.data, structure, NoJitter(), "ls")  # type: ignore[arg-type]
-        res = ls if method == "ls" else fit_model(ds.data, structure, jitter, method)  # type: ignore[arg-type]
+        ls = fit_model(ds.data, structure, NoJitter(), "ls")
+        res = ls if method == "ls" else fit_model(ds.data, structure, jitter, method)
         det = detect_jitter(ds.data, ls, level=level)
         z = standardized_residuals(ds.data, res)
         checks = (
@@ -289,9 +326,9 @@ def fit(
         )
     rep = FitReport(
         dataset=ds,
-        structure=structure,  # type: ignore[arg-type]
+        structure=structure,
         model_spec=model_spec,
-        model_label=model_label(structure),  # type: ignore[arg-type]
+        model_label=model_label(structure),
         jitter_spec=jitter_spec,
         jitter=jitter,
         result=res,
@@ -317,24 +354,40 @@ def fit(
 # ------------------------------------------------------------------------------ bias
 
 
-@main.command()
+@main.command(short_help="Predict an ordinary fit's gain bias |phi(f)| under jitter.")
 @click.option(
     "--jitter",
     "jitter_spec",
     required=True,
     help="Jitter law: uniform:a=A | gaussian:sigma=S | sum-of-uniforms:n=N,a=A (known: optional).",
 )
-@click.option("--T", "T", type=float, default=1.0, show_default=True, callback=_positive, help="Sets Nyquist 1/(2T).")
-@click.option("--fmax", type=float, callback=_positive, help="Highest frequency (Hz); default Nyquist.")
+@click.option(
+    "--T",
+    "T",
+    type=float,
+    default=1.0,
+    show_default=True,
+    callback=_positive,
+    help="Sets Nyquist 1/(2T).",
+)
+@click.option(
+    "--fmax", type=float, callback=_positive, help="Highest frequency (Hz); default Nyquist."
+)
 @click.option("--points", type=click.IntRange(min=2, max=1000), default=11, show_default=True)
-@click.option("--tol", type=float, default=0.01, show_default=True, callback=_level, help="Tolerated gain bias.")
+@click.option(
+    "--tol",
+    type=float,
+    default=0.01,
+    show_default=True,
+    callback=_level,
+    help="Tolerated gain bias.",
+)
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write |phi(f)| (PNG).")
 def bias(
     jitter_spec: str, T: float, fmax: float | None, points: int, tol: float, plot_path: str | None
 ) -> None:
     """Predict the gain bias of an ordinary (jitter-ignoring) fit: |G| is seen as |G| |phi(f)|."""
-    law = _spec(parse_jitter, jitter_spec, "'--jitter'", law_only=True)
-    assert isinstance(law, JitterLaw)
+    law = _law(jitter_spec)
     top = fmax if fmax is not None else 0.5 / T
     f = np.linspace(0.0, top, points)
     g = ls_gain_factor(law, f)
@@ -360,6 +413,8 @@ def bias(
         ff = np.linspace(0.0, top, 400)
         with _clean_errors("cannot write the plot"):
             fig = Figure(figsize=(6.4, 4.0), layout="constrained")
-            plot_gain_factor(ff, ls_gain_factor(law, ff), label=f"|φ(f)|, {law!r}", tol=tol, ax=fig.subplots())
+            plot_gain_factor(
+                ff, ls_gain_factor(law, ff), label=f"|φ(f)|, {law!r}", tol=tol, ax=fig.subplots()
+            )
             fig.savefig(plot_path, dpi=110)
         click.echo(f"wrote {plot_path}")
