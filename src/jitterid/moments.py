@@ -136,11 +136,7 @@ def dft_covariance(
     Returns the matrix with rows over ``f`` and columns over ``psi`` (default ``psi = f``).
     Includes the measurement-noise term sigma_v^2 sum_k exp(-i 2 pi (f - psi) k T).
     """
-    freqs = _frequencies(f)
-    other = freqs if psi is None else _frequencies(psi)
-    mom = sample_moments(system.response(u), jitter, T, N)
-    w = mom.var + _noise_var(noise_std)
-    return covariance_from_variances(w, T, freqs, other)
+    return _second_moment(system, u, jitter, T, N, f, noise_std, psi, sign=1.0)
 
 
 def dft_pseudo_covariance(
@@ -158,11 +154,25 @@ def dft_pseudo_covariance(
     A circular complex Gaussian model, as in the paper's (22), ignores it; the real-valued
     Gaussian criterion (method ``"gaussian"``) accounts for it.
     """
+    return _second_moment(system, u, jitter, T, N, f, noise_std, psi, sign=-1.0)
+
+
+def _second_moment(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    f: ArrayLike,
+    noise_std: float,
+    psi: ArrayLike | None,
+    sign: float,
+) -> ComplexArray:
+    """sum_k w_k exp(-i 2 pi (f - sign psi) k T): R_Y for sign = 1, C_Y for sign = -1."""
     freqs = _frequencies(f)
     other = freqs if psi is None else _frequencies(psi)
-    mom = sample_moments(system.response(u), jitter, T, N)
-    w = mom.var + _noise_var(noise_std)
-    return covariance_from_variances(w, T, freqs, -other)
+    w = sample_moments(system.response(u), jitter, T, N).var + _noise_var(noise_std)
+    return covariance_from_variances(w, T, freqs, sign * other)
 
 
 def covariance_from_variances(
