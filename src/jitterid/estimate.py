@@ -139,6 +139,7 @@ def _run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray
     cost = -2 * lik.loglik(x, y)
     if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
+    lik._cache.clear()  # the nodes (MBs) are rebuilt from the kept design if cov is asked for
     return x, cost, status, msg, nfev
 
 

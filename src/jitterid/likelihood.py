@@ -465,8 +465,9 @@ class ExactLikelihood:
     def scores(self, x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """ln p(y_k | x), shape (N,), and the per-sample scores d ln p(y_k) / dx, shape (N, p).
 
-        System parameters by (L2) with forward differences of s at the nodes (relative step
-        1e-7), noise std analytic, jitter-family parameters by forward differences of ln p.
+        System parameters by (L2) with ds/dtheta from the modal form (forward differences of
+        s, relative step 1e-7, for inputs that are not piecewise constant), noise std
+        analytic, jitter-family parameters by forward differences of ln p (step 1e-7).
         """
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
         logp, G, _ = self._terms(x, y, information=False)
