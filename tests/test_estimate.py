@@ -160,3 +160,24 @@ def test_rational_model_and_pole_pair_agree_on_the_same_data():
     k0, pr, pi = pp.x
     np.testing.assert_allclose(rm.x, [k0, -2 * pr, pr**2 + pi**2], rtol=1e-4)
     assert rm.cost == pytest.approx(pp.cost, rel=1e-6)
+
+
+def test_bcls_result_as_start_gives_identical_fits_and_rejects_foreign_prefits():
+    """Sharing the BCLS stage (start=FitResult) must not change any estimate, and a prefit
+    from other data or another method is refused with an error naming ``start``."""
+    rng = np.random.default_rng(7)
+    u = ji.telegraph_input(205.0, rng)
+    law = ji.Uniform(0.5)
+    data = ji.simulate(ji.TransferFunction([6.25], [1.0, 3.0, 6.25]), u, law, 1.0, 200, 0.01, rng)
+    other = ji.simulate(ji.TransferFunction([6.25], [1.0, 3.0, 6.25]), u, law, 1.0, 200, 0.01, rng)
+    structure = ji.PolePairGain()
+    bcls = ji.fit(data, structure, law, "bcls")
+    for method in ("asml-diag", "ml"):
+        alone = ji.fit(data, structure, law, method)
+        shared = ji.fit(data, structure, law, method, start=bcls)
+        np.testing.assert_array_equal(alone.x, shared.x)
+        assert alone.nfev == shared.nfev
+    with pytest.raises(ValueError, match="start: .*other data"):
+        ji.fit(other, structure, law, "ml", start=bcls)
+    with pytest.raises(ValueError, match="start: .*method='bcls'"):
+        ji.fit(data, structure, law, "ml", start=ji.fit(data, structure, law, "asml-diag"))

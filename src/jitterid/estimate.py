@@ -148,7 +148,7 @@ def fit(
     system: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
     method: str = "bcls",
-    start: ArrayLike | None = None,
+    start: ArrayLike | FitResult | None = None,
     *,
     freqs: ArrayLike | None = None,
     noise_std: float | None = None,
@@ -169,9 +169,13 @@ def fit(
         ``"ls"`` (8), ``"bcls"`` (14), ``"wbcls"`` (20), ``"asml"`` (22), ``"asml-diag"`` (23),
         ``"gaussian"`` (the exact real-valued Gaussian criterion, notes section 3) or ``"ml"``
         (the exact likelihood, notes section 4; :mod:`jitterid.likelihood`).
-    start : array_like, optional
+    start : array_like or FitResult, optional
         Starting vector in the result's ``names`` order. Default: an ordinary OE fit that
-        ignores the jitter (Section 4.5) and, for a free jitter law, a grid of starts.
+        ignores the jitter (Section 4.5) and, for a free jitter law, a grid of starts, then
+        (for every method but ``ls`` and ``bcls``) a BCLS fit. A ``bcls`` :class:`FitResult`
+        of the same data, structure and jitter model skips that first stage: fitting several
+        methods to one data set then costs the BCLS search once, with results identical to
+        independent calls.
     freqs : array_like, optional
         Frequency set in Hz. Default (24): f_k = k/(NT), k = 0..floor(N/2)-1.
     noise_std : float, optional
@@ -197,12 +201,15 @@ def _fit(
     system: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
     method: str = "bcls",
-    start: ArrayLike | None = None,
+    start: ArrayLike | FitResult | None = None,
     *,
     freqs: ArrayLike | None = None,
     noise_std: float | None = None,
     max_nfev: int = 2000,
 ) -> FitResult:
+    prefit = start if isinstance(start, FitResult) else None
+    if prefit is not None:
+        start = None
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}; got {method!r}")
     if not isinstance(data, SampledData):
@@ -231,42 +238,53 @@ def _fit(
         )
     make = partial(Problem, data, structure, jitter, freqs=f)
 
-    theta_sys, rms = _oe_start(data, structure)
     jstarts: Sequence[Sequence[float]] = (
         jitter.default_starts(data.T) if isinstance(jitter, JitterFamily) else [()]
     )
     nfev = 0
+    rms: float | None = None
     if start is not None:
         problem = make(method=method, noise_std=noise if method in NEEDS_NOISE else None)
         if method == "wbcls" and noise is None:
+            theta_sys = _oe_start(data, structure)[0]
             problem = make(method=method, noise_std=_plugin_noise(make, theta_sys, jstarts, max_nfev))
         x0 = np.atleast_1d(real_array(start, "start"))
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
         best = _run(problem, x0, max_nfev)
+        nfev = best[4]
     else:
         first = "ls" if method == "ls" else "bcls"
         pre = make(method=first, noise_std=None)
         best = None
-        for js in jstarts:
-            out = _run(pre, np.r_[np.asarray(js, float), theta_sys], max_nfev)
-            nfev += out[4]
-            if best is None or out[1] < best[1]:
-                best = out
+        if prefit is not None:
+            _check_prefit(prefit, pre)
+            best = (prefit.x, prefit.cost, prefit.status, prefit.message, prefit.nfev)
+            nfev = prefit.nfev
+        else:
+            theta_sys, rms = _oe_start(data, structure)
+            for js in jstarts:
+                out = _run(pre, np.r_[np.asarray(js, float), theta_sys], max_nfev)
+                nfev += out[4]
+                if best is None or out[1] < best[1]:
+                    best = out
         assert best is not None
         if method != first:
             x_pre = best[0]
             if method == "wbcls" and noise is None:
                 noise = _noise_from_residuals(pre, x_pre)
             problem = make(method=method, noise_std=noise if method in NEEDS_NOISE else None)
-            noise0 = max(rms, 1e-6)
+            if problem.estimates_noise and rms is None:
+                rms = _oe_start(data, structure)[1]
+            noise0 = max(rms or 0.0, 1e-6)
             if method == "ml":  # the likelihood's cost grows like 1/noise: start close
-                noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * rms, 1e-12)
+                noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * (rms or 0.0), 1e-12)
             x0 = np.r_[x_pre, noise0] if problem.estimates_noise else x_pre
             best = _run(problem, x0, max_nfev)
+            nfev += best[4]
         else:
             problem = pre
-    x, cost, status, msg, n = best
+    x, cost, status, msg, _ = best
     law, tf, noise_used = problem.split(x)
     return FitResult(
         method=method,
@@ -275,7 +293,7 @@ def _fit(
         cost=float(cost),
         status=status,
         message=msg,
-        nfev=nfev + n,
+        nfev=nfev,
         system=tf,
         jitter=law,
         noise_std=noise_used,
@@ -283,6 +301,29 @@ def _fit(
         _covariance=partial(sandwich_covariance, problem, np.asarray(x, float)),
         structure=structure,
     )
+
+
+def _check_prefit(prefit: FitResult, pre: Problem) -> None:
+    """A ``start`` FitResult must be the BCLS fit of this very problem (same data, structure,
+    jitter model and frequencies): its cost, re-evaluated here, must match."""
+    if prefit.method != pre.method or prefit.names != pre.names:
+        raise ValueError(
+            f"start: a FitResult passed as start must come from fit(..., method={pre.method!r}) "
+            f"with parameters {pre.names}; got method {prefit.method!r} with {prefit.names}"
+        )
+    if not prefit.success:
+        raise ValueError(
+            f"start: the {pre.method} fit passed as start did not converge ({prefit.status.name}); "
+            "fit without it, or from a parameter vector"
+        )
+    cost = pre.objective(prefit.x)
+    if prefit.freqs.shape != pre.freqs.shape or not np.allclose(prefit.freqs, pre.freqs) or not np.isclose(
+        cost, prefit.cost, rtol=1e-9, atol=0.0
+    ):
+        raise ValueError(
+            "start: the FitResult passed as start was fitted to other data, jitter model or "
+            "frequencies (its cost does not match this problem); fit it to the same data first"
+        )
 
 
 def _noise_from_residuals(bcls: Problem, x: FloatArray) -> float:
