@@ -124,6 +124,7 @@ def test_table1_cases_are_the_papers_six_laws():
         ("jitter.a_max", 0.5, "jitter.a_max"),  # not an option of model 'known'
         ("cases.0.law", {"kind": "uniform", "a": 3.5}, "input.margin"),  # input too short
         ("inputs", {}, "inputs"),
+        ("estimators.crb", "yes", "estimators.crb"),
     ],
 )
 def test_a_bad_definition_fails_naming_the_key(path, value, named):
@@ -131,6 +132,13 @@ def test_a_bad_definition_fails_naming_the_key(path, value, named):
         parse_experiment(edited(path, value), "tiny.toml")
     assert "tiny.toml: " in str(err.value)
     assert named in str(err.value)
+
+
+def test_crb_needs_the_true_noise():
+    data = edited("estimators.crb", True)
+    data["sampling"]["noise_known"] = False
+    with pytest.raises(ExperimentError, match=r"estimators\.crb needs a known, positive noise_std"):
+        parse_experiment(data, "tiny.toml")
 
 
 def test_a_typo_gets_a_did_you_mean_hint():
@@ -344,9 +352,11 @@ def test_reproduce_table2_runs_end_to_end(tmp_path):
     )
     assert res.exit_code == 0, res.output
     rows = read_csv(tmp_path / "table2.csv")
-    assert len(rows) == 8 * 4
-    assert {r["method"] for r in rows} == {"ls", "bcls", "asml-diag", "gaussian"}
+    assert len(rows) == 8 * 6
+    assert {r["method"] for r in rows} == {"ls", "bcls", "asml-diag", "gaussian", "ml", "crb"}
     report = (tmp_path / "table2.md").read_text()
+    assert "| CRB | √(mean bound) |" in report
+    assert report.count("std / √CRB, here") == 5
     assert "jitterid reproduce table2 --runs 8" in report
     for method, label in [("ls", "LS"), ("bcls", "BCLS"), ("asml-diag", "AsML")]:
         k0 = np.array(
@@ -410,3 +420,25 @@ def test_print_toml_gives_a_loadable_copy(tmp_path):
     assert res.exit_code == 0
     (tmp_path / "mine.toml").write_text(res.output)
     assert load_experiment(tmp_path / "mine.toml") == load_experiment(packaged_path("table3"))
+
+
+def test_bound_row_is_the_crb_of_the_realizations_input():
+    """The stored crb row equals jitterid.crb evaluated independently on the same input
+    (rebuilt from the realization's seed stream), and sigma's bound is the delta method
+    with the analytic gradient of sigma = a / sqrt(3 (n + 1))."""
+    from jitterid.experiments.runner import realize, seed_streams
+
+    exp = dataclasses.replace(load_experiment(packaged_path("table3")), methods=("bcls",), crb=True)
+    stream = seed_streams(exp.seed, len(exp.cases), 3)[0][2]
+    rows, _ = realize(exp, 0, 2, stream)
+    row = next(r for r in rows if r.method == "crb")
+    u = exp.input.build(exp.duration, np.random.default_rng(seed_streams(exp.seed, 1, 3)[0][2]))
+    n, a = 2.0, 0.28867513459481287
+    bound = ji.crb(ji.PolePairGain(), exp.estimation_jitter(exp.cases[0]), u, 1.0, 200, 0.01,
+                   [n, a, 6.25, -1.5, 2.0])
+    np.testing.assert_allclose([row.stderr[p] for p in ("n", "a", "k0", "pr", "pi")],
+                               np.sqrt(np.diag(bound)), rtol=1e-12)
+    s = a / np.sqrt(3 * (n + 1))
+    g = np.array([-s / (2 * (n + 1)), s / a])
+    np.testing.assert_allclose(row.stderr["sigma"], np.sqrt(g @ bound[:2, :2] @ g), rtol=1e-5)
+    assert row.success and row.status == "BOUND"

@@ -156,6 +156,7 @@ class Experiment:
     jitter_options: Pairs
     cases: tuple[Case, ...]
     methods: tuple[str, ...]
+    crb: bool = False
     paper_table: int | None = None
     paper_labels: tuple[tuple[str, str], ...] = ()
     description: str = field(default="", compare=False)

@@ -87,8 +87,15 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
     cases = tuple(_case(c) for c in top.tables("cases", ("name", "law", "paper_case")))
     if len({c.name for c in cases}) != len(cases):
         raise top.fail("cases", "must have distinct names")
-    est = top.table("estimators", ("methods",))
+    est = top.table("estimators", ("methods", "crb"))
     methods = _methods(est, jitter_model, system)
+    crb = est.flag("crb", default=False)
+    if crb and not (sa.flag("noise_known", default=True) and sa.number("noise_std", at_least=0) > 0):
+        raise est.fail(
+            "crb",
+            "needs a known, positive noise_std (the bound is evaluated at the true noise); "
+            "set sampling.noise_known = true and noise_std > 0, or crb = false",
+        )
     paper_table, labels = _paper(top, methods)
     exp = Experiment(
         name=name,
@@ -120,6 +127,7 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         jitter_options=jitter_options,
         cases=cases,
         methods=methods,
+        crb=crb,
         paper_table=paper_table,
         paper_labels=labels,
         source=source,

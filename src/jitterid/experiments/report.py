@@ -22,7 +22,15 @@ import numpy as np
 from .config import Case, Experiment
 from .store import Estimate
 
-__all__ = ["Stat", "Summary", "markdown_report", "paper_numbers", "summarize", "true_values"]
+__all__ = [
+    "Stat",
+    "Summary",
+    "bound_roots",
+    "markdown_report",
+    "paper_numbers",
+    "summarize",
+    "true_values",
+]
 
 PAPER_RUNS = 128
 Z_FLAG = 3.0
@@ -61,6 +69,18 @@ class Summary:
 
 def _values(e: Estimate, family: bool) -> dict[str, float]:
     return {**e.params, "sigma": e.jitter_std} if family else dict(e.params)
+
+
+def bound_roots(exp: Experiment, estimates: Sequence[Estimate]) -> dict[str, dict[str, float]]:
+    """sqrt(mean over realizations of the CRB diagonal) per case and parameter (``crb`` rows)."""
+    out: dict[str, dict[str, float]] = {}
+    for case in exp.cases:
+        rows = [e for e in estimates if e.case_name == case.name and e.method == "crb" and e.success]
+        if rows:
+            out[case.name] = {
+                p: float(np.sqrt(np.mean([e.stderr[p] ** 2 for e in rows]))) for p in rows[0].stderr
+            }
+    return out
 
 
 def summarize(exp: Experiment, estimates: Sequence[Estimate]) -> dict[tuple[str, str], Summary]:
@@ -125,7 +145,9 @@ def _fmt(x: float | None) -> str:
     return "—" if x is None or math.isnan(x) else f"{x:.4f}"
 
 
-def _case_block(exp: Experiment, case: Case, summ: dict[tuple[str, str], Summary]) -> list[str]:
+def _case_block(
+    exp: Experiment, case: Case, summ: dict[tuple[str, str], Summary], bound: dict[str, float] | None
+) -> list[str]:
     paper = paper_numbers(exp.paper_table) if exp.paper_table and case.paper_case else {}
     truth = true_values(exp, case)
     names: list[str] = []
@@ -142,6 +164,8 @@ def _case_block(exp: Experiment, case: Case, summ: dict[tuple[str, str], Summary
         "|---|---|" + "---:|" * len(names),
         "| θ⁰ | true | " + " | ".join(_fmt(truth.get(p)) for p in names) + " |",
     ]
+    if bound:
+        lines.append("| CRB | √(mean bound) | " + " | ".join(_fmt(bound.get(p)) for p in names) + " |")
     flags: list[str] = []
     for m in exp.methods:
         s, label = summ[case.name, m], exp.label(m)
@@ -169,17 +193,24 @@ def _case_block(exp: Experiment, case: Case, summ: dict[tuple[str, str], Summary
                 f"{(st.mean - tv) / st.sem:+.1f}" if tv is not None and st.sem > 0 else "—"
             )
         name = f"{label} (`{m}`)" if label != m else f"`{m}`"
-        if paper:
+        in_paper = bool(paper) and label != m
+        if in_paper:
             lines.append(
                 f"| {name} | mean, paper | " + " | ".join(_fmt(pm[p]) for p in names) + " |"
             )
         lines.append(f"| {name} | mean ± SEM, here | " + " | ".join(cells_m) + " |")
-        if paper:
+        if in_paper:
             lines.append(
                 f"| {name} | std, paper | " + " | ".join(_fmt(ps[p]) for p in names) + " |"
             )
         lines.append(f"| {name} | std, here | " + " | ".join(cells_s) + " |")
         lines.append(f"| {name} | (mean − θ⁰) / SEM, here | " + " | ".join(cells_b) + " |")
+        if bound:
+            eff = [
+                _fmt(s.stats[p].std / bound[p]) if p in s.stats and bound.get(p) else "—"
+                for p in names
+            ]
+            lines.append(f"| {name} | std / √CRB, here | " + " | ".join(eff) + " |")
     lines += [
         "",
         "| estimator | converged / run | errors | median fit time (s) |",
@@ -205,6 +236,7 @@ def markdown_report(
 ) -> str:
     """The Markdown report of one experiment (see the module docstring)."""
     summ = summarize(exp, estimates)
+    bounds = bound_roots(exp, estimates)
     methods = ", ".join(
         f"{exp.label(m)} (`{m}`)" if exp.label(m) != m else f"`{m}`" for m in exp.methods
     )
@@ -230,5 +262,5 @@ def markdown_report(
         "",
     ]
     for case in exp.cases:
-        lines += _case_block(exp, case, summ)
+        lines += _case_block(exp, case, summ, bounds.get(case.name))
     return "\n".join(lines).rstrip() + "\n"

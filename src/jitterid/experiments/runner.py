@@ -6,6 +6,13 @@ number of realizations nor the worker that runs it), and every fit runs single-t
 the results are the same bit for bit with 1 worker, many workers or a remote cluster.
 The parent process is the only writer of the store and commits each realization as soon as
 it arrives.
+
+Within a realization the BCLS search runs once and is shared by every method that starts
+from it (``fit(..., start=bcls_result)``, identical numbers to separate calls); the stored
+fit time of those methods excludes that shared stage. With ``crb = true`` each realization
+also stores a row of method ``crb``: the true parameters with, as ``stderr``, the square
+roots of the Cramer-Rao bound's diagonal for that realization's input (and, for a jitter
+family, the bound on sigma by the delta method).
 """
 
 from __future__ import annotations
@@ -23,6 +30,9 @@ from tqdm import tqdm
 
 from ..distributions import JitterFamily, JitterLaw
 from ..estimate import fit
+from ..inputs import Input
+from ..likelihood import crb
+from ..result import FitResult
 from ..models import TransferFunction
 from ..simulate import SampledData, simulate
 from ..structures import ModelStructure
@@ -87,8 +97,29 @@ def realize(
         if not exp.noise_known:
             data = SampledData(data.y, data.T, data.u, None, data.instants)
         model, jitter = exp.system.model(), exp.estimation_jitter(case)
-        rows = [_fit_one(data, model, jitter, m, case.name, realization) for m in exp.methods]
+        shared: dict[str, FitResult | Exception] = {}
+        rows = [_fit_one(data, model, jitter, m, case.name, realization, shared) for m in exp.methods]
+        if exp.crb:
+            rows.append(_bound_row(exp, case_index, realization, u))
     return rows, time.perf_counter() - t0
+
+
+def _bcls_stage(
+    data: SampledData,
+    model: ModelStructure | TransferFunction,
+    jitter: JitterLaw | JitterFamily,
+    shared: dict[str, FitResult | Exception],
+) -> FitResult:
+    """The realization's BCLS fit, computed once (an error is re-raised for every method)."""
+    if "bcls" not in shared:
+        try:
+            shared["bcls"] = fit(data, model, jitter, "bcls")
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            shared["bcls"] = exc
+    pre = shared["bcls"]
+    if isinstance(pre, Exception):
+        raise pre
+    return pre
 
 
 def _fit_one(
@@ -98,10 +129,17 @@ def _fit_one(
     method: str,
     case_name: str,
     realization: int,
+    shared: dict[str, FitResult | Exception],
 ) -> Estimate:
     t0 = time.perf_counter()
     try:
-        res = fit(data, model, jitter, method)
+        if method == "ls":
+            res = fit(data, model, jitter, method)
+        else:
+            pre = _bcls_stage(data, model, jitter, shared)
+            t0 = time.perf_counter() if method != "bcls" else t0
+            # A failed BCLS search cannot seed the others: they search on their own.
+            res = pre if method == "bcls" else fit(data, model, jitter, method, start=pre if pre.success else None)
         stderr = res.stderr
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return Estimate(
@@ -134,6 +172,52 @@ def _fit_one(
         res.nfev,
         time.perf_counter() - t0,
     )
+
+
+def _bound_row(exp: Experiment, case_index: int, realization: int, u: Input) -> Estimate:
+    """The Cramer-Rao bound at the truth for this realization's input, as an Estimate row
+    (``NOT_APPLICABLE`` when the true law is outside the estimated family)."""
+    t0 = time.perf_counter()
+    case = exp.cases[case_index]
+    jitter = exp.estimation_jitter(case)
+    truth = dict(exp.system.truth)
+    law = case.law.build()
+    family = isinstance(jitter, JitterFamily)
+    if family and case.law.kind != exp.jitter_model:
+        return Estimate(
+            case.name, realization, "crb", {}, {}, float(law.std), exp.noise_std, np.nan, False,
+            "NOT_APPLICABLE", "the true jitter law is outside the estimated family", 0,
+            time.perf_counter() - t0,
+        )
+    jpar = dict(case.law.params) if family else {}
+    names = [*jpar, *truth]
+    x = np.array([*jpar.values(), *truth.values()], dtype=float)
+    with threadpool_limits(limits=1):
+        bound = crb(exp.system.model(), jitter, u, exp.T, exp.N, exp.noise_std, x)
+    stderr = dict(zip(names, np.sqrt(np.diag(bound)).tolist(), strict=True))
+    if family:
+        assert isinstance(jitter, JitterFamily)
+        g = _std_gradient(jitter, x[: len(jpar)])
+        k = len(jpar)
+        stderr["sigma"] = float(np.sqrt(g @ bound[:k, :k] @ g))
+    return Estimate(
+        case.name, realization, "crb", dict(zip(names, x.tolist(), strict=True)), stderr,
+        float(law.std), exp.noise_std, np.nan, True, "BOUND",
+        "square roots of the Cramer-Rao bound's diagonal at the truth", 0,
+        time.perf_counter() - t0,
+    )
+
+
+def _std_gradient(family: JitterFamily, p: np.ndarray) -> np.ndarray:
+    """d sigma / d p of a family's law by central differences, one-sided at a bound."""
+    lo, hi = np.array(family.bounds, dtype=float).T
+    g = np.empty(p.size)
+    for i in range(p.size):
+        h = 1e-6 * max(abs(p[i]), 1e-3)
+        up, dn = p.copy(), p.copy()
+        up[i], dn[i] = min(p[i] + h, hi[i]), max(p[i] - h, lo[i])
+        g[i] = (family.law(up).std - family.law(dn).std) / (up[i] - dn[i])
+    return g
 
 
 def run_experiment(
