@@ -434,11 +434,20 @@ def test_bound_row_is_the_crb_of_the_realizations_input():
     row = next(r for r in rows if r.method == "crb")
     u = exp.input.build(exp.duration, np.random.default_rng(seed_streams(exp.seed, 1, 3)[0][2]))
     n, a = 2.0, 0.28867513459481287
-    bound = ji.crb(ji.PolePairGain(), exp.estimation_jitter(exp.cases[0]), u, 1.0, 200, 0.01,
-                   [n, a, 6.25, -1.5, 2.0])
-    np.testing.assert_allclose([row.stderr[p] for p in ("n", "a", "k0", "pr", "pi")],
-                               np.sqrt(np.diag(bound)), rtol=1e-12)
+    bound = ji.crb(
+        ji.PolePairGain(),
+        exp.estimation_jitter(exp.cases[0]),
+        u,
+        1.0,
+        200,
+        0.01,
+        [n, a, 6.25, -1.5, 2.0],
+    )
+    np.testing.assert_allclose(
+        [row.stderr[p] for p in ("n", "a", "k0", "pr", "pi")], np.sqrt(np.diag(bound)), rtol=1e-12
+    )
     s = a / np.sqrt(3 * (n + 1))
     g = np.array([-s / (2 * (n + 1)), s / a])
     np.testing.assert_allclose(row.stderr["sigma"], np.sqrt(g @ bound[:2, :2] @ g), rtol=1e-5)
-    assert row.success and row.status == "BOUND"
+    assert row.success
+    assert row.status == "BOUND"

@@ -435,34 +435,39 @@ def test_error_bars_cover_the_truth_full_monte_carlo(method):
     assert np.all((cover > 0.9) & (cover < 0.99)), cover
 
 
-def test_magnitude_band_delta_and_sampling_agree(table2_ml_fit):
+def test_bode_band_delta_and_sampling_agree(table2_ml_fit):
     _, res = table2_ml_fit
     f = np.linspace(0.01, 0.5, 30)
-    delta = ji.magnitude_band(res, f)
-    draw = ji.magnitude_band(res, f, method="sampling", rng=3, draws=20000)
+    delta = ji.bode_band(res, f)
+    draw = ji.bode_band(res, f, method="sampling", rng=3, draws=20000)
     np.testing.assert_allclose(delta.magnitude, np.abs(res.system.freqresp(f)))
-    width = delta.upper - delta.lower
-    np.testing.assert_allclose(draw.lower, delta.lower, atol=0.1 * width.max())
-    np.testing.assert_allclose(draw.upper, delta.upper, atol=0.1 * width.max())
-    narrow = ji.magnitude_band(res, f, level=0.5)
-    assert np.all(narrow.upper - narrow.lower < width)
+    width = delta.magnitude_hi - delta.magnitude_lo
+    np.testing.assert_allclose(draw.magnitude_lo, delta.magnitude_lo, atol=0.1 * width.max())
+    np.testing.assert_allclose(draw.magnitude_hi, delta.magnitude_hi, atol=0.1 * width.max())
+    ph_width = delta.phase_hi - delta.phase_lo
+    np.testing.assert_allclose(draw.phase_lo, delta.phase_lo, atol=0.1 * ph_width.max())
+    np.testing.assert_allclose(draw.phase_hi, delta.phase_hi, atol=0.1 * ph_width.max())
+    narrow = ji.bode_band(res, f, level=0.5)
+    assert np.all(narrow.magnitude_hi - narrow.magnitude_lo < width)
     with pytest.raises(ValueError, match="level"):
-        ji.magnitude_band(res, f, level=1.5)
+        ji.bode_band(res, f, level=1.5)
+    with pytest.raises(ValueError, match="method"):
+        ji.bode_band(res, f, method="bootstrap")
     with pytest.raises(TypeError, match="rng"):
-        ji.magnitude_band(res, f, method="sampling")
+        ji.bode_band(res, f, method="sampling")
     with pytest.raises(TypeError, match="FitResult"):
-        ji.magnitude_band(res.x, f)
+        ji.bode_band(res.x, f)
 
 
 @pytest.mark.slow
-def test_magnitude_band_covers_the_true_response():
+def test_bode_band_covers_the_true_response():
     f = np.array([0.05, 0.2, 0.35])
     true = np.abs(ji.PolePairGain().system(TRUTH).freqresp(f))
     hits = []
     for seed in range(128):
         res = ji.fit(table_data(7000 + seed), ji.PolePairGain(), LAWS["uniform"], method="ml")
-        band = ji.magnitude_band(res, f)
-        hits.append((band.lower <= true) & (true <= band.upper))
+        band = ji.bode_band(res, f)
+        hits.append((band.magnitude_lo <= true) & (true <= band.magnitude_hi))
     cover = np.mean(hits, axis=0)
     assert np.all((cover > 0.9) & (cover < 0.99)), cover
 

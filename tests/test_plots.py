@@ -8,7 +8,8 @@ import pytest
 
 import jitterid as ji
 from jitterid import plots
-from jitterid.diagnostics import BodeBand, JitterDetection, PdfBand
+from jitterid.diagnostics import JitterDetection
+from jitterid.uncertainty import BodeBand, PdfBand
 
 
 @pytest.fixture(autouse=True)

@@ -8,15 +8,11 @@ criterion. Frequencies are in Hz throughout.
 
 from .criteria import default_frequencies
 from .diagnostics import (
-    BodeBand,
     JitterDetection,
-    PdfBand,
     ResidualTest,
     bias_frequency,
-    bode_band,
     detect_jitter,
     input_correlation_test,
-    jitter_pdf_band,
     ljung_box,
     ls_gain_factor,
     model_output,
@@ -44,7 +40,7 @@ from .result import FitResult, FitStatus
 from .simulate import SampledData, simulate
 from .spectral import dirichlet, dtft
 from .structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
-from .uncertainty import MagnitudeBand, magnitude_band
+from .uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
 
 __version__ = "0.1.0"
 
@@ -111,9 +107,7 @@ __all__ += [
 # Exact likelihood, Cramer-Rao bound and confidence bands (issue 4).
 __all__ += [
     "ExactLikelihood",
-    "MagnitudeBand",
     "crb",
     "gaussian_bound",
     "log_density",
-    "magnitude_band",
 ]

@@ -11,7 +11,8 @@
 * :func:`ls_gain_factor` - the ordinary LS fit sees G(f) scaled by |phi(f)|, the jitter's
   characteristic function (paper, Lemma 1 and (13)); :func:`bias_frequency` is where that
   gain bias reaches a tolerance.
-* :func:`bode_band` and :func:`jitter_pdf_band` - confidence bands for the plots.
+* Confidence bands for the plots (:func:`jitterid.uncertainty.bode_band`,
+  :func:`jitterid.uncertainty.jitter_pdf_band`) live in :mod:`jitterid.uncertainty`.
 
 Frequencies are in Hz; phases in degrees.
 """
@@ -24,24 +25,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, stats
 
-from ._checks import count, generator, real_array
-from .distributions import JitterFamily, JitterLaw, NoJitter
+from ._checks import count, real_array
+from .distributions import JitterLaw, NoJitter
 from .models import TransferFunction
 from .moments import sample_moments
 from .result import FitResult
 from .simulate import SampledData
-from .structures import ModelStructure
 
 __all__ = [
-    "BodeBand",
     "JitterDetection",
-    "PdfBand",
     "ResidualTest",
     "bias_frequency",
-    "bode_band",
     "detect_jitter",
     "input_correlation_test",
-    "jitter_pdf_band",
     "ljung_box",
     "ls_gain_factor",
     "model_output",
@@ -475,228 +471,3 @@ def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
 
 
 # ------------------------------------------------------------------------ bands
-
-
-@dataclass(frozen=True, eq=False)
-class BodeBand:
-    """Frequency response of a fit with pointwise delta-method confidence bands.
-
-    Attributes
-    ----------
-    f : ndarray
-        Frequencies (Hz).
-    magnitude, magnitude_lo, magnitude_hi : ndarray
-        |G(i 2 pi f)| and its band (computed on log |G|, so it stays positive).
-    phase, phase_lo, phase_hi : ndarray
-        Unwrapped phase in degrees and its band.
-    level : float
-        Confidence level; NaN bands mean the covariance was unavailable.
-    """
-
-    f: FloatArray
-    magnitude: FloatArray
-    magnitude_lo: FloatArray
-    magnitude_hi: FloatArray
-    phase: FloatArray
-    phase_lo: FloatArray
-    phase_hi: FloatArray
-    level: float
-
-
-def _indices(result: FitResult, names: tuple[str, ...], what: str) -> list[int]:
-    missing = [n for n in names if n not in result.names]
-    if missing:
-        raise ValueError(
-            f"the {what} does not match the fit: parameters {missing} are not among the fit's "
-            f"{list(result.names)}; pass the structure or family that was given to fit()"
-        )
-    return [result.names.index(n) for n in names]
-
-
-def bode_band(
-    result: FitResult,
-    f: ArrayLike,
-    level: float = 0.95,
-    *,
-    structure: ModelStructure | None = None,
-) -> BodeBand:
-    """Bode magnitude and phase of a fit with delta-method confidence bands.
-
-    Parameters
-    ----------
-    result : FitResult
-    f : array_like
-        Frequencies (Hz).
-    level : float
-        Confidence level.
-    structure : ModelStructure, optional
-        The structure given to :func:`jitterid.fit`, to rebuild G from parameters; default
-        the one the result records (``result.structure``).
-
-    Returns
-    -------
-    BodeBand
-        The band is x +- z se with se^2 = J C J^T, J the derivative of log G with respect to
-        the system parameters (central differences), C their covariance block: the
-        magnitude band is computed on log |G| (so it stays positive), the phase band on
-        arg G. :func:`jitterid.uncertainty.magnitude_band` linearises |G| itself; the two
-        agree to first order in the band's relative width.
-    """
-    level = _level(level)
-    if not isinstance(result, FitResult):
-        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
-    if structure is None:
-        structure = getattr(result, "structure", None)
-    if not isinstance(structure, ModelStructure):
-        raise TypeError(
-            "structure must be the ModelStructure given to fit() (PolePairGain(), "
-            f"RationalModel(m, n)); got {type(structure).__name__}"
-        )
-    freqs = np.atleast_1d(real_array(f, "f"))
-    idx = _indices(result, tuple(structure.param_names), "structure")
-    theta = result.x[idx]
-    g0 = result.system.freqresp(freqs)
-    jac = np.empty((freqs.size, len(idx)), complex)
-    for i in range(len(idx)):
-        h = 1e-6 * max(abs(theta[i]), 1e-3)
-        up, down = theta.copy(), theta.copy()
-        up[i] += h
-        down[i] -= h
-        try:
-            g_up = structure.system(up).freqresp(freqs)
-        except ValueError:
-            g_up, h_up = g0, 0.0
-        else:
-            h_up = h
-        try:
-            g_down = structure.system(down).freqresp(freqs)
-        except ValueError:
-            g_down, h_down = g0, 0.0
-        else:
-            h_down = h
-        jac[:, i] = np.log(g_up / g_down) / (h_up + h_down)
-    cov = result.cov[np.ix_(idx, idx)]
-    zq = float(stats.norm.ppf(0.5 + level / 2))
-    var_log = np.einsum("fi,ij,fj->f", jac.real, cov, jac.real)
-    var_ph = np.einsum("fi,ij,fj->f", jac.imag, cov, jac.imag)
-    se_log = np.sqrt(np.maximum(var_log, 0.0))
-    se_ph = np.degrees(np.sqrt(np.maximum(var_ph, 0.0)))
-    mag = np.abs(g0)
-    phase = np.degrees(np.unwrap(np.angle(g0)))
-    return BodeBand(
-        f=freqs,
-        magnitude=mag,
-        magnitude_lo=mag * np.exp(-zq * se_log),
-        magnitude_hi=mag * np.exp(zq * se_log),
-        phase=phase,
-        phase_lo=phase - zq * se_ph,
-        phase_hi=phase + zq * se_ph,
-        level=level,
-    )
-
-
-@dataclass(frozen=True, eq=False)
-class PdfBand:
-    """Density of a (fitted) jitter law with a pointwise band.
-
-    Attributes
-    ----------
-    tau : ndarray
-        Jitter values (s).
-    pdf, lo, hi : ndarray
-        The fitted density and the pointwise band (equal to ``pdf`` for a known law).
-    level : float
-    fixed : tuple of str
-        Family parameters held at their estimate because their variance was unavailable
-        (e.g. on a bound); the band then understates the uncertainty.
-    """
-
-    tau: FloatArray
-    pdf: FloatArray
-    lo: FloatArray
-    hi: FloatArray
-    level: float
-    fixed: tuple[str, ...]
-
-
-def jitter_pdf_band(
-    result: FitResult,
-    family: JitterFamily | None,
-    tau: ArrayLike,
-    rng: np.random.Generator | int,
-    *,
-    level: float = 0.95,
-    n_draws: int = 400,
-) -> PdfBand:
-    """The fitted jitter density with a pointwise band from the parameters' covariance.
-
-    Draws the family's parameters from N(x, C) restricted to the family's bounds (draws
-    outside are discarded) and takes pointwise quantiles of the densities.
-
-    Parameters
-    ----------
-    result : FitResult
-    family : JitterFamily or None
-        The family given to :func:`jitterid.fit`; ``None`` for a known law (no band).
-    tau : array_like
-        Jitter values (s) at which to evaluate the density.
-    rng : numpy.random.Generator or int
-        Randomness for the draws (explicit).
-    level : float
-        Confidence level.
-    n_draws : int
-        Number of parameter draws.
-
-    Returns
-    -------
-    PdfBand
-
-    Raises
-    ------
-    ValueError
-        If fewer than 10 % of the draws lie inside the bounds: the normal approximation of
-        the estimate is then too poor for a band.
-    """
-    level = _level(level)
-    if not isinstance(result, FitResult):
-        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
-    n_draws = count(n_draws, "n_draws", minimum=10)
-    gen = generator(rng)
-    t = np.atleast_1d(real_array(tau, "tau"))
-    if result.jitter.std == 0:
-        raise ValueError("the fit's jitter law has zero spread (no jitter); there is no density")
-    pdf = np.asarray(result.jitter.pdf(t), float)
-    if family is None:
-        return PdfBand(t, pdf, pdf.copy(), pdf.copy(), level, ())
-    if not isinstance(family, JitterFamily):
-        raise TypeError(f"family must be a JitterFamily or None; got {type(family).__name__}")
-    idx = _indices(result, tuple(family.param_names), "jitter family")
-    x = result.x[idx]
-    cov = result.cov[np.ix_(idx, idx)].copy()
-    ok = np.isfinite(np.diag(cov))
-    fixed = tuple(n for n, good in zip(family.param_names, ok, strict=True) if not good)
-    cov[~ok, :] = 0.0
-    cov[:, ~ok] = 0.0
-    # Draw through a clipped eigendecomposition: a sandwich covariance may be slightly
-    # indefinite from rounding, which multivariate_normal would warn about.
-    w, v = np.linalg.eigh(0.5 * (cov + cov.T))
-    root = (v * np.sqrt(np.maximum(w, 0.0))).T
-    lo_b, hi_b = np.array(family.bounds, float).T
-    draws = x + gen.standard_normal((10 * n_draws, x.size)) @ root
-    inside = draws[np.all((draws >= lo_b) & (draws <= hi_b), axis=1)]
-    if inside.shape[0] < n_draws:
-        raise ValueError(
-            f"only {inside.shape[0]} of {10 * n_draws} draws of {family.param_names} from their "
-            "normal approximation lie inside the family's bounds; the estimate is too uncertain "
-            "for a density band (the standard errors are larger than the distance to a bound)"
-        )
-    dens = np.array([family.law(d).pdf(t) for d in inside[:n_draws]])
-    q = (1 - level) / 2
-    return PdfBand(
-        t,
-        pdf,
-        np.quantile(dens, q, axis=0),
-        np.quantile(dens, 1 - q, axis=0),
-        level,
-        fixed,
-    )

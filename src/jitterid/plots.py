@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .diagnostics import BodeBand, JitterDetection, PdfBand
+from .diagnostics import JitterDetection
+from .uncertainty import BodeBand, PdfBand
 from .distributions import JitterLaw
 from .models import TransferFunction
 
@@ -48,7 +49,7 @@ def plot_bode(
     Parameters
     ----------
     band : BodeBand
-        From :func:`jitterid.diagnostics.bode_band`.
+        From :func:`jitterid.uncertainty.bode_band`.
     references : mapping of str to TransferFunction, optional
         Other systems to draw on the same frequencies, e.g. ``{"ordinary LS": ls.system,
         "truth": g0}``.

@@ -86,7 +86,7 @@ class FitResult:
         a / sqrt(3 (n + 1)), the paper's sigma.
     structure : ModelStructure or None
         The model structure fitted (to rebuild G from parameters, e.g. for
-        :func:`jitterid.uncertainty.magnitude_band`); None if not recorded.
+        :func:`jitterid.uncertainty.bode_band`); None if not recorded.
     """
 
     method: str

@@ -1,63 +1,94 @@
-"""Confidence bands on the fitted frequency response |G(i 2 pi f)|.
+"""Confidence bands from a fit's covariance: the Bode response and the jitter density.
 
-Two routes from the estimate x and its covariance C (``FitResult.cov``, the system
-parameters' block):
+Both are as honest as the covariance C (``FitResult.cov``): for ``ml`` the inverse observed
+information, for the moment estimators the sandwich covariance (:mod:`jitterid.sandwich`).
 
-- ``"delta"`` (default): linearise the magnitude, se(f)^2 = J C J^T with
-  J = d|G(i 2 pi f; theta)| / d theta by central differences (relative step 1e-6); the band
-  is |G| -+ z se, z the normal quantile of ``level``, the lower edge clipped at 0.
+:func:`bode_band` offers two routes from the estimate x and the system parameters' block of C:
+
+- ``"delta"`` (default): se(f)^2 = J C J^T with J the derivative of log G(i 2 pi f; theta)
+  (central differences, relative step 1e-6); the magnitude band is |G| exp(-+ z se_log)
+  (computed on log |G|, so it stays positive) and the phase band arg G -+ z se_phase, z the
+  normal quantile of ``level``.
 - ``"sampling"``: draw theta^(r) ~ N(x, C) (draws outside the structure's bounds are
-  discarded), and take the (1 - level)/2 and (1 + level)/2 quantiles of |G(theta^(r))|.
-  It needs no linearisation, so where the two differ the delta band is not to be trusted.
+  discarded) and take pointwise (1 - level)/2 and (1 + level)/2 quantiles of |G| and of the
+  phase. It needs no linearisation, so where the two differ the delta band is not to be
+  trusted.
 
-Both are as honest as C: for ``ml`` the inverse observed information, for the moment
-estimators the sandwich covariance (:mod:`jitterid.sandwich`).
+:func:`jitter_pdf_band` draws the jitter family's parameters the same way and takes pointwise
+quantiles of the densities. Frequencies are in Hz; phases in degrees.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from ._checks import count, generator, real_array
+from .distributions import JitterFamily
 from .result import FitResult
 from .structures import ModelStructure
 
-__all__ = ["MagnitudeBand", "magnitude_band"]
+__all__ = ["BodeBand", "PdfBand", "bode_band", "jitter_pdf_band"]
 
 FloatArray = NDArray[np.float64]
 
 
-class MagnitudeBand(NamedTuple):
-    """|G(i 2 pi f)| at the estimate and a confidence band, one value per frequency."""
+def _level(level: float) -> float:
+    if not isinstance(level, (int, float, np.floating)) or not 0 < float(level) < 1:
+        raise ValueError(f"level must be a number in (0, 1), e.g. 0.95; got {level!r}")
+    return float(level)
 
+
+def _normal_draws(
+    gen: np.random.Generator, x: FloatArray, cov: FloatArray, size: int
+) -> FloatArray:
+    """Draws from N(x, cov) through a clipped eigendecomposition: a sandwich covariance may
+    be slightly indefinite from rounding, which multivariate_normal would warn about."""
+    w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+    root = (v * np.sqrt(np.maximum(w, 0.0))).T
+    return x + gen.standard_normal((size, x.size)) @ root
+
+
+@dataclass(frozen=True, eq=False)
+class BodeBand:
+    """Frequency response of a fit with pointwise confidence bands (:func:`bode_band`).
+
+    Attributes
+    ----------
+    f : ndarray
+        Frequencies (Hz).
+    magnitude, magnitude_lo, magnitude_hi : ndarray
+        |G(i 2 pi f)| at the estimate and its band.
+    phase, phase_lo, phase_hi : ndarray
+        Unwrapped phase in degrees and its band.
+    level : float
+        Confidence level; NaN bands mean the covariance was unavailable.
+    """
+
+    f: FloatArray
     magnitude: FloatArray
-    lower: FloatArray
-    upper: FloatArray
+    magnitude_lo: FloatArray
+    magnitude_hi: FloatArray
+    phase: FloatArray
+    phase_lo: FloatArray
+    phase_hi: FloatArray
+    level: float
 
 
-def _system_block(result: FitResult) -> tuple[ModelStructure, slice]:
-    structure = result.structure
-    if not isinstance(structure, ModelStructure):
-        raise TypeError(
-            "result.structure must be the fitted ModelStructure; this result has none; use a FitResult from jitterid.fit "
-            "(which records it), or build one with structure=..."
-        )
-    ns = len(structure.param_names)
-    start = len(result.names) - ns - (1 if result.names[-1:] == ("noise_std",) else 0)
-    block = slice(start, start + ns)
-    if result.names[block] != structure.param_names:
+def _indices(result: FitResult, names: tuple[str, ...], what: str) -> list[int]:
+    missing = [n for n in names if n not in result.names]
+    if missing:
         raise ValueError(
-            f"result.names {result.names} do not hold the structure's parameters "
-            f"{structure.param_names}; the result and its structure do not match"
+            f"the {what} does not match the fit: parameters {missing} are not among the fit's "
+            f"{list(result.names)}; pass the structure or family that was given to fit()"
         )
-    return structure, block
+    return [result.names.index(n) for n in names]
 
 
-def magnitude_band(
+def bode_band(
     result: FitResult,
     f: ArrayLike,
     level: float = 0.95,
@@ -65,75 +96,214 @@ def magnitude_band(
     method: str = "delta",
     draws: int = 4000,
     rng: np.random.Generator | int | None = None,
-) -> MagnitudeBand:
-    """Confidence band on |G(i 2 pi f)| of a fitted model (module docstring).
+    structure: ModelStructure | None = None,
+) -> BodeBand:
+    """Bode magnitude and phase of a fit with pointwise confidence bands (module docstring).
 
     Parameters
     ----------
     result : FitResult
-        A fit from :func:`jitterid.fit` (it records the structure and the covariance).
+        A fit from :func:`jitterid.fit`.
     f : array_like
-        Frequencies in Hz.
+        Frequencies (Hz).
     level : float
         Confidence level in (0, 1).
     method : {"delta", "sampling"}
-        Linearisation, or quantiles over parameter draws from N(x, cov).
+        Linearisation of log G, or quantiles over parameter draws from N(x, C).
     draws : int
-        Number of parameter draws for ``"sampling"``.
+        Number of parameter draws for ``"sampling"`` (at least 100).
     rng : numpy.random.Generator or int
         Source of randomness, required for ``"sampling"``.
+    structure : ModelStructure, optional
+        The structure given to :func:`jitterid.fit`, to rebuild G from parameters; default
+        the one the result records (``result.structure``).
 
     Returns
     -------
-    MagnitudeBand
-        ``(magnitude, lower, upper)``, arrays shaped like ``f``; NaN where the covariance is
-        not available (a parameter on a bound); zero width for a known system.
+    BodeBand
+        NaN bands where the covariance is unavailable (a parameter on a bound); zero width
+        for a known system.
+
+    Raises
+    ------
+    ValueError
+        For ``"sampling"``, if fewer than 90 % of the draws lie inside the structure's
+        bounds: the normal approximation is then too poor for a band.
     """
+    level = _level(level)
     if not isinstance(result, FitResult):
         raise TypeError(
             f"result must be a FitResult from jitterid.fit; got {type(result).__name__}"
         )
-    if not 0 < level < 1:
-        raise ValueError(f"level must be in (0, 1), e.g. 0.95; got {level!r}")
     if method not in ("delta", "sampling"):
         raise ValueError(f"method must be 'delta' or 'sampling'; got {method!r}")
-    freqs = np.atleast_1d(real_array(f, "f")).astype(float)
-    structure, block = _system_block(result)
-    theta = result.x[block]
-    mag = np.abs(result.system.freqresp(freqs))
-    if theta.size == 0:
-        return MagnitudeBand(mag, mag.copy(), mag.copy())
-    C = result.cov[block, block]
-    if not np.all(np.isfinite(C)):
-        nan = np.full_like(mag, np.nan)
-        return MagnitudeBand(mag, nan, nan.copy())
-    if method == "delta":
-        J = np.empty((freqs.size, theta.size))
-        lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
-        for i in range(theta.size):
-            h = 1e-6 * max(abs(float(theta[i])), 1e-3)
-            c = float(np.clip(theta[i], lo[i] + h, hi[i] - h))
-            up, down = theta.copy(), theta.copy()
-            up[i], down[i] = c + h, c - h
-            g_up = np.abs(structure.system(up).freqresp(freqs))
-            g_down = np.abs(structure.system(down).freqresp(freqs))
-            J[:, i] = (g_up - g_down) / (2 * h)
-        se = np.sqrt(np.maximum(np.einsum("fi,ij,fj->f", J, C, J), 0.0))
-        z = float(stats.norm.ppf(0.5 + level / 2))
-        return MagnitudeBand(mag, np.maximum(mag - z * se, 0.0), mag + z * se)
-    gen = generator(rng, "rng")
-    draws = count(draws, "draws", minimum=100)
-    samples = gen.multivariate_normal(theta, C, size=draws, method="eigh")
-    values = []
-    for th in samples:
-        try:
-            values.append(np.abs(structure.system(th).freqresp(freqs)))
-        except ValueError:  # outside the structure's bounds
-            continue
-    if len(values) < 0.9 * draws:
-        raise ValueError(
-            f"only {len(values)} of {draws} parameter draws lie inside the structure's bounds: "
-            "the normal approximation is poor here; use method='delta' with care"
+    if structure is None:
+        structure = result.structure
+    if not isinstance(structure, ModelStructure):
+        raise TypeError(
+            "structure must be the ModelStructure given to fit() (PolePairGain(), "
+            f"RationalModel(m, n)); got {type(structure).__name__}"
         )
-    q = np.quantile(np.array(values), [0.5 - level / 2, 0.5 + level / 2], axis=0)
-    return MagnitudeBand(mag, q[0], q[1])
+    freqs = np.atleast_1d(real_array(f, "f"))
+    idx = _indices(result, tuple(structure.param_names), "structure")
+    theta = result.x[idx]
+    g0 = result.system.freqresp(freqs)
+    mag, phase = np.abs(g0), np.degrees(np.unwrap(np.angle(g0)))
+
+    def band(m_lo: FloatArray, m_hi: FloatArray, p_lo: FloatArray, p_hi: FloatArray) -> BodeBand:
+        return BodeBand(freqs, mag, m_lo, m_hi, phase, p_lo, p_hi, level)
+
+    if not idx:
+        return band(mag.copy(), mag.copy(), phase.copy(), phase.copy())
+    cov = result.cov[np.ix_(idx, idx)]
+    if not np.all(np.isfinite(cov)):
+        nan = np.full_like(mag, np.nan)
+        return band(nan, nan.copy(), nan.copy(), nan.copy())
+    if method == "sampling":
+        gen, n = generator(rng, "rng"), count(draws, "draws", minimum=100)
+        lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
+        samples = _normal_draws(gen, theta, cov, n)
+        responses = []
+        for th in samples[np.all((samples >= lo) & (samples <= hi), axis=1)]:
+            try:
+                responses.append(structure.system(th).freqresp(freqs))
+            except ValueError:  # e.g. an unstable draw
+                continue
+        if len(responses) < 0.9 * n:
+            raise ValueError(
+                f"only {len(responses)} of {n} parameter draws give a valid model inside the "
+                "structure's bounds: the normal approximation is poor here; use method='delta' "
+                "with care"
+            )
+        g = np.array(responses)
+        q = [0.5 - level / 2, 0.5 + level / 2]
+        m_q = np.quantile(np.abs(g), q, axis=0)
+        # Phase of each draw relative to the estimate's, so no draw wraps differently.
+        p_q = phase + np.quantile(np.degrees(np.angle(g / g0)), q, axis=0)
+        return band(m_q[0], m_q[1], p_q[0], p_q[1])
+    jac = np.empty((freqs.size, len(idx)), complex)
+    for i in range(len(idx)):
+        h = 1e-6 * max(abs(theta[i]), 1e-3)
+        g_side, h_side = [], []
+        for step in (h, -h):  # one-sided where a step leaves the structure's domain
+            th = theta.copy()
+            th[i] += step
+            try:
+                g_side.append(structure.system(th).freqresp(freqs))
+                h_side.append(h)
+            except ValueError:
+                g_side.append(g0)
+                h_side.append(0.0)
+        jac[:, i] = np.log(g_side[0] / g_side[1]) / (h_side[0] + h_side[1])
+    zq = float(stats.norm.ppf(0.5 + level / 2))
+    se_log = np.sqrt(np.maximum(np.einsum("fi,ij,fj->f", jac.real, cov, jac.real), 0.0))
+    se_ph = np.degrees(np.sqrt(np.maximum(np.einsum("fi,ij,fj->f", jac.imag, cov, jac.imag), 0.0)))
+    return band(
+        mag * np.exp(-zq * se_log),
+        mag * np.exp(zq * se_log),
+        phase - zq * se_ph,
+        phase + zq * se_ph,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class PdfBand:
+    """Density of a (fitted) jitter law with a pointwise band.
+
+    Attributes
+    ----------
+    tau : ndarray
+        Jitter values (s).
+    pdf, lo, hi : ndarray
+        The fitted density and the pointwise band (equal to ``pdf`` for a known law).
+    level : float
+    fixed : tuple of str
+        Family parameters held at their estimate because their variance was unavailable
+        (e.g. on a bound); the band then understates the uncertainty.
+    """
+
+    tau: FloatArray
+    pdf: FloatArray
+    lo: FloatArray
+    hi: FloatArray
+    level: float
+    fixed: tuple[str, ...]
+
+
+def jitter_pdf_band(
+    result: FitResult,
+    family: JitterFamily | None,
+    tau: ArrayLike,
+    rng: np.random.Generator | int,
+    *,
+    level: float = 0.95,
+    n_draws: int = 400,
+) -> PdfBand:
+    """The fitted jitter density with a pointwise band from the parameters' covariance.
+
+    Draws the family's parameters from N(x, C) restricted to the family's bounds (draws
+    outside are discarded) and takes pointwise quantiles of the densities.
+
+    Parameters
+    ----------
+    result : FitResult
+    family : JitterFamily or None
+        The family given to :func:`jitterid.fit`; ``None`` for a known law (no band).
+    tau : array_like
+        Jitter values (s) at which to evaluate the density.
+    rng : numpy.random.Generator or int
+        Randomness for the draws (explicit).
+    level : float
+        Confidence level.
+    n_draws : int
+        Number of parameter draws.
+
+    Returns
+    -------
+    PdfBand
+
+    Raises
+    ------
+    ValueError
+        If fewer than 10 % of the draws lie inside the bounds: the normal approximation of
+        the estimate is then too poor for a band.
+    """
+    level = _level(level)
+    if not isinstance(result, FitResult):
+        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
+    n_draws = count(n_draws, "n_draws", minimum=10)
+    gen = generator(rng)
+    t = np.atleast_1d(real_array(tau, "tau"))
+    if result.jitter.std == 0:
+        raise ValueError("the fit's jitter law has zero spread (no jitter); there is no density")
+    pdf = np.asarray(result.jitter.pdf(t), float)
+    if family is None:
+        return PdfBand(t, pdf, pdf.copy(), pdf.copy(), level, ())
+    if not isinstance(family, JitterFamily):
+        raise TypeError(f"family must be a JitterFamily or None; got {type(family).__name__}")
+    idx = _indices(result, tuple(family.param_names), "jitter family")
+    x = result.x[idx]
+    cov = result.cov[np.ix_(idx, idx)].copy()
+    ok = np.isfinite(np.diag(cov))
+    fixed = tuple(n for n, good in zip(family.param_names, ok, strict=True) if not good)
+    cov[~ok, :] = 0.0
+    cov[:, ~ok] = 0.0
+    lo_b, hi_b = np.array(family.bounds, float).T
+    draws = _normal_draws(gen, x, cov, 10 * n_draws)
+    inside = draws[np.all((draws >= lo_b) & (draws <= hi_b), axis=1)]
+    if inside.shape[0] < n_draws:
+        raise ValueError(
+            f"only {inside.shape[0]} of {10 * n_draws} draws of {family.param_names} from their "
+            "normal approximation lie inside the family's bounds; the estimate is too uncertain "
+            "for a density band (the standard errors are larger than the distance to a bound)"
+        )
+    dens = np.array([family.law(d).pdf(t) for d in inside[:n_draws]])
+    q = (1 - level) / 2
+    return PdfBand(
+        t,
+        pdf,
+        np.quantile(dens, q, axis=0),
+        np.quantile(dens, 1 - q, axis=0),
+        level,
+        fixed,
+    )

@@ -14,8 +14,6 @@ from ..diagnostics import (
     JitterDetection,
     ResidualTest,
     bias_frequency,
-    bode_band,
-    jitter_pdf_band,
     ls_gain_factor,
 )
 from ..distributions import JitterFamily, JitterLaw
@@ -23,6 +21,7 @@ from ..io import Dataset
 from ..models import TransferFunction
 from ..result import FitResult
 from ..structures import ModelStructure
+from ..uncertainty import bode_band, jitter_pdf_band
 
 __all__ = ["FitReport", "write_outputs"]
 

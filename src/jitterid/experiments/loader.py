@@ -90,7 +90,9 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
     est = top.table("estimators", ("methods", "crb"))
     methods = _methods(est, jitter_model, system)
     crb = est.flag("crb", default=False)
-    if crb and not (sa.flag("noise_known", default=True) and sa.number("noise_std", at_least=0) > 0):
+    if crb and not (
+        sa.flag("noise_known", default=True) and sa.number("noise_std", at_least=0) > 0
+    ):
         raise est.fail(
             "crb",
             "needs a known, positive noise_std (the bound is evaluated at the true noise); "

@@ -75,7 +75,9 @@ def bound_roots(exp: Experiment, estimates: Sequence[Estimate]) -> dict[str, dic
     """sqrt(mean over realizations of the CRB diagonal) per case and parameter (``crb`` rows)."""
     out: dict[str, dict[str, float]] = {}
     for case in exp.cases:
-        rows = [e for e in estimates if e.case_name == case.name and e.method == "crb" and e.success]
+        rows = [
+            e for e in estimates if e.case_name == case.name and e.method == "crb" and e.success
+        ]
         if rows:
             out[case.name] = {
                 p: float(np.sqrt(np.mean([e.stderr[p] ** 2 for e in rows]))) for p in rows[0].stderr
@@ -146,7 +148,10 @@ def _fmt(x: float | None) -> str:
 
 
 def _case_block(
-    exp: Experiment, case: Case, summ: dict[tuple[str, str], Summary], bound: dict[str, float] | None
+    exp: Experiment,
+    case: Case,
+    summ: dict[tuple[str, str], Summary],
+    bound: dict[str, float] | None,
 ) -> list[str]:
     paper = paper_numbers(exp.paper_table) if exp.paper_table and case.paper_case else {}
     truth = true_values(exp, case)
@@ -165,7 +170,9 @@ def _case_block(
         "| θ⁰ | true | " + " | ".join(_fmt(truth.get(p)) for p in names) + " |",
     ]
     if bound:
-        lines.append("| CRB | √(mean bound) | " + " | ".join(_fmt(bound.get(p)) for p in names) + " |")
+        lines.append(
+            "| CRB | √(mean bound) | " + " | ".join(_fmt(bound.get(p)) for p in names) + " |"
+        )
     flags: list[str] = []
     for m in exp.methods:
         s, label = summ[case.name, m], exp.label(m)

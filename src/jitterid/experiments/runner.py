@@ -32,8 +32,8 @@ from ..distributions import JitterFamily, JitterLaw
 from ..estimate import fit
 from ..inputs import Input
 from ..likelihood import crb
-from ..result import FitResult
 from ..models import TransferFunction
+from ..result import FitResult
 from ..simulate import SampledData, simulate
 from ..structures import ModelStructure
 from .config import Experiment
@@ -98,7 +98,9 @@ def realize(
             data = SampledData(data.y, data.T, data.u, None, data.instants)
         model, jitter = exp.system.model(), exp.estimation_jitter(case)
         shared: dict[str, FitResult | Exception] = {}
-        rows = [_fit_one(data, model, jitter, m, case.name, realization, shared) for m in exp.methods]
+        rows = [
+            _fit_one(data, model, jitter, m, case.name, realization, shared) for m in exp.methods
+        ]
         if exp.crb:
             rows.append(_bound_row(exp, case_index, realization, u))
     return rows, time.perf_counter() - t0
@@ -139,7 +141,11 @@ def _fit_one(
             pre = _bcls_stage(data, model, jitter, shared)
             t0 = time.perf_counter() if method != "bcls" else t0
             # A failed BCLS search cannot seed the others: they search on their own.
-            res = pre if method == "bcls" else fit(data, model, jitter, method, start=pre if pre.success else None)
+            res = (
+                pre
+                if method == "bcls"
+                else fit(data, model, jitter, method, start=pre if pre.success else None)
+            )
         stderr = res.stderr
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return Estimate(
@@ -185,8 +191,18 @@ def _bound_row(exp: Experiment, case_index: int, realization: int, u: Input) -> 
     family = isinstance(jitter, JitterFamily)
     if family and case.law.kind != exp.jitter_model:
         return Estimate(
-            case.name, realization, "crb", {}, {}, float(law.std), exp.noise_std, np.nan, False,
-            "NOT_APPLICABLE", "the true jitter law is outside the estimated family", 0,
+            case.name,
+            realization,
+            "crb",
+            {},
+            {},
+            float(law.std),
+            exp.noise_std,
+            np.nan,
+            False,
+            "NOT_APPLICABLE",
+            "the true jitter law is outside the estimated family",
+            0,
             time.perf_counter() - t0,
         )
     jpar = dict(case.law.params) if family else {}
@@ -201,9 +217,18 @@ def _bound_row(exp: Experiment, case_index: int, realization: int, u: Input) -> 
         k = len(jpar)
         stderr["sigma"] = float(np.sqrt(g @ bound[:k, :k] @ g))
     return Estimate(
-        case.name, realization, "crb", dict(zip(names, x.tolist(), strict=True)), stderr,
-        float(law.std), exp.noise_std, np.nan, True, "BOUND",
-        "square roots of the Cramer-Rao bound's diagonal at the truth", 0,
+        case.name,
+        realization,
+        "crb",
+        dict(zip(names, x.tolist(), strict=True)),
+        stderr,
+        float(law.std),
+        exp.noise_std,
+        np.nan,
+        True,
+        "BOUND",
+        "square roots of the Cramer-Rao bound's diagonal at the truth",
+        0,
         time.perf_counter() - t0,
     )
 
@@ -216,7 +241,7 @@ def _std_gradient(family: JitterFamily, p: np.ndarray) -> np.ndarray:
         h = 1e-6 * max(abs(p[i]), 1e-3)
         up, dn = p.copy(), p.copy()
         up[i], dn[i] = min(p[i] + h, hi[i]), max(p[i] - h, lo[i])
-        g[i] = (family.law(up).std - family.law(dn).std) / (up[i] - dn[i])
+        g[i] = (family.law(up.tolist()).std - family.law(dn.tolist()).std) / (up[i] - dn[i])
     return g
 
 
