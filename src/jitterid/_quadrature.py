@@ -39,7 +39,8 @@ class NodeChunk:
 
     def expect(self, values: FloatArray) -> FloatArray:
         """Per-sample weighted sums of ``values`` (one per node)."""
-        return np.bincount(self.owner, self.w * values, minlength=self.k1 - self.k0)
+        sums = np.bincount(self.owner, self.w * values, minlength=self.k1 - self.k0)
+        return np.asarray(sums, dtype=np.float64)
 
 
 @lru_cache(maxsize=64)
@@ -58,6 +59,27 @@ def _relative_cuts(law: JitterLaw, max_panel: float) -> FloatArray:
     return np.concatenate(pieces)
 
 
+def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -> FloatArray:
+    """Panel edges in tau (relative to kT) of the rule of :func:`jitter_nodes`.
+
+    The pdf's knots, subdivided so that no panel exceeds the support width, ``1 / rate``, the
+    jitter's standard deviation or ``max_panel``. Two signals whose rates give the same
+    edges get the same nodes, which lets a caller keep a rule across parameter values
+    (:mod:`jitterid._modal`). Empty for a point mass.
+    """
+    lo, hi = (float(v) for v in law.support)
+    if hi <= lo:
+        return np.zeros(0)
+    limit = hi - lo
+    if rate > 0:
+        limit = min(limit, 1.0 / rate)
+    if law.std > 0:
+        limit = min(limit, float(law.std))
+    if max_panel is not None:
+        limit = min(limit, max_panel)
+    return _relative_cuts(law, limit)
+
+
 def jitter_nodes(
     law: JitterLaw,
     T: float,
@@ -68,6 +90,7 @@ def jitter_nodes(
     order: int = DEFAULT_ORDER,
     max_panel: float | None = None,
     chunk: int = DEFAULT_CHUNK,
+    shared_pdf: bool = False,
 ) -> Iterator[NodeChunk]:
     """Yield :class:`NodeChunk` s covering samples 0..N-1.
 
@@ -87,24 +110,30 @@ def jitter_nodes(
         Extra upper bound on the panel length (e.g. for a sharply peaked integrand).
     chunk : int
         Samples per yielded chunk.
+    shared_pdf : bool
+        Take the pdf at the nodes of panels that no break cuts from one table for all
+        samples (it then differs from the pdf at each sample's own nodes by their rounding
+        in kT, ~1e-16 relative): cheaper for a costly pdf. Off by default, so that a rule
+        is reproducible bit for bit whatever its use.
     """
     lo, hi = (float(v) for v in law.support)
     if hi <= lo:  # a point mass: the expectation is the value at kT + lo
         for k0 in range(0, N, chunk):
             k1 = min(N, k0 + chunk)
             ks = np.arange(k0, k1)
-            yield NodeChunk(k0, k1, ks * T + lo, np.ones(k1 - k0), ks - k0)
+            t = np.asarray(ks * T + lo, dtype=np.float64)
+            yield NodeChunk(k0, k1, t, np.ones(k1 - k0), (ks - k0).astype(np.int64))
         return
-    limit = hi - lo
-    if rate > 0:
-        limit = min(limit, 1.0 / rate)
-    if law.std > 0:
-        limit = min(limit, float(law.std))
-    if max_panel is not None:
-        limit = min(limit, max_panel)
-    rel = _relative_cuts(law, limit)
+    rel = relative_cuts(law, rate, max_panel)
     x, wx = _gauss_legendre(order)
     breaks = np.sort(np.asarray(breaks, dtype=float))
+    # The pdf at the nodes of the standard panels [rel_m, rel_m+1] (those no break cuts): the
+    # same for every sample, so evaluated once (a non-integer SumOfUniforms costs ~1 us per
+    # point). It differs from the pdf at a sample's own nodes only by their rounding in kT.
+    std_half = 0.5 * np.diff(rel)
+    std_pdf = None
+    if shared_pdf:
+        std_pdf = law.pdf(np.clip((0.5 * (rel[:-1] + rel[1:]))[:, None] + std_half[:, None] * x, lo, hi))
     for k0 in range(0, N, chunk):
         k1 = min(N, k0 + chunk)
         ks = np.arange(k0, k1)
@@ -124,5 +153,20 @@ def jitter_nodes(
         mid = 0.5 * (a + b)
         t = (mid[:, None] + half[:, None] * x[None, :]).ravel()
         tau = t - np.repeat(ks[owner], order) * T
-        w = (half[:, None] * wx[None, :]).ravel() * law.pdf(np.clip(tau, lo, hi))
+        if std_pdf is None:
+            w: FloatArray = (half[:, None] * wx[None, :]).ravel() * law.pdf(np.clip(tau, lo, hi))
+        else:
+            # A panel is standard when its ends are rel_m, rel_m+1 up to the rounding of kT.
+            kt = ks[owner] * T
+            m = np.clip(np.searchsorted(rel, a - kt), 1, rel.size - 1) - 1
+            m = np.where(np.abs(a - kt - rel[m + 1]) < np.abs(a - kt - rel[m]), m + 1, m)
+            m = np.minimum(m, rel.size - 2)
+            tol = 8 * np.spacing(np.abs(kt) + np.max(np.abs(rel)))
+            std = (np.abs(a - kt - rel[m]) <= tol) & (np.abs(b - kt - rel[m + 1]) <= tol)
+            dens = np.empty((owner.size, order))
+            dens[std] = std_pdf[m[std]]
+            other = ~std
+            if np.any(other):
+                dens[other] = law.pdf(np.clip(tau.reshape(-1, order)[other], lo, hi))
+            w = np.ravel(half[:, None] * wx[None, :] * dens)
         yield NodeChunk(k0, k1, t, w, np.repeat(owner, order))

@@ -8,17 +8,29 @@ method         criterion                                                        
 =============  ====================================================================  =========
 ``ls``         sum_f |Y(f) - S_d(f)|^2, jitter ignored                               (8)
 ``bcls``       sum_f |Y(f) - mu_Y(f)|^2                                              (14)
-``wbcls``      (Y - mu)^H R^{-1} (Y - mu), R = R_Y(theta) over the frequency set     (20)
+``wbcls``      (Y - mu)^H R^{-1} (Y - mu), R = R_Y(theta_w) frozen (see below)      (20)
 ``asml``       (Y - mu)^H R^{-1} (Y - mu) + ln det R                                 (22)
 ``asml-diag``  sum_f |Y - mu|^2 / R(f, f) + ln R(f, f)                               (23)
 ``gaussian``   sum_k (y_k - m_k)^2 / w_k + ln w_k: the exact real Gaussian criterion  notes 3
 ``ml``         -2 sum_k ln p(y_k | theta): the exact likelihood (:mod:`.likelihood`)   notes 4
 =============  ====================================================================  =========
 
+WBCLS weights. Written literally, (20) takes R = R_Y(theta) at the searched theta; with no
+ln det R term that criterion is minimised partly by inflating R, and the estimate is biased
+(Table 2, 32 realizations: k0 7.12, pr -1.29, pi 2.26 against 6.25, -1.5, 2; 6-14 standard
+errors). ``wbcls`` therefore freezes R at ``weights_at`` (the feasible generalised least
+squares of Kailath et al., which the paper cites for (20)); :func:`jitterid.fit` sets it to
+the BCLS estimate and re-freezes once at the first WBCLS estimate. ``weights_at=None``
+keeps the literal theta-dependent form, for comparison.
+
 The parameter vector is ordered: jitter-family parameters (if the law is free), then the
 system's parameters, then ``noise_std`` when it is estimated (Table 3's order: n, a, k0,
 pr, pi). Every criterion V(theta, y) also provides dV/dy, from which
-:func:`sandwich_covariance` builds the delta-method covariance of the estimate.
+:func:`sandwich_covariance` builds the delta-method covariance of the estimate, and its
+parameter derivatives: :meth:`Problem.jacobian` (residuals of ls, bcls, wbcls) and
+:meth:`Problem.objective_gradient` (V, dV/dtheta and the expected Hessian of gaussian, asml,
+asml-diag), from one O(N) pass over the moments and their derivatives
+(:mod:`jitterid._jacobians`, :mod:`jitterid._modal`).
 """
 
 from __future__ import annotations
@@ -29,10 +41,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
+from . import _jacobians
+from ._modal import SegmentPlan
 from .distributions import JitterFamily, JitterLaw, NoJitter
 from .likelihood import ExactLikelihood
 from .models import TransferFunction
-from .moments import SampleMoments, covariance_from_variances, sample_moments
+from .moments import SampleMoments, difference_grid
 from .simulate import SampledData
 from .spectral import dtft
 from .structures import ModelStructure
@@ -41,6 +55,7 @@ __all__ = ["METHODS", "Problem", "default_frequencies"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
+_Derivatives = tuple[SampleMoments, FloatArray, FloatArray, FloatArray]
 
 METHODS = ("ls", "bcls", "wbcls", "asml", "asml-diag", "gaussian", "ml")
 LEAST_SQUARES = ("ls", "bcls", "wbcls")
@@ -56,7 +71,17 @@ def default_frequencies(N: int, T: float) -> FloatArray:
 
 
 def adjoint_dtft(z: ComplexArray, T: float, f: FloatArray, N: int) -> ComplexArray:
-    """F^H z = sum_n z_n exp(+i 2 pi f_n k T) for k = 0..N-1 (the adjoint of (3))."""
+    """F^H z = sum_n z_n exp(+i 2 pi f_n k T) for k = 0..N-1 (the adjoint of (3)).
+
+    On the DFT grid n / (N T) (e.g. the set (24)) this is N times an inverse FFT of z placed
+    in its bins, O(N log N); elsewhere a chunked O(N F) sum.
+    """
+    bins = np.asarray(f, float) * (N * T)
+    on_grid = np.round(bins)
+    if f.size and np.all(np.abs(bins - on_grid) < 1e-9):
+        spread = np.zeros(N, complex)
+        np.add.at(spread, np.mod(on_grid.astype(np.int64), N), z)
+        return N * np.fft.ifft(spread)
     out = np.empty(N, complex)
     step = max(1, 4_000_000 // max(1, f.size))
     for k0 in range(0, N, step):
@@ -75,11 +100,20 @@ class Problem:
     method: str
     freqs: FloatArray
     noise_std: float | None
+    weights_at: FloatArray | None = None  # wbcls: theta at which R is frozen (module doc)
     names: tuple[str, ...] = field(init=False)
     bounds: tuple[tuple[float, float], ...] = field(init=False)
     Y: ComplexArray = field(init=False)
     likelihood: ExactLikelihood | None = field(init=False, default=None)
     _cache: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
+    # last derivatives, frequency-difference grid (see :mod:`jitterid._jacobians`)
+    _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
+    _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
+    _split: tuple[bytes, tuple[JitterLaw, TransferFunction, float]] | None = field(
+        init=False, default=None
+    )
+    _plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
+    _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         jnames: tuple[str, ...] = ()
@@ -107,12 +141,24 @@ class Problem:
         return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
 
     def split(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
-        """(jitter law, system, noise std) at parameter vector ``x``."""
+        """(jitter law, system, noise std) at parameter vector ``x``.
+
+        Memoised for the last ``x``: the criterion, its derivatives and the variances all ask
+        for the same system, whose modal form and switch-time states are then built once.
+        """
+        key = np.asarray(x, float).tobytes()
+        if self._split is not None and self._split[0] == key:
+            return self._split[1]
+        out = self._split_new(np.asarray(x, float))
+        self._split = (key, out)
+        return out
+
+    def _split_new(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
         nj, ns = self.n_jitter, len(self.structure.param_names)
         if self.method == "ls":
             law: JitterLaw = NoJitter()
         elif isinstance(self.jitter, JitterFamily):
-            law = self.jitter.law(x[:nj])
+            law = self.jitter.law(x[:nj].tolist())
         else:
             law = self.jitter
         tf = self.structure.system(x[nj : nj + ns])
@@ -120,13 +166,27 @@ class Problem:
         return law, tf, noise
 
     def moments(self, x: FloatArray) -> SampleMoments:
+        """m_k and Var_k at ``x`` (Lemmas 1-2, notes 1-2), cached for the last ``x``."""
         key = np.asarray(x, float).tobytes()
         if key not in self._cache:
-            law, tf, _ = self.split(x)
-            d = self.data
+            mom = _jacobians.moments(self, np.asarray(x, float))
             self._cache.clear()
-            self._cache[key] = sample_moments(tf.response(d.u), law, d.T, d.N)
+            self._cache[key] = mom
         return self._cache[key]
+
+    def release(self) -> None:
+        """Drop the cached moments, derivatives and system (O(N) arrays each): a fitted
+        result keeps its problem for the lazy covariance, and should not keep those too."""
+        self._cache.clear()
+        self._dcache = None
+        self._split = None
+        self._plan_memo = None
+
+    def difference_grid(self) -> tuple[FloatArray, NDArray[np.intp]]:
+        """Distinct f - psi over the frequency set, and the index of each pair (for R_Y)."""
+        if self._grid is None:
+            self._grid = difference_grid(self.freqs, self.freqs, self.data.T, self.data.N)
+        return self._grid
 
     def variances(self, x: FloatArray) -> FloatArray:
         """w_k = Var[s(kT + tau)] + sigma_v^2, floored so that no weight is infinite."""
@@ -139,10 +199,24 @@ class Problem:
         """Residual Y - mu and, for the full-covariance methods, the Cholesky factor of R."""
         d = self.data
         r = self.Y - dtft(self.moments(x).mean, d.T, self.freqs)
+        if self.frozen_weights:
+            if self._frozen is None:
+                self._frozen = self._cholesky(np.asarray(self.weights_at, float))
+            return r, self._frozen
         if self.method in ("wbcls", "asml"):
-            R = covariance_from_variances(self.variances(x), d.T, self.freqs, self.freqs)
-            return r, cho_factor(R, lower=True)
+            return r, self._cholesky(x)
         return r, None
+
+    @property
+    def frozen_weights(self) -> bool:
+        """True for ``wbcls`` with R frozen at ``weights_at`` (module doc)."""
+        return self.method == "wbcls" and self.weights_at is not None
+
+    def _cholesky(self, x: FloatArray) -> tuple[FloatArray, bool]:
+        uniq, inverse = self.difference_grid()
+        F = self.freqs.size
+        R = dtft(self.variances(x), self.data.T, uniq)[inverse].reshape(F, F)  # (17)-(19)
+        return cho_factor(R, lower=True)
 
     def residuals(self, x: FloatArray) -> FloatArray:
         """Real residual vector whose squared norm is the criterion (ls, bcls, wbcls)."""
@@ -150,6 +224,14 @@ class Problem:
         if chol is not None:
             r = solve_triangular(chol[0], r, lower=True)
         return np.concatenate([r.real, r.imag])
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        """d :meth:`residuals` / dx, shape (2F, P), for ``ls``, ``bcls``, ``wbcls``."""
+        return _jacobians.residual_jacobian(self, np.asarray(x, float))
+
+    def objective_gradient(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+        """(V, dV/dx, expected Hessian of V) for ``gaussian``, ``asml``, ``asml-diag``."""
+        return _jacobians.objective_gradient(self, np.asarray(x, float))
 
     def objective(self, x: FloatArray) -> float:
         """The criterion value V(theta) of the chosen method."""

@@ -178,6 +178,7 @@ class Multisine(Input):
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         t = np.asarray(t, dtype=float)
+        assert self.phases is not None  # set in __post_init__
         arg = 2 * np.pi * t[..., None] * self.freqs + self.phases
         val = np.sin(arg) @ self.amplitudes
         return np.where(t >= self.start, val, 0.0)
@@ -240,5 +241,5 @@ def zoh_input(samples: ArrayLike, T: float, start: float = 0.0) -> PiecewiseCons
     u = real_array(samples, "samples", ndim=1)
     if u.size < 1:
         raise ValueError("samples must hold at least one value")
-    times = float(start) + T * np.arange(u.size + 1)
+    times = float(start) + T * np.arange(u.size + 1, dtype=float)
     return PiecewiseConstant(times, u)

@@ -49,8 +49,8 @@ class TransferFunction:
     den: FloatArray
 
     def __post_init__(self) -> None:
-        num = np.trim_zeros(np.atleast_1d(real_array(self.num, "num")), "f")
-        den = np.trim_zeros(np.atleast_1d(real_array(self.den, "den")), "f")
+        num = _trim_leading(np.atleast_1d(real_array(self.num, "num")))
+        den = _trim_leading(np.atleast_1d(real_array(self.den, "den")))
         if num.ndim != 1 or den.ndim != 1:
             raise ValueError("num and den must be 1-D coefficient sequences")
         if den.size == 0:
@@ -127,6 +127,62 @@ class TransferFunction:
         """The exact output s(t) = (g * u)(t) to input ``u`` from rest, as a :class:`Response`."""
         return Response(self, u)
 
+    def _recursion(self, u: PiecewiseConstant) -> tuple[_Recursion, ComplexArray]:
+        """The switch-time recursion over ``u`` for the poles with Im p >= 0, and its states.
+
+        Memoised for the last input: evaluating one system on many chunks of instants (the
+        jitter quadrature, the likelihood's nodes) must not redo this O(J) work per chunk,
+        which made the total cost grow like N^2 / chunk; the state derivative reuses its
+        exponentials. The memo lives on the system (not on a :class:`Response`), so no
+        reference cycle keeps the arrays alive.
+        """
+        memo = self.__dict__.get("_states_memo")
+        if memo is not None and memo[0] is u:
+            return memo[1], memo[2]
+        p = self._modal[2]
+        rec = _Recursion.build(p[p.imag >= 0], u.times)
+        states = rec.solve(u.levels[:, None] * rec.expm1 / rec.p)
+        object.__setattr__(self, "_states_memo", (u, rec, states, None))
+        return rec, states
+
+    def kept_switch_states(self, u: PiecewiseConstant) -> ComplexArray:
+        """:meth:`switch_states` over the poles with Im p >= 0 only, shape (J+1, n_kept)."""
+        return self._recursion(u)[1]
+
+    def switch_states(self, u: PiecewiseConstant) -> ComplexArray:
+        """Modal states x_p(t_j) at every boundary t_j of ``u`` (notes 5), shape (J+1, n).
+
+        x_{j+1} = e^{p dt_j} x_j + u_j expm1(p dt_j) / p from rest. A real input's state for
+        a pole's conjugate is the conjugate, so only the poles with Im p >= 0 are solved for.
+        """
+        memo = self.__dict__.get("_states_memo")
+        if memo is None or memo[0] is not u:
+            self._recursion(u)
+            memo = self.__dict__["_states_memo"]
+        if memo[3] is None:  # the conjugate columns, made only when asked for
+            memo = (*memo[:3], _conjugate_fill(self._modal[2], memo[2]))
+            object.__setattr__(self, "_states_memo", memo)
+        return memo[3]
+
+    def switch_state_sensitivity(self, u: PiecewiseConstant) -> ComplexArray:
+        """dx_p(t_j)/dp at every boundary of ``u``, shape (J+1, n), exact.
+
+        x_{j+1} = a_j x_j + u_j expm1(p dt_j)/p with a_j = e^{p dt_j}; differentiating,
+
+            dx_{j+1}/dp = a_j dx_j/dp + dt_j a_j x_j + u_j (dt_j a_j / p - expm1(p dt_j) / p^2),
+
+        the same linear recursion with another forcing, solved with the same exponentials
+        (a fraction of one recursion, against three for a difference in p).
+        """
+        return _conjugate_fill(self._modal[2], self.kept_switch_state_sensitivity(u))
+
+    def kept_switch_state_sensitivity(self, u: PiecewiseConstant) -> ComplexArray:
+        """:meth:`switch_state_sensitivity` over the poles with Im p >= 0, (J+1, n_kept)."""
+        rec, X = self._recursion(u)
+        q, dt, a = rec.p, rec.dt, rec.step
+        forcing = dt * a * X[:-1] + u.levels[:, None] * (dt * a / q - rec.expm1 / q**2)
+        return rec.solve(forcing)
+
 
 @dataclass(frozen=True, eq=False)
 class Response:
@@ -169,34 +225,11 @@ class Response:
         object.__setattr__(self, "breaks", self.u.breaks)
         object.__setattr__(self, "rate", rate)
 
-    @cached_property
+    @property
     def _switch_states(self) -> ComplexArray:
         """Modal states at every boundary of a piecewise-constant input, shape (J+1, n)."""
         assert isinstance(self.u, PiecewiseConstant)
-        _, _, p = self.system._modal
-        times, levels = self.u.times, self.u.levels
-        x = np.zeros((times.size, p.size), complex)
-        if p.size == 0:
-            return x
-        # x[j+1] = e^{p dt_j} x[j] + u_j expm1(p dt_j)/p. Within a block whose span keeps
-        # |Re p| (t - t0) <= _BLOCK this is a closed-form segmented cumulative sum; blocks are
-        # chained by one step of the recursion, so the Python loop runs over blocks only.
-        dt = np.diff(times)[:, None]
-        b = levels[:, None] * np.expm1(p * dt) / p
-        alpha = max(float(np.max(-p.real)), 1e-300)
-        block = np.floor((times - times[0]) * alpha / _BLOCK).astype(np.int64)
-        starts = np.flatnonzero(np.r_[True, block[1:] != block[:-1]])
-        ends = np.r_[starts[1:], times.size]
-        x0 = np.zeros(p.size, complex)
-        for j0, j1 in zip(starts, ends, strict=True):
-            rel = times[j0:j1, None] - times[j0]
-            # term i (for boundary i in (j0, j1)) is b[i-1] e^{-p (t_i - t_j0)}
-            terms = b[j0 : j1 - 1] * np.exp(-p * rel[1:])
-            csum = np.vstack([np.zeros((1, p.size)), np.cumsum(terms, axis=0)])
-            x[j0:j1] = np.exp(p * rel) * (x0 + csum)
-            if j1 < times.size:
-                x0 = np.exp(p * dt[j1 - 1, 0]) * x[j1 - 1] + b[j1 - 1]
-        return x
+        return self.system.switch_states(self.u)
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         t = np.asarray(t, dtype=float)
@@ -240,5 +273,95 @@ class Response:
         if not u.steady_state:
             steady = steady - np.exp(p * (tt - u.start) + iw * u.start) / (iw - p)
             steady = np.where(tt >= u.start, steady, 0.0)
+        assert u.phases is not None  # filled in by Multisine.__post_init__
         phasor = (u.amplitudes * np.exp(1j * u.phases))[:, None]
         return np.asarray(out + np.einsum("...mn,mn->...", steady, phasor * r).imag, dtype=float)
+
+
+def _trim_leading(c: FloatArray) -> FloatArray:
+    """``c`` without its leading zeros (np.trim_zeros, at a tenth of its cost: a system is
+    built at every parameter value an optimiser tries)."""
+    if c.ndim != 1 or (c.size and c[0] != 0):
+        return c
+    nz = np.flatnonzero(c)
+    return c[nz[0] :] if nz.size else c[:0]
+
+
+def _conjugate_fill(p: ComplexArray, half: ComplexArray) -> ComplexArray:
+    """Columns for every pole from ``half``, the columns of the poles with Im p >= 0: the
+    state of a real input for a conjugate pole is the conjugate."""
+    keep = p.imag >= 0
+    out = np.empty((half.shape[0], p.size), complex)
+    out[:, keep] = half
+    kept = p[keep]
+    for i in np.flatnonzero(~keep):
+        out[:, i] = np.conj(half[:, int(np.argmin(np.abs(kept - np.conj(p[i]))))])
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Recursion:
+    """Solver of x_0 = 0, x_{j+1} = e^{p dt_j} x_j + f_j at the boundaries t_j of an input.
+
+    The boundaries are cut into blocks whose span keeps |Re p| (t - t0) <= _BLOCK; inside a
+    block x_i = e^{p r_i} (x_{j0} + sum_{m < i} f_m e^{-p r_{m+1}}), r = t - t_{j0}: a
+    cumulative sum, taken for all blocks at once on a padded (block, position) layout, and
+    the blocks are chained by one step of the recursion. The exponentials depend on the poles
+    and times only, so they are computed once and shared by every forcing (the states and
+    their pole derivative).
+    """
+
+    p: ComplexArray  # (n,)
+    dt: FloatArray  # (J, 1)
+    expm1: ComplexArray  # expm1(p dt_j), (J, n)
+    E: ComplexArray  # e^{p r_i}, (J+1, n)
+    Einv: ComplexArray  # e^{-p r_i}, (J+1, n)
+    starts: NDArray[np.intp]
+    ends: NDArray[np.intp]
+    row: NDArray[np.intp]  # block of each boundary
+    col: NDArray[np.intp]  # position in its block
+
+    @classmethod
+    def build(cls, p: ComplexArray, times: FloatArray) -> _Recursion:
+        dt = np.diff(times)[:, None]
+        alpha = max(float(np.max(-p.real)), 1e-300) if p.size else 1.0
+        block = np.floor((times - times[0]) * alpha / _BLOCK).astype(np.int64)
+        starts = np.flatnonzero(np.r_[True, block[1:] != block[:-1]])
+        ends = np.r_[starts[1:], times.size]
+        row = np.repeat(np.arange(starts.size), ends - starts)
+        col = np.arange(times.size) - starts[row]
+        rel = (times - times[starts[row]])[:, None]
+        return cls(p, dt, np.expm1(p * dt), np.exp(p * rel), np.exp(-p * rel), starts, ends, row, col)
+
+    @cached_property
+    def step(self) -> ComplexArray:
+        """e^{p dt_j}, (J, n): only the derivative's forcing needs it at every j."""
+        return np.exp(self.p * self.dt)
+
+    def solve(self, forcing: ComplexArray) -> ComplexArray:
+        """x at every boundary (J+1, n) for the forcing f_j (J, n)."""
+        n, size = self.p.size, self.row.size
+        x = np.zeros((size, n), complex)
+        if n == 0:
+            return x
+        terms = np.zeros((size, n), complex)
+        terms[1:] = forcing * self.Einv[1:]  # term of boundary i: f_{i-1} e^{-p r_i}
+        terms[self.starts] = 0.0
+        width = int(np.max(self.ends - self.starts))
+        if self.starts.size * width <= 4 * size + 1024:
+            padded = np.zeros((self.starts.size, width, n), complex)
+            padded[self.row, self.col] = terms
+            csum = np.cumsum(padded, axis=1)[self.row, self.col]
+        else:  # very uneven blocks: pad would be large, sum block by block
+            csum = np.empty_like(terms)
+            for j0, j1 in zip(self.starts, self.ends, strict=True):
+                csum[j0:j1] = np.cumsum(terms[j0:j1], axis=0)
+        # Chain the blocks: x0 of block k + 1 is one recursion step from the end of block k.
+        x0 = np.zeros((self.starts.size, n), complex)
+        lasts = self.ends[:-1] - 1
+        steps = np.exp(self.p * self.dt[lasts])  # e^{p dt} at the block ends only
+        for k, last in enumerate(lasts):
+            x_last = self.E[last] * (x0[k] + csum[last])
+            x0[k + 1] = steps[k] * x_last + forcing[last]
+        return self.E * (x0[self.row] + csum)

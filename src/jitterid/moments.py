@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._checks import count, positive, real_array
+from ._modal import SegmentPlan, modal_moments, tables
 from ._quadrature import DEFAULT_ORDER, jitter_nodes
 from .distributions import JitterLaw
-from .inputs import Input
+from .inputs import Input, PiecewiseConstant
 from .models import Response, TransferFunction
 from .spectral import dtft
 
@@ -64,11 +65,21 @@ def sample_moments(
     """m_k and Var[s(kT + tau)] by panel Gauss-Legendre quadrature over tau (notes 1-2).
 
     The variance is computed as E[(s - m_k)^2] in a second pass over the same nodes, so it
-    does not suffer the cancellation of E[s^2] - m_k^2 when the jitter is small.
+    does not suffer the cancellation of E[s^2] - m_k^2 when the jitter is small. For a
+    piecewise-constant input the node sums are taken per input segment from the modal form
+    (:mod:`jitterid._modal`, (M1)-(M2)); without jitter the samples are s(kT) themselves.
+    Work O(N), memory bounded by the chunk size.
     """
     T = positive(T, "T")
     N = count(N, "N", minimum=1)
     signal.u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
+    lo, hi = jitter.support
+    if isinstance(signal.u, PiecewiseConstant) and hi > lo:
+        # The same nodes, summed per input segment from the modal form (:mod:`._modal`):
+        # a few times faster than evaluating s(t) node by node.
+        plan = SegmentPlan(jitter, T, N, signal.u, signal.rate, order=order)
+        mean, var, _, _ = modal_moments(plan, tables(signal.system, signal.u), keep=False)
+        return SampleMoments(mean, var)
     mean = np.empty(N)
     var = np.empty(N)
     for ch in jitter_nodes(jitter, T, N, signal.breaks, signal.rate, order=order):
@@ -183,8 +194,17 @@ def covariance_from_variances(
     The sum depends on f - psi only, so it is evaluated once per distinct difference: on
     an evenly spaced set (such as the DFT grid (24)) that is 2F - 1 sums instead of F^2.
     """
+    uniq, inverse = difference_grid(f, psi, T, w.size)
+    return dtft(w, T, uniq)[inverse].reshape(f.size, psi.size)
+
+
+def difference_grid(
+    f: FloatArray, psi: FloatArray, T: float, N: int
+) -> tuple[FloatArray, NDArray[np.intp]]:
+    """The distinct differences f - psi (to ~1e-12 cycles over N samples) and, for every pair
+    (f, psi) in row-major order, the index of its difference."""
     diff = f[:, None] - psi[None, :]
     # Differences that agree to ~1e-12 cycles over the record are the same frequency.
-    scale = 1e-12 / (T * max(w.size, 1))
+    scale = 1e-12 / (T * max(N, 1))
     uniq, inverse = np.unique(np.round(diff.ravel() / scale), return_inverse=True)
-    return dtft(w, T, uniq * scale)[inverse].reshape(diff.shape)
+    return uniq * scale, inverse.ravel()

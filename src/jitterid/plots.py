@@ -13,9 +13,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .diagnostics import JitterDetection
-from .uncertainty import BodeBand, PdfBand
 from .distributions import JitterLaw
 from .models import TransferFunction
+from .uncertainty import BodeBand, PdfBand
 
 __all__ = ["plot_bode", "plot_gain_factor", "plot_jitter_pdf", "plot_residuals"]
 

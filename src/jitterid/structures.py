@@ -76,7 +76,7 @@ class PolePairGain(ModelStructure):
 
     def system(self, params: ArrayLike) -> TransferFunction:
         k0, pr, pi = self._check(params)
-        return TransferFunction([k0], [1.0, -2.0 * pr, pr * pr + pi * pi])
+        return TransferFunction(np.array([k0]), np.array([1.0, -2.0 * pr, pr * pr + pi * pi]))
 
     def starts(self, T: float) -> list[FloatArray]:
         # Pole pairs spread over the band below Nyquist (1/(2T) Hz); k0 = |p|^2 (unit DC gain).

@@ -1,0 +1,259 @@
+"""Parameter derivatives of every criterion of :mod:`jitterid.criteria`, in O(N) per evaluation.
+
+Each criterion depends on the parameters only through the per-sample moments (notes 1-2)
+
+    m_k = E[s(kT + tau)]   (Lemma 1, (13)-(14b)),    w_k = Var[s(kT + tau)] + sigma_v^2
+    (Lemma 2, (17)-(19)),
+
+so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them all:
+
+- system parameters: the modal sensitivities d(D, rho, p)/dtheta
+  (:func:`jitterid._modal.modal_sensitivity`, the quantities of the likelihood's
+  ``_modal_gradient`` in closed form) and the exact switch-state derivative dx(t_j)/dp
+  (:meth:`TransferFunction.switch_state_sensitivity`) give the derivative tables of (M1) in
+  :mod:`jitterid._modal`, which turns them into dm, dVar with node work that does not grow
+  with the number of parameters. Inputs that are not piecewise constant fall back to central
+  differences of the moments.
+- the scale a of a scale family (tau = a xi: ``UniformFamily``, ``GaussianFamily``, and ``a``
+  of ``SumOfUniformsFamily``): dm/da = E[s'(kT + tau) tau] / a plus the jumps of s,
+  (M3) of :mod:`jitterid._modal`, from the same pass. Other jitter parameters (``n``) change
+  the shape of the law and move the quadrature nodes: a one-sided difference of the moments
+  (the step of scipy's "2-point" rule, which these replace), one extra evaluation each.
+- the noise std: dw/dsigma_v = 2 sigma_v.
+
+From dm, dw with dmu = F dm, dR = sum_k dw_k e^{-i 2 pi (f - psi) kT} (F the DTFT (3) on the
+frequency set):
+
+- ls (8), bcls (14): residual r = Y - mu, Jacobian -[Re; Im] dmu.
+- wbcls (20): residual z = L^{-1} r with R = L L^H; dz = -L^{-1} dmu - Phi(L^{-1} dR L^{-H}) z,
+  Phi = strictly lower triangle plus half the diagonal (the derivative of a Cholesky factor);
+  with R frozen (``Problem.weights_at``, the default of ``fit``) just dz = -L^{-1} dmu.
+- asml (22): dV = -2 Re(dmu^H a) - a^H dR a + tr(R^{-1} dR), a = R^{-1} r.
+- asml-diag (23): with rho = sum_k w_k, dV = -2 Re(r^H dmu) / rho + (F - |r|^2 / rho) drho / rho.
+- gaussian (notes 3): dV = sum_k -2 e_k dm_k / w_k + (1 - e_k^2 / w_k) dw_k / w_k, e = y - m.
+
+Each is also paired with its expected (Fisher/Gauss-Newton) Hessian, used by the Newton search
+of :func:`jitterid.estimate._run`: 2 dm^T W^{-1} dm + dw^T W^{-2} dw for ``gaussian``, and the
+frequency-domain analogues for ``asml``/``asml-diag``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg import cho_solve, solve_triangular
+
+from ._modal import (
+    SegmentPlan,
+    cached_plan,
+    derivative_tables,
+    modal_moments,
+    modal_sensitivity,
+    tables,
+)
+from .distributions import GaussianFamily, JitterLaw, SumOfUniformsFamily, UniformFamily
+from .inputs import PiecewiseConstant
+from .models import TransferFunction
+from .moments import SampleMoments, sample_moments
+from .spectral import dtft
+
+if TYPE_CHECKING:
+    from .criteria import Problem
+
+__all__: list[str] = []
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+# The index of the scale parameter a of the families whose law is that of a xi, xi free of a
+# (the support, knots and cuts of the rule scale with a): its derivative is (M3) of
+# jitterid._modal, exact and without moving the nodes.
+_SCALE = {UniformFamily: 0, GaussianFamily: 0, SumOfUniformsFamily: 1}
+_FD_REL = float(np.sqrt(np.finfo(float).eps))  # scipy's 2-point step: sqrt(eps) max(1, |x|)
+_CD_REL = 1e-6  # central differences (inputs that are not piecewise constant)
+
+
+# ---------------------------------------------------------------------------- moments
+def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> SegmentPlan:
+    """The node plan for ``law``: rebuilt only when the law or the panel edges change.
+
+    The edges depend on the system only through min(1 / rate, ...) (see
+    :func:`jitterid._quadrature.relative_cuts`); the problem remembers the last plan with
+    its jitter parameters and that limit, so that the search, which changes the system at
+    every step, skips even the cache lookup.
+    """
+    d = problem.data
+    assert isinstance(d.u, PiecewiseConstant)
+    p = tf._modal[2]
+    rate = float(np.max(np.abs(p))) if p.size else 0.0  # Response.rate for this input
+    lo, hi = law.support
+    limit = min(hi - lo, 1.0 / rate if rate > 0 else np.inf, law.std if law.std > 0 else np.inf)
+    key = (np.asarray(x[: problem.n_jitter], float).tobytes(), limit)
+    memo = problem._plan_memo
+    if memo is not None and memo[0] == key and memo[1].law == law:
+        return memo[1]
+    plan = cached_plan(law, d.T, d.N, d.u, rate)
+    problem._plan_memo = (key, plan)
+    return plan
+
+
+def moments(problem: Problem, x: FloatArray) -> SampleMoments:
+    """m_k and Var_k at ``x`` (Lemmas 1-2), by the segment path for piecewise-constant inputs."""
+    law, tf, _ = problem.split(x)
+    d = problem.data
+    if not isinstance(d.u, PiecewiseConstant):
+        return sample_moments(tf.response(d.u), law, d.T, d.N)
+    d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
+    mean, var, _, _ = modal_moments(_plan(problem, x, law, tf), tables(tf, d.u))
+    return SampleMoments(mean, var)
+
+
+def _shift(x: FloatArray, i: int, bound: tuple[float, float], rel: float) -> tuple[FloatArray, float]:
+    """x with x[i] moved forward by rel max(1, |x_i|) (backward at the upper bound)."""
+    h = rel * max(1.0, abs(float(x[i])))
+    if x[i] + h > bound[1]:
+        h = -h
+    out = x.copy()
+    out[i] += h
+    return out, h
+
+
+def _floored(problem: Problem, x: FloatArray, var: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """w = Var + sigma_v^2 with :meth:`Problem.variances`'s floor, and where it is active."""
+    noise = problem.split(x)[2]
+    w = var + noise**2
+    floor = 1e-300 + 1e-12 * float(np.max(w, initial=0.0))
+    return np.maximum(w, floor), w < floor
+
+
+def moment_derivatives(
+    problem: Problem, x: FloatArray
+) -> tuple[SampleMoments, FloatArray, FloatArray, FloatArray]:
+    """(moments, w, dm, dw) at ``x``; dm, dw have shape (P, N) in ``problem.names`` order.
+
+    w are the floored variances of :meth:`Problem.variances`; dw is zero where the floor acts.
+    Cached for the last ``x`` (least_squares asks for the Jacobian where it just evaluated).
+    """
+    x = np.asarray(x, float)
+    key = x.tobytes()
+    if problem._dcache and problem._dcache[0] == key:
+        return problem._dcache[1]
+    problem._dcache = None  # free the last point's (P, N) arrays before making new ones
+    law, tf, noise = problem.split(x)
+    d = problem.data
+    nj, ns = problem.n_jitter, len(problem.structure.param_names)
+    P = x.size
+    dm, dv = np.zeros((P, d.N)), np.zeros((P, d.N))
+    theta = x[nj : nj + ns]
+    scale = _SCALE.get(type(problem.jitter)) if nj else None  # exact type: a subclass may differ
+    modal = isinstance(d.u, PiecewiseConstant) and (ns > 0 or scale is not None)
+    if modal:
+        assert isinstance(d.u, PiecewiseConstant)
+        d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
+        dtab = derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf)) if ns else None
+        a = float(x[scale]) if scale is not None else None
+        mean, var, dms, dvs = modal_moments(_plan(problem, x, law, tf), tables(tf, d.u), dtab, scale=a)
+        assert dms is not None
+        assert dvs is not None
+        mom = SampleMoments(mean, var)
+        dm[nj : nj + ns], dv[nj : nj + ns] = dms[:ns], dvs[:ns]
+        if scale is not None:
+            dm[scale], dv[scale] = dms[ns], dvs[ns]
+    else:
+        mom = moments(problem, x)
+        lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+        for i in range(nj, nj + ns):  # central differences: the fallback for other inputs
+            h = _CD_REL * max(abs(float(x[i])), 1e-2)
+            c = float(np.clip(x[i], lo[i] + h, hi[i] - h))
+            up, down = x.copy(), x.copy()
+            up[i], down[i] = c + h, c - h
+            mu, md = moments(problem, up), moments(problem, down)
+            dm[i], dv[i] = (mu.mean - md.mean) / (2 * h), (mu.var - md.var) / (2 * h)
+    for i in range(nj):  # other jitter parameters move the nodes: a one-sided difference
+        if modal and i == scale:
+            continue
+        xi, h = _shift(x, i, problem.bounds[i], _FD_REL)
+        mi = moments(problem, xi)
+        dm[i], dv[i] = (mi.mean - mom.mean) / h, (mi.var - mom.var) / h
+    w, floored = _floored(problem, x, mom.var)
+    dw = dv
+    if problem.estimates_noise:
+        dw[-1] = 2 * noise
+    dw[:, floored] = 0.0
+    out = (mom, w, dm, dw)
+    problem._dcache = (key, out)
+    problem._cache.clear()
+    problem._cache[key] = mom
+    return out
+
+
+# ---------------------------------------------------------------------------- criteria
+def _dmu(problem: Problem, dm: FloatArray) -> ComplexArray:
+    return dtft(dm, problem.data.T, problem.freqs)  # (P, F)
+
+
+def _dR(problem: Problem, dw: FloatArray) -> ComplexArray:
+    """dR_i(f, psi) = sum_k dw_ik e^{-i 2 pi (f - psi) kT} over the frequency set, (P, F, F)."""
+    uniq, inverse = problem.difference_grid()
+    F = problem.freqs.size
+    return dtft(dw, problem.data.T, uniq)[:, inverse].reshape(dw.shape[0], F, F)
+
+
+def residual_jacobian(problem: Problem, x: FloatArray) -> FloatArray:
+    """d(residuals)/dx, shape (2F, P), for ``ls``, ``bcls`` and ``wbcls`` (module doc)."""
+    _, _, dm, dw = moment_derivatives(problem, x)
+    dmu = _dmu(problem, dm)  # (P, F)
+    if problem.method == "wbcls":
+        r, chol = problem._weighted(x)
+        assert chol is not None
+        L = chol[0]
+        z = solve_triangular(L, r, lower=True)
+        dz = -solve_triangular(L, dmu.T, lower=True)  # (F, P)
+        if problem.frozen_weights:  # R does not depend on x
+            return np.vstack([dz.real, dz.imag])
+        for i, dRi in enumerate(_dR(problem, dw)):
+            B = solve_triangular(L, dRi, lower=True)
+            A = solve_triangular(L, B.conj().T, lower=True)  # L^{-1} dR L^{-H}
+            phi = np.tril(A, -1) + 0.5 * np.diag(np.diag(A))
+            dz[:, i] -= phi @ z
+        return np.vstack([dz.real, dz.imag])
+    return -np.vstack([dmu.real.T, dmu.imag.T])
+
+
+def objective_gradient(problem: Problem, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+    """(V, dV/dx, expected Hessian) for ``gaussian``, ``asml`` and ``asml-diag`` (module doc)."""
+    mom, w, dm, dw = moment_derivatives(problem, x)
+    m = problem.method
+    if m == "gaussian":
+        e = problem.data.y - mom.mean
+        value = float(np.sum(e * e / w + np.log(w)))
+        grad = dm @ (-2 * e / w) + dw @ ((1 - e * e / w) / w)
+        info = 2 * (dm / w) @ dm.T + (dw / w**2) @ dw.T
+        return value, grad, info
+    dmu = _dmu(problem, dm)
+    r, chol = problem._weighted(x)
+    if m == "asml-diag":
+        rho = float(np.sum(w))
+        drho = dw.sum(axis=1)
+        F, rr = r.size, float(np.sum(np.abs(r) ** 2))
+        value = rr / rho + F * np.log(rho)
+        grad = -2 * (dmu @ r.conj()).real / rho + (F - rr / rho) * drho / rho
+        info = 2 * (dmu.conj() @ dmu.T).real / rho + F * np.outer(drho, drho) / rho**2
+        return float(value), grad, info
+    assert m == "asml"
+    assert chol is not None
+    L = chol[0]
+    z = solve_triangular(L, r, lower=True)
+    value = float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(L).real)))
+    a = cho_solve(chol, r)
+    Rinv = cho_solve(chol, np.eye(r.size))
+    dR = _dR(problem, dw)
+    grad = -2 * (dmu @ a.conj()).real
+    RdR = Rinv[None] @ dR  # R^{-1} dR_i, as BLAS products (einsum would loop in C, ~10x slower)
+    grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
+    # tr(R^{-1} dR_i R^{-1} dR_j) = sum_kl (R^{-1} dR_i)_kl (R^{-1} dR_j)_lk
+    flat = RdR.reshape(RdR.shape[0], -1)
+    info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T).real
+    return value, grad, info
