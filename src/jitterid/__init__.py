@@ -6,6 +6,7 @@ that remove the jitter's bias (BCLS, WBCLS, AsML), plus the exact real-valued Ga
 criterion. Frequencies are in Hz throughout.
 """
 
+from .boxjenkins import fitted_noise
 from .criteria import default_frequencies
 from .diagnostics import (
     JitterDetection,
@@ -35,7 +36,22 @@ from .inputs import Input, Multisine, PiecewiseConstant, telegraph_input, zoh_in
 from .io import DataFileError, Dataset, Source, load, save_data, save_input
 from .likelihood import ExactLikelihood, crb, gaussian_bound, log_density
 from .models import Response, TransferFunction
-from .moments import SampleMoments, dft_covariance, dft_pseudo_covariance, expected_dft, sample_moments
+from .moments import (
+    SampleMoments,
+    dft_covariance,
+    dft_pseudo_covariance,
+    expected_dft,
+    sample_moments,
+)
+from .noise import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
+from .noisecov import (
+    JitteredAutocovariance,
+    SampleCovariance,
+    coloured_dft_covariance,
+    coloured_dft_pseudo_covariance,
+    jittered_autocovariance,
+    sample_covariance,
+)
 from .result import FitResult, FitStatus
 from .simulate import SampledData, simulate
 from .spectral import dirichlet, dtft
@@ -110,4 +126,19 @@ __all__ += [
     "crb",
     "gaussian_bound",
     "log_density",
+]
+
+# Box-Jenkins structures under jitter: coloured noise (issue 7).
+__all__ += [
+    "JitteredAutocovariance",
+    "KnownNoise",
+    "NoiseModel",
+    "NoiseStructure",
+    "RationalNoise",
+    "SampleCovariance",
+    "coloured_dft_covariance",
+    "coloured_dft_pseudo_covariance",
+    "fitted_noise",
+    "jittered_autocovariance",
+    "sample_covariance",
 ]

@@ -5,21 +5,24 @@ the system's starting point; for a free jitter law a small grid of starting valu
 tried; the weighted and likelihood criteria start from the BCLS estimate. Least-squares
 criteria are minimised by scipy's trust-region Gauss-Newton/Levenberg-Marquardt
 (``least_squares``), the exact likelihood (``ml``) by the damped Newton iteration of
-:meth:`jitterid.likelihood.ExactLikelihood.maximise`, the others by L-BFGS-B; all respect
-the bounds.
+:meth:`jitterid.likelihood.ExactLikelihood.maximise`, the others by a damped Newton (Fisher
+scoring) search, all with analytic derivatives (:mod:`jitterid._jacobians`); all respect the
+bounds.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares, minimize
+from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
+from . import _jacobians
 from ._checks import real_array
+from .boxjenkins import fit_bj
 from .criteria import (
     LEAST_SQUARES,
     METHODS,
@@ -27,8 +30,9 @@ from .criteria import (
     Problem,
     default_frequencies,
 )
-from .distributions import JitterFamily, JitterLaw
+from .distributions import JitterFamily, JitterLaw, NoJitter
 from .models import TransferFunction
+from .noise import NoiseModel, NoiseStructure
 from .result import FitResult, FitStatus
 from .sandwich import sandwich_covariance
 from .simulate import SampledData
@@ -44,14 +48,24 @@ def _oe_start(data: SampledData, structure: ModelStructure) -> tuple[FloatArray,
     """Ordinary output-error fit ignoring jitter (time domain); returns (theta, rms residual)."""
     t = data.t_nominal
     if not structure.param_names:
-        resid = data.y - structure.system(()).response(data.u)(t)
-        return np.zeros(0), float(np.sqrt(np.mean(resid**2)))
+        r0 = data.y - structure.system(()).response(data.u)(t)
+        return np.zeros(0), float(np.sqrt(np.mean(r0**2)))
+
+    # The samples at kT are the moments of a point-mass jitter: the same O(N) path and
+    # analytic Jacobian as the jitter-aware criteria (jitterid._jacobians).
+    oe = Problem(data, structure, NoJitter(), "ls", default_frequencies(data.N, data.T), None)
 
     def resid(x: FloatArray) -> FloatArray:
         try:
-            return data.y - structure.system(x).response(data.u)(t)
+            return data.y - _jacobians.moment_derivatives(oe, x)[0].mean  # see _run
         except ValueError:
             return np.full(data.N, _BAD)
+
+    def jac(x: FloatArray) -> FloatArray:
+        try:
+            return -_jacobians.moment_derivatives(oe, x)[2].T
+        except ValueError:  # only where resid failed too; such a step is never taken
+            return np.zeros((data.N, x.size))
 
     lo, hi = np.array(structure.bounds).T
     # Score every start by one evaluation; search from the best only (a start with the
@@ -60,12 +74,19 @@ def _oe_start(data: SampledData, structure: ModelStructure) -> tuple[FloatArray,
     scored = []
     for x0 in structure.starts(data.T):
         x0 = np.clip(x0, lo, hi)
-        s = data.y - resid(x0)
+        try:
+            s = oe.moments(x0).mean
+        except ValueError:  # e.g. unstable: last resort only
+            scored.append((np.inf, x0))
+            continue
         if gains and np.dot(s, s) > 0:  # give each start its least-squares gain
-            x0[gains] *= np.dot(data.y, s) / np.dot(s, s)
-        scored.append((float(np.sum(resid(x0) ** 2)), x0))
+            # s is linear in the gain parameters: the scaled start's output is c s
+            c = np.dot(data.y, s) / np.dot(s, s)
+            x0[gains] *= c
+            s = c * s
+        scored.append((float(np.sum((data.y - s) ** 2)), x0))
     x0 = min(scored, key=lambda item: item[0])[1]
-    sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
+    sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=200)
     return sol.x, float(np.sqrt(2 * sol.cost / data.N))
 
 
@@ -80,43 +101,153 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
 
         def resid(x: FloatArray) -> FloatArray:
             try:
+                # The moments' derivatives come out of the same pass over the nodes for
+                # about twice its cost, and least_squares asks for the Jacobian at every
+                # point it accepts: computing both here saves a pass per iteration.
+                _jacobians.moment_derivatives(problem, x)
                 return problem.residuals(x)
             except ValueError:
                 return np.full(2 * problem.freqs.size, _BAD)
 
-        sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev)
+        def jac(x: FloatArray) -> FloatArray:
+            # Analytic (jitterid._jacobians): one pass instead of P + 1 evaluations.
+            try:
+                return problem.jacobian(x)
+            except ValueError:  # only where resid failed too; such a step is never taken
+                return np.zeros((2 * problem.freqs.size, x.size))
+
+        sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev)
         status = FitStatus.CONVERGED if sol.status > 0 else FitStatus.MAX_EVALUATIONS
         if sol.status < 0:
             status = FitStatus.OPTIMISER_FAILED
         x, nfev, msg = sol.x, int(sol.nfev), str(sol.message)
     else:
-
-        def obj(x: FloatArray) -> float:
-            try:
-                v = problem.objective(x)
-            except ValueError:
-                return _BAD
-            return v if np.isfinite(v) else _BAD
-
-        bounds = [(None if np.isinf(a) else a, None if np.isinf(b) else b) for a, b in zip(lo, hi, strict=True)]
-        sol = minimize(
-            obj,
-            x0,
-            method="L-BFGS-B",
-            bounds=bounds,
-            options={"maxfun": max_nfev, "finite_diff_rel_step": 1e-7},
-        )
-        if sol.success:
-            status = FitStatus.CONVERGED
-        elif sol.nfev >= max_nfev or sol.nit >= 15000:
+        x, ok, msg, nfev = _newton(problem, x0, lo, hi, max_nfev)
+        status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
+        if not ok and nfev >= max_nfev:
             status = FitStatus.MAX_EVALUATIONS
-        else:
-            status = FitStatus.OPTIMISER_FAILED
-        x, nfev, msg = sol.x, int(sol.nfev), str(sol.message)
-    cost = problem.objective(x)
-    if not np.isfinite(cost) or cost >= _BAD:
+    # The criterion is recomputed from the model here, so it never holds the _BAD sentinel;
+    # large legitimate values (a sum over 10^6 frequencies) are not failures.
+    try:
+        cost = problem.objective(x)
+    except ValueError:
+        cost = np.inf
+    if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
+    problem.release()
     return x, cost, status, msg, nfev
+
+
+def _newton(
+    problem: Problem, x0: FloatArray, lo: FloatArray, hi: FloatArray, max_nfev: int, tol: float = 1e-8
+) -> tuple[FloatArray, bool, str, int]:
+    """Minimise ``gaussian``, ``asml`` or ``asml-diag`` by damped Newton (Fisher scoring).
+
+    Each evaluation gives V, dV/dx and the expected Hessian M of V (jitterid._jacobians): the
+    step solves (M + lam diag M) d = -g on the parameters not held at a bound (a parameter on
+    its bound whose gradient points outwards is held). lam follows the trust-region rule on
+    rho = (actual decrease) / (predicted decrease g.d + d.M.d / 2): divided by 4 when
+    rho >= 3/4, multiplied by 4 (at least to 1e-3) when rho < 1/4; a step with rho < 1e-4 is
+    rejected. Converged when the Newton decrement g^T M^{-1} g (twice the predicted remaining
+    decrease) is below ``tol``. Near the optimum M is within O(1/sqrt(N)) of the Hessian, so
+    the search needs a handful of evaluations where L-BFGS-B needed tens.
+
+    Returns
+    -------
+    x, converged, message, evaluations
+    """
+
+    def evaluate(x: FloatArray) -> tuple[float, FloatArray, FloatArray] | None:
+        try:
+            v, g, M = problem.objective_gradient(x)
+        except ValueError:  # e.g. an unstable system
+            return None
+        ok = np.isfinite(v) and np.all(np.isfinite(g)) and np.all(np.isfinite(M))
+        return (v, g, M) if ok else None
+
+    x = np.clip(np.asarray(x0, float), lo, hi)
+    first = evaluate(x)
+    if first is None:
+        return x, False, "the criterion cannot be evaluated at the start", 1
+    v, g, M = first
+    n, lam = 1, 0.0
+    while n < max_nfev:
+        free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
+        dec = float(-g @ _damped_step(M, g, free, 0.0))
+        if dec <= tol:
+            return x, True, f"converged: Newton decrement {dec:.2g} <= {tol:g}", n
+        d = np.clip(x + _damped_step(M, g, free, lam), lo, hi) - x
+        pred = float(-(g @ d) - 0.5 * d @ M @ d)
+        trial = evaluate(x + d) if pred > 0 else None
+        n += 1
+        gain = v - trial[0] if trial is not None else -np.inf
+        lam = lam / 4 if gain >= 0.75 * pred else lam
+        lam = lam if gain >= 0.25 * pred else max(4 * lam, 1e-3)
+        if trial is not None and gain >= 1e-4 * pred:
+            x = x + d
+            v, g, M = trial
+        elif lam > 1e8:
+            return x, False, "no step decreases the criterion (damping exhausted)", n
+    return x, False, f"evaluation budget ({max_nfev}) used up", n
+
+
+def _damped_step(M: FloatArray, g: FloatArray, free: NDArray[np.bool_], lam: float) -> FloatArray:
+    """-(M + lam diag M)^{-1} g on the free parameters, zero elsewhere (scaled Cholesky)."""
+    step = np.zeros_like(g)
+    idx = np.flatnonzero(free)
+    if idx.size == 0:
+        return step
+    Mf = M[np.ix_(idx, idx)]
+    scale = np.sqrt(np.abs(np.diag(Mf)))
+    scale[scale == 0] = 1.0
+    A = Mf / np.outer(scale, scale) + (lam + 1e-12) * np.eye(idx.size)
+    try:
+        L = np.linalg.cholesky(A)
+        step[idx] = -np.linalg.solve(L.T, np.linalg.solve(L, g[idx] / scale)) / scale
+    except np.linalg.LinAlgError:  # not positive definite: a scaled gradient step
+        step[idx] = -g[idx] / scale**2 / (1.0 + lam)
+    return step
+
+
+def _ml_start(problem: Problem, x0: FloatArray) -> tuple[FloatArray, int]:
+    """The ML search's start for a jitter family with shape parameters (n of (26)).
+
+    BCLS fixes the jitter's scale well (through the variances) but hardly its shape: on the
+    paper's Table 3 data its criterion differs by 2e-4 (relative) between n = 0 and n = 8,
+    and the n it returns is whatever the search stopped at. The likelihood does tell shapes
+    apart, and is multimodal in n (with kinks at the integers), so the search from that n
+    lands in a mode that depends on the BCLS iterate's last digits. Each shape of the
+    family's default starts, at the scale that keeps the BCLS jitter std, is scored by one
+    likelihood evaluation, and the search starts from the best (the BCLS point included).
+    Returns the start and the number of evaluations used.
+    """
+    jitter, lik = problem.jitter, problem.likelihood
+    assert lik is not None
+    if not isinstance(jitter, JitterFamily) or problem.n_jitter < 2:
+        return x0, 0
+    scale = _jacobians._SCALE.get(type(jitter))
+    if scale is None:
+        return x0, 0
+    nj = problem.n_jitter
+    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    std = problem.split(x0)[0].std
+    candidates = [x0]
+    for js in jitter.default_starts(problem.data.T):
+        cand = x0.copy()
+        shape = np.asarray(js, float)
+        cand[:nj] = np.where(np.arange(nj) == scale, x0[scale], shape)
+        # the law is that of a xi: its std is proportional to a
+        cand[scale] = np.clip(x0[scale] * std / jitter.law(cand[:nj].tolist()).std, lo[scale], hi[scale])
+        if not any(np.array_equal(cand, c) for c in candidates):
+            candidates.append(cand)
+    y = problem.data.y
+    scores = []
+    for cand in candidates:
+        try:
+            scores.append(lik.loglik(cand, y))
+        except ValueError:
+            scores.append(-np.inf)
+    return candidates[int(np.argmax(scores))], len(candidates)
 
 
 def _run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
@@ -124,7 +255,9 @@ def _run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray
     re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6."""
     lik, y = problem.likelihood, problem.data.y
     assert lik is not None
-    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max_nfev)
+    x0, scored = _ml_start(problem, x0)
+    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev - scored, 2))
+    nfev += scored
     for _ in range(3):
         lik.design(x)
         fresh = lik.loglik(x, y)
@@ -153,6 +286,7 @@ def fit(
     freqs: ArrayLike | None = None,
     noise_std: float | None = None,
     max_nfev: int = 2000,
+    noise: NoiseStructure | NoiseModel | None = None,
 ) -> FitResult:
     """Estimate a continuous-time model from jittered samples.
 
@@ -184,6 +318,12 @@ def fit(
         ``wbcls`` uses a plug-in estimate from the BCLS residuals. ``ml`` needs it > 0.
     max_nfev : int
         Evaluation budget for each search.
+    noise : NoiseStructure or NoiseModel, optional
+        Coloured measurement noise v = (h * e)(t), eq. (1c): a structure with free parameters
+        (``RationalNoise(0, 1)``) or a known ``NoiseModel``, for the Box-Jenkins structures BJ
+        (2b) and, with a jitter family, JBJ (2d) (:mod:`jitterid.boxjenkins`; methods
+        ``bcls``, ``wbcls``, ``asml``, ``asml-diag``, ``gaussian``). ``noise_std`` is then the
+        std of an additional white part. Default None: white noise only (OE, (2a)).
 
     Returns
     -------
@@ -193,7 +333,10 @@ def fit(
     # Small complex BLAS calls (Cholesky, matmul) run ~100x slower multi-threaded here;
     # one thread is faster, and parallelism belongs to the Monte Carlo level.
     with threadpool_limits(limits=1, user_api="blas"):
-        return _fit(data, system, jitter, method, start, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev)
+        return _fit(
+            data, system, jitter, method, start, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev,
+            noise_model=noise,
+        )
 
 
 def _fit(
@@ -206,7 +349,10 @@ def _fit(
     freqs: ArrayLike | None = None,
     noise_std: float | None = None,
     max_nfev: int = 2000,
+    noise_model: NoiseStructure | NoiseModel | None = None,
 ) -> FitResult:
+    if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
+        return fit_bj(data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev)
     prefit = start if isinstance(start, FitResult) else None
     if prefit is not None:
         start = None
@@ -248,10 +394,13 @@ def _fit(
         if method == "wbcls" and noise is None:
             theta_sys = _oe_start(data, structure)[0]
             problem = make(method=method, noise_std=_plugin_noise(make, theta_sys, jstarts, max_nfev))
-        x0 = np.atleast_1d(real_array(start, "start"))
+        x0 = np.atleast_1d(real_array(start, "start"))  # type: ignore[arg-type]  # FitResult handled above
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
-        best = _run(problem, x0, max_nfev)
+        if method == "wbcls":
+            problem, best = _run_wbcls(make, problem.noise_std, np.clip(x0, *np.array(problem.bounds).T), max_nfev)
+        else:
+            best = _run(problem, x0, max_nfev)
         nfev = best[4]
     else:
         first = "ls" if method == "ls" else "bcls"
@@ -280,10 +429,14 @@ def _fit(
             if method == "ml":  # the likelihood's cost grows like 1/noise: start close
                 noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * (rms or 0.0), 1e-12)
             x0 = np.r_[x_pre, noise0] if problem.estimates_noise else x_pre
-            best = _run(problem, x0, max_nfev)
+            if method == "wbcls":
+                problem, best = _run_wbcls(make, problem.noise_std, x0, max_nfev)
+            else:
+                best = _run(problem, x0, max_nfev)
             nfev += best[4]
         else:
             problem = pre
+    assert best is not None
     x, cost, status, msg, _ = best
     law, tf, noise_used = problem.split(x)
     return FitResult(
@@ -298,9 +451,30 @@ def _fit(
         jitter=law,
         noise_std=noise_used,
         freqs=f,
-        _covariance=partial(sandwich_covariance, problem, np.asarray(x, float)),
+        _covariance=partial(_single_threaded, sandwich_covariance, problem, np.asarray(x, float)),
         structure=structure,
     )
+
+
+def _run_wbcls(
+    make: partial[Problem], noise: float | None, x0: FloatArray, max_nfev: int
+) -> tuple[Problem, tuple[FloatArray, float, FitStatus, str, int]]:
+    """WBCLS (20) with R frozen at x0, then re-frozen once at that estimate (iterated
+    feasible GLS; :mod:`jitterid.criteria` explains why R is not left to vary)."""
+    nfev = 0
+    for _ in range(2):
+        problem = make(method="wbcls", noise_std=noise, weights_at=np.array(x0, float))
+        out = _run(problem, x0, max_nfev)
+        nfev += out[4]
+        x0 = out[0]
+    return problem, (*out[:4], nfev)
+
+
+def _single_threaded(func: Callable[..., FloatArray], *args: object) -> FloatArray:
+    """Run ``func`` with one BLAS thread: the lazy covariance is computed outside ``fit``, and
+    its small complex Cholesky factorisations run ~100x slower multi-threaded here."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return func(*args)
 
 
 def _check_prefit(prefit: FitResult, pre: Problem) -> None:

@@ -11,6 +11,7 @@ from ._checks import count, generator, positive, real_array
 from .distributions import JitterLaw
 from .inputs import Input
 from .models import TransferFunction
+from .noise import NoiseModel
 
 __all__ = ["SampledData", "simulate"]
 
@@ -74,7 +75,7 @@ class SampledData:
     @property
     def t_nominal(self) -> FloatArray:
         """The requested instants k T."""
-        return self.T * np.arange(self.N)
+        return self.T * np.arange(self.N, dtype=float)
 
 
 def simulate(
@@ -85,10 +86,13 @@ def simulate(
     N: int,
     noise_std: float,
     rng: np.random.Generator | int,
+    *,
+    noise_model: NoiseModel | None = None,
 ) -> SampledData:
     """Sample the exact output of ``system`` to ``u`` at jittered instants, eq. (1a).
 
-    y_k = s(kT + tau_k) + v_k with tau_k i.i.d. from ``jitter`` and v_k ~ N(0, noise_std^2).
+    y_k = s(kT + tau_k) + v_k with tau_k i.i.d. from ``jitter`` and v_k ~ N(0, noise_std^2);
+    with ``noise_model``, v_k also holds the coloured noise v(kT + tau_k) of (1c).
 
     Parameters
     ----------
@@ -105,7 +109,12 @@ def simulate(
     noise_std : float
         Standard deviation of the white measurement noise (>= 0).
     rng : numpy.random.Generator or int
-        Source of randomness; the jitter is drawn first, then the noise.
+        Source of randomness; the jitter is drawn first, then the white noise, then the
+        coloured noise (so adding ``noise_model`` leaves the other draws unchanged).
+    noise_model : NoiseModel, optional
+        Coloured noise v(t) = (h * e)(t), eq. (1c), sampled exactly at the jittered instants
+        (the exact discretisation (N3) of :mod:`jitterid.noise`, not an Euler step). Default:
+        white noise only (the OE structure (2a)).
 
     Returns
     -------
@@ -117,10 +126,17 @@ def simulate(
     noise_std = positive(noise_std, "noise_std", allow_zero=True)
     if not isinstance(jitter, JitterLaw):
         raise TypeError(f"jitter must be a jitterid jitter law; got {type(jitter).__name__}")
+    if noise_model is not None and not isinstance(noise_model, NoiseModel):
+        raise TypeError(
+            "noise_model must be a NoiseModel (e.g. NoiseModel(TransferFunction([b], [1, c]))) "
+            f"or None for white noise only; got {type(noise_model).__name__}"
+        )
     gen = generator(rng)
     u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
     tau = np.asarray(jitter.sample(N, gen), dtype=float)
     instants = T * np.arange(N) + tau
     s = system.response(u)(instants)
     y = s + noise_std * gen.standard_normal(N)
+    if noise_model is not None:
+        y = y + noise_model.sample(instants, gen)
     return SampledData(y=y, T=T, u=u, noise_std=noise_std, instants=instants)

@@ -33,6 +33,7 @@ from ..distributions import (
 )
 from ..inputs import Input, Multisine, telegraph_input
 from ..models import TransferFunction
+from ..noise import NoiseModel, RationalNoise
 from ..structures import ModelStructure, PolePairGain, RationalModel
 from ._schema import ExperimentError
 
@@ -43,11 +44,17 @@ __all__ = [
     "ExperimentError",
     "InputSpec",
     "LawSpec",
+    "NoiseSpec",
     "SystemSpec",
     "packaged_path",
 ]
 
 PAPER_EXPERIMENTS = ("table1", "table2", "table3")
+# Packaged studies beyond the paper: "bj" is Table 2's system with coloured noise (issue 7).
+EXTRA_EXPERIMENTS = ("bj",)
+# Method prefixes of the Box-Jenkins estimators (fit(..., noise=...)): "bj-" with the jitter
+# model of [jitter], "jbj-" with the family of each case's law kind estimated as well.
+BJ_PREFIXES = ("bj-", "jbj-")
 # law kind -> (class, parameter names); family kind -> (class, option names)
 LAWS: dict[str, tuple[Any, tuple[str, ...]]] = {
     "uniform": (Uniform, ("a",)),
@@ -139,6 +146,30 @@ class SystemSpec:
 
 
 @dataclass(frozen=True)
+class NoiseSpec:
+    """Coloured measurement noise v = (h * e)(t) of eq. (1c): a :class:`~jitterid.RationalNoise`
+    structure and its true parameters (the data's v; the ``bj-``/``jbj-`` estimators fit it)."""
+
+    num_order: int
+    den_order: int
+    truth: Pairs
+
+    def structure(self) -> RationalNoise:
+        return RationalNoise(self.num_order, self.den_order)
+
+    def true_model(self) -> NoiseModel:
+        return self.structure().model([v for _, v in self.truth])
+
+
+def split_method(method: str) -> tuple[str, str]:
+    """(prefix, criterion): ``"bj-gaussian"`` -> ``("bj-", "gaussian")``, ``"bcls"`` -> ``("", "bcls")``."""
+    for prefix in BJ_PREFIXES:
+        if method.startswith(prefix):
+            return prefix, method[len(prefix) :]
+    return "", method
+
+
+@dataclass(frozen=True)
 class Experiment:
     """A validated Monte Carlo experiment (see the module docstring and the packaged TOMLs)."""
 
@@ -161,9 +192,13 @@ class Experiment:
     paper_labels: tuple[tuple[str, str], ...] = ()
     description: str = field(default="", compare=False)
     source: str = field(default="", compare=False)
+    noise: NoiseSpec | None = None
 
-    def estimation_jitter(self, case: Case) -> JitterLaw | JitterFamily:
-        """What the estimators are told about the jitter: the true law, or the free family."""
+    def estimation_jitter(self, case: Case, method: str = "") -> JitterLaw | JitterFamily:
+        """What the estimators are told about the jitter: the true law, or the free family
+        (for a ``jbj-`` method: the family of the case law's kind, default options)."""
+        if split_method(method)[0] == "jbj-":
+            return FAMILIES[case.law.kind][0]()
         if self.jitter_model == "known":
             return case.law.build()
         cls, _ = FAMILIES[self.jitter_model]
@@ -183,12 +218,16 @@ class Experiment:
         core = dataclasses.replace(
             self, runs=0, title="", paper_table=None, paper_labels=(), description="", source=""
         )
-        text = json.dumps(dataclasses.asdict(core), sort_keys=True)
+        fields = dataclasses.asdict(core)
+        if fields["noise"] is None:  # white-noise experiments keep their earlier fingerprint
+            del fields["noise"]
+        text = json.dumps(fields, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def packaged_path(name: str) -> Path:
-    """Path of a packaged experiment definition (``table1``, ``table2``, ``table3``)."""
-    if name not in PAPER_EXPERIMENTS:
-        raise ValueError(f"name must be one of {', '.join(PAPER_EXPERIMENTS)}; got {name!r}")
+    """Path of a packaged experiment definition (``table1``-``table3``, ``bj``)."""
+    names = (*PAPER_EXPERIMENTS, *EXTRA_EXPERIMENTS)
+    if name not in names:
+        raise ValueError(f"name must be one of {', '.join(names)}; got {name!r}")
     return Path(str(resources.files("jitterid.experiments") / "data" / f"{name}.toml"))

@@ -17,17 +17,20 @@ from typing import Any
 
 import numpy as np
 
-from .. import criteria
+from .. import boxjenkins, criteria
 from ._schema import ExperimentError, Section
 from .config import (
+    BJ_PREFIXES,
     FAMILIES,
     LAWS,
     Case,
     Experiment,
     InputSpec,
     LawSpec,
+    NoiseSpec,
     Pairs,
     SystemSpec,
+    split_method,
 )
 
 __all__ = ["load_experiment", "parse_experiment"]
@@ -69,7 +72,7 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         data,
         "",
         source,
-        ("experiment", "sampling", "input", "system", "jitter", "cases", "estimators", "paper"),
+        ("experiment", "sampling", "input", "system", "jitter", "cases", "estimators", "paper", "noise"),
     )
     ex = top.table("experiment", ("name", "title", "description", "runs", "seed"))
     name = ex.text("name")
@@ -87,9 +90,17 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
     cases = tuple(_case(c) for c in top.tables("cases", ("name", "law", "paper_case")))
     if len({c.name for c in cases}) != len(cases):
         raise top.fail("cases", "must have distinct names")
+    noise = _noise(top.table("noise", ("structure", "num_order", "den_order", "truth"))) if top.has("noise") else None
     est = top.table("estimators", ("methods", "crb"))
-    methods = _methods(est, jitter_model, system)
+    methods = _methods(est, jitter_model, system, noise is not None)
+    _check_bj(est, methods, jitter_model, cases)
     crb = est.flag("crb", default=False)
+    if crb and noise is not None:
+        raise est.fail(
+            "crb",
+            "is the bound for white noise (the exact likelihood of notes 4); it does not hold "
+            "with a [noise] section: set crb = false",
+        )
     if crb and not (
         sa.flag("noise_known", default=True) and sa.number("noise_std", at_least=0) > 0
     ):
@@ -133,6 +144,7 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         paper_table=paper_table,
         paper_labels=labels,
         source=source,
+        noise=noise,
     )
     _check_coverage(exp, top)
     return exp
@@ -201,15 +213,19 @@ def _case(sec: Section) -> Case:
     return Case(name, spec, paper)
 
 
-def _methods(sec: Section, jitter_model: str, system: SystemSpec) -> tuple[str, ...]:
+def _methods(sec: Section, jitter_model: str, system: SystemSpec, noise: bool) -> tuple[str, ...]:
     methods = sec.texts("methods")
+    # Box-Jenkins estimators (a [noise] section): "bj-<criterion>" and "jbj-<criterion>".
+    bj = [p + m for p in BJ_PREFIXES for m in boxjenkins.BJ_METHODS] if noise else []
+    known = [*criteria.METHODS, *bj]
     for i, m in enumerate(methods):
-        if m not in criteria.METHODS:
-            close = difflib.get_close_matches(m, criteria.METHODS, n=1, cutoff=0.5)
+        if m not in known:
+            close = difflib.get_close_matches(m, known, n=1, cutoff=0.5)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
+            extra = "" if noise else "; 'bj-*'/'jbj-*' estimators need a [noise] section"
             raise sec.fail(
                 f"methods[{i}]",
-                f"is {m!r}, not a method{hint}; choose from {', '.join(criteria.METHODS)}",
+                f"is {m!r}, not a method{hint}; choose from {', '.join(known)}{extra}",
             )
     if len(set(methods)) != len(methods):
         raise sec.fail("methods", f"lists a method twice: {methods}")
@@ -226,6 +242,40 @@ def _methods(sec: Section, jitter_model: str, system: SystemSpec) -> tuple[str, 
             "is known and the jitter is known; remove it",
         )
     return methods
+
+
+def _noise(sec: Section) -> NoiseSpec:
+    sec.text("structure", choices=("rational",))
+    spec = NoiseSpec(
+        sec.integer("num_order", minimum=0, default=0),
+        sec.integer("den_order", minimum=1, default=1),
+        (),
+    )
+    names = _built(sec, "num_order", spec.structure).param_names
+    truth = sec.table("truth", names)
+    spec = dataclasses.replace(spec, truth=tuple((n, truth.number(n)) for n in names))
+    _built(sec, "truth", spec.true_model)
+    return spec
+
+
+def _check_bj(sec: Section, methods: tuple[str, ...], jitter_model: str, cases: tuple[Case, ...]) -> None:
+    """A 'jbj-' estimator fits the family of each case's law kind: the jitter must be known
+    (else 'bj-' already estimates the family) and every law must have a family."""
+    if not any(split_method(m)[0] == "jbj-" for m in methods):
+        return
+    if jitter_model != "known":
+        raise sec.fail(
+            "methods",
+            "lists a 'jbj-' estimator with jitter.model a family: 'bj-' estimators already "
+            "estimate the family then; use 'bj-' or set jitter.model = 'known'",
+        )
+    for c in cases:
+        if c.law.kind not in FAMILIES:
+            raise sec.fail(
+                "methods",
+                f"lists a 'jbj-' estimator, but case '{c.name}' has a '{c.law.kind}' law, which "
+                f"has no family to estimate (families: {', '.join(FAMILIES)})",
+            )
 
 
 def _paper(

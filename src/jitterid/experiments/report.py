@@ -19,6 +19,7 @@ from importlib import resources
 
 import numpy as np
 
+from .bj import uncertainty_section
 from .config import Case, Experiment
 from .store import Estimate
 
@@ -106,8 +107,16 @@ def summarize(exp: Experiment, estimates: Sequence[Estimate]) -> dict[tuple[str,
 
 def true_values(exp: Experiment, case: Case) -> dict[str, float]:
     """theta0 of a case: the system's truth, and for a free jitter family its true
-    parameters (when the true law is a member) and sigma."""
+    parameters (when the true law is a member) and sigma; with coloured noise also the
+    noise parameters, the white ``noise_std`` if it is estimated, and the jitter law's
+    parameters if a ``jbj-`` estimator fits its family."""
     truth = dict(exp.system.truth)
+    if exp.noise is not None:
+        truth.update(exp.noise.truth)
+        if not exp.noise_known:
+            truth["noise_std"] = exp.noise_std
+        if any(m.startswith("jbj-") for m in exp.methods):
+            truth = {**dict(case.law.params), **truth}
     if exp.jitter_model == "known":
         return truth
     law = case.law.build()
@@ -261,6 +270,16 @@ def markdown_report(
         ),
         f"- Estimators: {methods}.",
         f"- Jitter model: `{exp.jitter_model}` {dict(exp.jitter_options) or ''}".rstrip() + ".",
+        *(
+            [
+                (
+                    f"- Coloured noise v(t): H(s) = {exp.noise.true_model().tf}, std of v "
+                    f"{exp.noise.true_model().variance ** 0.5:.4g}, added to the white noise above."
+                )
+            ]
+            if exp.noise is not None
+            else []
+        ),
         (
             "- Statistics over the converged fits; SEM = std/√n. ⚑ marks a difference from the "
             "paper beyond Monte Carlo error (|z| > 3 with both studies' standard errors; the paper "
@@ -270,4 +289,6 @@ def markdown_report(
     ]
     for case in exp.cases:
         lines += _case_block(exp, case, summ, bounds.get(case.name))
+    if exp.noise is not None:  # coloured noise: are the stated error bars honest?
+        lines += uncertainty_section(exp, estimates)
     return "\n".join(lines).rstrip() + "\n"

@@ -33,10 +33,11 @@ from ..estimate import fit
 from ..inputs import Input
 from ..likelihood import crb
 from ..models import TransferFunction
+from ..noise import NoiseStructure
 from ..result import FitResult
 from ..simulate import SampledData, simulate
 from ..structures import ModelStructure
-from .config import Experiment
+from .config import Experiment, split_method
 from .store import Estimate, Store
 
 __all__ = ["RunSummary", "realize", "run_experiment", "seed_streams", "store_path"]
@@ -91,15 +92,21 @@ def realize(
     rng = np.random.default_rng(stream)
     with threadpool_limits(limits=1):
         u = exp.input.build(exp.duration, rng)
+        noise = exp.noise.true_model() if exp.noise is not None else None
         data = simulate(
-            exp.system.true_system(), u, case.law.build(), exp.T, exp.N, exp.noise_std, rng
+            exp.system.true_system(), u, case.law.build(), exp.T, exp.N, exp.noise_std, rng,
+            noise_model=noise,
         )
         if not exp.noise_known:
             data = SampledData(data.y, data.T, data.u, None, data.instants)
-        model, jitter = exp.system.model(), exp.estimation_jitter(case)
+        model = exp.system.model()
         shared: dict[str, FitResult | Exception] = {}
         rows = [
-            _fit_one(data, model, jitter, m, case.name, realization, shared) for m in exp.methods
+            _fit_one(
+                data, model, exp.estimation_jitter(case, m), m, case.name, realization, shared,
+                exp.noise.structure() if exp.noise is not None and split_method(m)[0] else None,
+            )
+            for m in exp.methods
         ]
         if exp.crb:
             rows.append(_bound_row(exp, case_index, realization, u))
@@ -111,14 +118,16 @@ def _bcls_stage(
     model: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
     shared: dict[str, FitResult | Exception],
+    key: str = "bcls",
 ) -> FitResult:
-    """The realization's BCLS fit, computed once (an error is re-raised for every method)."""
-    if "bcls" not in shared:
+    """The realization's BCLS fit, computed once per jitter model ``key`` (an error is
+    re-raised for every method)."""
+    if key not in shared:
         try:
-            shared["bcls"] = fit(data, model, jitter, "bcls")
+            shared[key] = fit(data, model, jitter, "bcls")
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            shared["bcls"] = exc
-    pre = shared["bcls"]
+            shared[key] = exc
+    pre = shared[key]
     if isinstance(pre, Exception):
         raise pre
     return pre
@@ -132,19 +141,24 @@ def _fit_one(
     case_name: str,
     realization: int,
     shared: dict[str, FitResult | Exception],
+    noise: NoiseStructure | None = None,
 ) -> Estimate:
     t0 = time.perf_counter()
+    prefix, criterion = split_method(method)  # "bj-gaussian": gaussian with the noise model
     try:
         if method == "ls":
             res = fit(data, model, jitter, method)
         else:
-            pre = _bcls_stage(data, model, jitter, shared)
+            # 'jbj-' methods fit a jitter family: their BCLS stage is not the known-law one.
+            pre = _bcls_stage(data, model, jitter, shared, "bcls-jbj" if prefix == "jbj-" else "bcls")
             t0 = time.perf_counter() if method != "bcls" else t0
             # A failed BCLS search cannot seed the others: they search on their own.
             res = (
                 pre
                 if method == "bcls"
-                else fit(data, model, jitter, method, start=pre if pre.success else None)
+                else fit(
+                    data, model, jitter, criterion, start=pre if pre.success else None, noise=noise
+                )
             )
         stderr = res.stderr
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -286,10 +300,12 @@ def run_experiment(
     streams = seed_streams(exp.seed, len(exp.cases), exp.runs)
     with Store(store_path(exp, out), exp, resume=resume) as store:
         done = store.done()
+        # Realization-major order: a run stopped early leaves every case with (nearly) the
+        # same number of realizations, so an interim report compares like with like.
         tasks = [
             (ci, r, streams[ci][r])
-            for ci, case in enumerate(exp.cases)
             for r in range(exp.runs)
+            for ci, case in enumerate(exp.cases)
             if (case.name, r) not in done
         ]
         total = exp.runs * len(exp.cases)

@@ -1,0 +1,449 @@
+"""Second-order moments with coloured noise: the jittered noise covariance and Sigma_y.
+
+Samples y_k = s(kT + tau_k) + v(kT + tau_k) + w_k (eq. (1a) with (1c) and a white part w_k
+of std sigma_w). The tau_k are i.i.d. and independent of v, so
+
+    Var(v_k) = r_v(0),    Cov(v_k, v_l) = E[r_v((k - l) T + tau_k - tau_l)]  (k != l), (C1)
+
+the autocovariance smoothed by the law of a jitter difference (characteristic function
+|phi|^2). The samples of s stay uncorrelated across k (notes, section 2), so
+
+    Sigma_y = diag(Var s_k + sigma_w^2) + Toeplitz(gamma),  gamma(m) = Cov(v_k, v_{k+m}).  (C2)
+
+Modal form. With r_v(t) = sum_j c_j e^{p_j |t|} (:mod:`jitterid.noise`, (N1)) and support
+[lo, hi] of the jitter, (k - l) T + tau_k - tau_l keeps the sign of k - l once |k - l| >= M0 =
+max(1, ceil((hi - lo) / T)). For m >= M0 the expectation factorises over the independent
+jitters:
+
+    gamma(m) = sum_j c_j A_j B_j e^{p_j (m T + lo - hi)},
+    A_j = E[e^{p_j (tau - lo)}],  B_j = E[e^{p_j (hi - tau)}],                        (C3)
+
+i.e. c_j E[e^{p_j tau}] E[e^{-p_j tau}] e^{p_j m T} (the moment generating function at p_j:
+the characteristic function at imaginary argument), written with exponents <= 0 so that no
+factor overflows for fast noise poles. gamma is a sum of geometric sequences from lag M0 on:
+an ARMA covariance. For the lags 1 <= m < M0 (jitter wider than T, e.g. Gaussian, whose
+effective support is +-8.5 sigma) the sign of the lag can flip and (C1) is evaluated exactly by
+a double Gauss-Legendre quadrature split at the kink of r_v. With M0 = 1 the lag-0 value of the
+geometric sequence exceeds r_v(0) (Jensen), while the smoothed spectrum |phi|^2-weighted has
+less power: jitter turns part of the coloured noise into white noise.
+
+Time-domain Gaussian criterion in O(N (n + M0)^2) (n noise poles). Filter the samples by the
+AR polynomial a(q) = prod_j (1 - z_j q^{-1}), z_j = e^{p_j T}: the unit lower triangular L_a
+with rows a (identity rows for k < n) has det 1 and annihilates the geometric tail, since
+sum_i a_i gamma(m - i) = 0 for m - n >= M0. So L_a Sigma_y L_a^T is banded with half-bandwidth
+n + M0 - 1 and
+
+    r^T Sigma_y^{-1} r = (L_a r)^T (L_a Sigma_y L_a^T)^{-1} (L_a r),
+    ln det Sigma_y = ln det (L_a Sigma_y L_a^T),                                        (C4)
+
+by a banded Cholesky factorisation (LAPACK pbtrf). The DFT covariance R_Y = E Sigma_y E^H
+(E the DFT rows of (3)) extends (17) by the Toeplitz term, computed by FFT Toeplitz products.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import cho_solve_banded, cholesky_banded, matmul_toeplitz, solve_banded
+
+from ._checks import count, positive, real_array
+from ._quadrature import _relative_cuts
+from .distributions import JitterLaw
+from .inputs import Input
+from .models import TransferFunction
+from .moments import covariance_from_variances, sample_moments
+from .noise import NoiseModel
+from .spectral import dtft
+
+__all__ = [
+    "JitteredAutocovariance",
+    "SampleCovariance",
+    "coloured_dft_covariance",
+    "coloured_dft_pseudo_covariance",
+    "jittered_autocovariance",
+    "sample_covariance",
+]
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+_ORDER = 10  # Gauss-Legendre nodes per panel
+_CHUNK = 2_000_000  # complex values per block of the near-lag quadrature
+_MAX_START = 256  # most lags evaluated by the double quadrature (support / T)
+# A support wider than M0 T by this relative amount is treated as M0 T (probability ~1e-9).
+_WIDTH_TOL = 1e-9
+
+
+def _scales(law: JitterLaw, p: ComplexArray) -> tuple[float, float]:
+    """(coarse, fine) panel lengths: the pdf's scale and the slowest oscillation of r_v, and
+    the fastest time scale 1 / max |p| of the noise."""
+    lo, hi = law.support
+    coarse = hi - lo
+    if law.std > 0:
+        coarse = min(coarse, law.std)
+    osc = float(np.max(np.abs(p.imag), initial=0.0))
+    if osc > 0:
+        coarse = min(coarse, 1.0 / osc)
+    return coarse, min(coarse, 1.0 / float(np.max(np.abs(p))))
+
+
+def _offsets(coarse: float, fine: float) -> FloatArray:
+    """0, +-fine, +-2 fine, +-4 fine, ... below ``coarse``: geometric panels beside a kink or an
+    end, where e^{p |t|} varies on the scale 1/|p| and flattens (or vanishes) further out."""
+    steps = fine * 2.0 ** np.arange(max(1, math.ceil(math.log2(coarse / fine))))
+    return np.concatenate([[0.0], steps, -steps])
+
+
+def _rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tuple[FloatArray, FloatArray]:
+    """Nodes and weights w = (GL weight) p(tau): the law's analytic pieces cut to ``coarse``,
+    refined geometrically from ``fine`` around each of ``anchors``. Work O(log(coarse/fine))
+    per anchor however fast the noise, instead of O((hi - lo) / fine)."""
+    lo, hi = law.support
+    edges = np.concatenate([_relative_cuts(law, coarse), (anchors[:, None] + _offsets(coarse, fine)).ravel()])
+    edges = np.unique(np.clip(edges, lo, hi))
+    x, wx = np.polynomial.legendre.leggauss(_ORDER)
+    half = 0.5 * np.diff(edges)[:, None]
+    nodes = (0.5 * (edges[:-1, None] + edges[1:, None]) + half * x).ravel()
+    return nodes, (half * wx).ravel() * law.pdf(np.clip(nodes, lo, hi))
+
+
+@dataclass(frozen=True)
+class JitteredAutocovariance:
+    """gamma(m) = Cov(v_k, v_{k+m}) of jittered samples of v, eqs. (C1) and (C3).
+
+    Attributes
+    ----------
+    T : float
+        Nominal sampling interval.
+    near : ndarray, shape (M0,)
+        gamma(0..M0-1): r_v(0) and the lags where the jitter can reverse the order of samples.
+    weights, ratios : ndarray of complex
+        gamma(m) = Re sum_j weights_j ratios_j^(m - M0) for m >= M0; ratios_j = exp(p_j T).
+    """
+
+    T: float
+    near: FloatArray
+    weights: ComplexArray
+    ratios: ComplexArray
+
+    @property
+    def start(self) -> int:
+        """M0, the first lag of the geometric tail."""
+        return int(self.near.size)
+
+    def __call__(self, lags: ArrayLike) -> FloatArray:
+        """gamma(|m|) at integer lags ``m`` (any shape)."""
+        m = np.abs(np.asarray(lags))
+        if m.dtype.kind not in "iu":
+            raise TypeError(f"lags must be integers; got dtype {m.dtype}")
+        tail = np.maximum(m - self.start, 0)[..., None]
+        geo = (self.ratios ** tail) @ self.weights if self.ratios.size else np.zeros(m.shape)
+        near = self.near[np.minimum(m, self.start - 1)]
+        return np.asarray(np.where(m < self.start, near, np.real(geo)), dtype=float)
+
+    def sequence(self, n: int) -> FloatArray:
+        """gamma(0), ..., gamma(n - 1)."""
+        return self(np.arange(count(n, "n", minimum=0)))
+
+    def spectrum(self, f: ArrayLike) -> FloatArray:
+        """Spectral density of the sampled noise per Hz, T sum_m gamma(m) e^{-i 2 pi f m T}.
+
+        The geometric tail is summed in closed form: sum_{m >= M0} z^(m - M0) e^{-i w m} =
+        e^{-i w M0} / (1 - z e^{-i w}), w = 2 pi f T.
+        """
+        ff = real_array(f, "f")
+        e = np.exp(-2j * np.pi * ff * self.T)[..., None]
+        m = np.arange(1, self.start)
+        one_sided = (e[..., 0:1] ** m) @ self.near[1:] if m.size else np.zeros(ff.shape)
+        if self.ratios.size:
+            tail = e ** self.start / (1.0 - self.ratios * e)
+            one_sided = one_sided + tail @ self.weights
+        return np.asarray(self.T * (self.near[0] + 2.0 * np.real(one_sided)), dtype=float)
+
+    @cached_property
+    def ar(self) -> FloatArray:
+        """Coefficients of a(q) = prod_j (1 - ratios_j q^-1), which annihilates the tail (C4)."""
+        return np.real(np.poly(self.ratios)) if self.ratios.size else np.ones(1)
+
+
+def jittered_autocovariance(noise: NoiseModel, jitter: JitterLaw, T: float) -> JitteredAutocovariance:
+    """The autocovariance of v(kT + tau_k), eqs. (C1) and (C3).
+
+    Parameters
+    ----------
+    noise : NoiseModel
+        The continuous-time noise v(t).
+    jitter : JitterLaw
+        Law of the i.i.d. jitter (``NoJitter()`` gives r_v(m T), the uniformly sampled noise).
+    T : float
+        Nominal sampling interval.
+
+    Returns
+    -------
+    JitteredAutocovariance
+    """
+    if not isinstance(noise, NoiseModel):
+        raise TypeError(f"noise must be a NoiseModel; got {type(noise).__name__}")
+    if not isinstance(jitter, JitterLaw):
+        raise TypeError(f"jitter must be a jitterid jitter law; got {type(jitter).__name__}")
+    T = positive(T, "T")
+    c, p = noise.modes
+    lo, hi = (float(v) for v in jitter.support)
+    start = max(1, math.ceil((hi - lo) / T - _WIDTH_TOL))
+    near = np.empty(start)
+    near[0] = noise.variance
+    if start > _MAX_START:
+        raise ValueError(
+            f"jitter: its support [{lo:g}, {hi:g}] spans {start} sampling intervals T = {T:g}; "
+            f"at most {_MAX_START} are supported (samples that far out of order are not jitter)"
+        )
+    if hi <= lo:  # a point mass: tau_k - tau_l = 0
+        a = b = np.ones(p.size, complex)
+    else:
+        coarse, fine = _scales(jitter, p)
+        # e^{p (tau - lo)} and e^{p (hi - tau)} vary fastest at the ends of the support.
+        nodes, w = _rule(jitter, coarse, np.array([lo, hi]), fine)
+        a = np.exp(np.outer(p, nodes - lo)) @ w
+        b = np.exp(np.outer(p, hi - nodes)) @ w
+        for m in range(1, start):
+            near[m] = _near_lag(noise, jitter, m * T, coarse, fine)
+    weights = c * a * b * np.exp(p * (start * T + lo - hi))
+    return JitteredAutocovariance(T, near, weights, np.exp(p * T))
+
+
+def _near_lag(noise: NoiseModel, law: JitterLaw, lag: float, coarse: float, fine: float) -> float:
+    """E[r_v(lag + tau - tau')] by a double quadrature split where lag + tau - tau' = 0.
+
+    Inner integral R(x) = E[r_v(tau - x)] at x = tau' - lag, with panels refined around the
+    kink tau = x of r_v; the outer one over tau' refined where x crosses a knot of the pdf
+    (where R varies on the noise's time scale).
+    """
+    c, p = noise.modes
+    lo, hi = law.support
+    knots = np.asarray(law.breakpoints(), dtype=float)
+    outer, wo = _rule(law, coarse, knots + lag, fine)
+    base = _relative_cuts(law, coarse)
+    offs = _offsets(coarse, fine)
+    x, wx = np.polynomial.legendre.leggauss(_ORDER)
+    total = 0.0
+    width = base.size + offs.size
+    step = max(1, _CHUNK // (width * _ORDER * max(1, p.size)))
+    for i0 in range(0, outer.size, step):
+        xs = outer[i0 : i0 + step] - lag
+        # Clipped duplicates give zero-length panels, which weigh nothing.
+        pts = np.concatenate(
+            [np.broadcast_to(base, (xs.size, base.size)), np.clip(xs[:, None] + offs, lo, hi)], axis=1
+        )
+        edges = np.sort(pts, axis=1)
+        half = 0.5 * np.diff(edges, axis=1)[..., None]
+        t = 0.5 * (edges[:, :-1, None] + edges[:, 1:, None]) + half * x
+        w = half * wx * law.pdf(np.clip(t, lo, hi))
+        dist = np.abs(t - xs[:, None, None])[..., None]
+        r = np.real(np.exp(p * dist) @ c)
+        total += float(np.sum(wo[i0 : i0 + step] * np.sum(w * r, axis=(1, 2))))
+    return total
+
+
+@dataclass(frozen=True, eq=False)
+class SampleCovariance:
+    """Sigma_y = diag(d) + Toeplitz(gamma) of eq. (C2), with the O(N) operations of (C4).
+
+    Parameters
+    ----------
+    d : ndarray, shape (N,)
+        The diagonal part: Var s_k + sigma_w^2 (gamma(0) is added by the Toeplitz part).
+    gamma : JitteredAutocovariance or None
+        The coloured noise; None for white noise only (the OE structure).
+    """
+
+    d: FloatArray
+    gamma: JitteredAutocovariance | None
+
+    @property
+    def N(self) -> int:
+        return int(self.d.size)
+
+    @cached_property
+    def _stencil(self) -> FloatArray:
+        """Rows of L_a: S[k, i] multiplies y_{k-i}; identity rows for k < n."""
+        a = self.gamma.ar if self.gamma is not None else np.ones(1)
+        n = a.size - 1
+        S = np.zeros((self.N, n + 1))
+        S[n:] = a
+        S[: min(n, self.N), 0] = 1.0
+        return S
+
+    @cached_property
+    def _factor(self) -> tuple[FloatArray, float]:
+        """Banded Cholesky factor of L_a Sigma L_a^T (lower storage) and ln det Sigma."""
+        S, N = self._stencil, self.N
+        n = S.shape[1] - 1
+        start = self.gamma.start if self.gamma is not None else 1
+        width = min(n + start - 1, N - 1)
+        gam = (
+            self.gamma.sequence(width + n + 1)
+            if self.gamma is not None
+            else np.zeros(width + n + 1)
+        )
+        i = np.arange(n + 1)
+        ab = np.zeros((width + 1, N))
+        for b in range(width + 1):
+            k = np.arange(b, N)
+            G = gam[np.abs(b - i[:, None] + i[None, :])]
+            band = np.einsum("ki,kj,ij->k", S[k], S[k - b], G)
+            for ii in range(max(b, 0), n + 1):  # the diagonal d enters where k - i = l - j
+                band += S[k, ii] * S[k - b, ii - b] * self.d[k - ii]
+            ab[b, : N - b] = band
+        cb = cholesky_banded(ab, lower=True)
+        return cb, float(2.0 * np.sum(np.log(cb[0])))
+
+    @property
+    def logdet(self) -> float:
+        """ln det Sigma_y (raises LinAlgError if Sigma_y is not positive definite)."""
+        return self._factor[1]
+
+    def _filter(self, r: FloatArray) -> FloatArray:
+        S = self._stencil
+        out = S[:, 0, None] * r if r.ndim == 2 else S[:, 0] * r
+        for i in range(1, S.shape[1]):
+            coef = S[i:, i, None] if r.ndim == 2 else S[i:, i]
+            out[i:] += coef * r[:-i]
+        return out
+
+    def _filter_t(self, u: FloatArray) -> FloatArray:
+        S = self._stencil
+        out = S[:, 0, None] * u if u.ndim == 2 else S[:, 0] * u
+        for i in range(1, S.shape[1]):
+            coef = S[i:, i, None] if u.ndim == 2 else S[i:, i]
+            out[:-i] += coef * u[i:]
+        return out
+
+    def solve(self, r: ArrayLike) -> FloatArray:
+        """Sigma_y^{-1} r for r of shape (N,) or (N, p), by (C4)."""
+        rr = np.asarray(r, dtype=float)
+        z = cho_solve_banded((self._factor[0], True), self._filter(rr))
+        return self._filter_t(np.asarray(z, dtype=float))
+
+    def whiten(self, r: ArrayLike) -> FloatArray:
+        """L^{-1} L_a r, with L L^T = L_a Sigma_y L_a^T: ||whiten(r)||^2 = r^T Sigma_y^{-1} r."""
+        cb = self._factor[0]
+        return np.asarray(solve_banded((cb.shape[0] - 1, 0), cb, self._filter(np.asarray(r, dtype=float))), dtype=float)
+
+    def matmul(self, x: ArrayLike) -> FloatArray:
+        """Sigma_y x for x of shape (N,) or (N, p), by an FFT Toeplitz product."""
+        xx = np.asarray(x, dtype=float)
+        dd = self.d[:, None] if xx.ndim == 2 else self.d
+        if self.gamma is None:
+            return dd * xx
+        g = self.gamma.sequence(self.N)
+        return dd * xx + np.asarray(matmul_toeplitz((g, g), xx), dtype=float).reshape(xx.shape)
+
+    def dense(self) -> FloatArray:
+        """Sigma_y as an N x N matrix (for checks; O(N^2) memory)."""
+        return self.matmul(np.eye(self.N))
+
+    def dft_diagonal(self, T: float, f: ArrayLike) -> FloatArray:
+        """R_Y(f, f) only, in O(N log N): sum_k d_k + sum_m (N - |m|) gamma(m) e^{-i 2 pi f m T}.
+
+        This is what the reduced AsML (23) weights by; with coloured noise it is no longer
+        the same at every frequency.
+        """
+        ff = np.atleast_1d(real_array(f, "f"))
+        total = float(np.sum(self.d))
+        if self.gamma is None:
+            return np.full(ff.shape, total)
+        q = (self.N - np.arange(self.N)) * self.gamma.sequence(self.N)
+        return np.asarray(total + 2.0 * dtft(q, T, ff).real - q[0], dtype=float)
+
+    def dft(self, T: float, f: ArrayLike, psi: ArrayLike | None = None, sign: float = 1.0) -> ComplexArray:
+        """R_Y(f, psi) = E Sigma E^H (sign 1) or the pseudo-covariance C_Y (sign -1), (17), (C2).
+
+        Rows over ``f``, columns over ``psi`` (default ``f``); any frequencies in Hz.
+        """
+        ff = np.atleast_1d(real_array(f, "f"))
+        other = sign * (ff if psi is None else np.atleast_1d(real_array(psi, "psi")))
+        g0 = self.gamma.near[0] if self.gamma is not None else 0.0
+        out = covariance_from_variances(self.d + g0, T, ff, other)
+        if self.gamma is None or self.N < 2:
+            return out
+        g = self.gamma.sequence(self.N)
+        g[0] = 0.0
+        k = np.arange(self.N) * T
+        eh = np.exp(2j * np.pi * np.outer(k, other))  # E_psi^H, N x F
+        x = np.asarray(matmul_toeplitz((g.astype(complex), g.astype(complex)), eh))
+        return out + dtft(x.T, T, ff).T
+
+
+def sample_covariance(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    noise_std: float,
+    noise_model: NoiseModel | None = None,
+) -> SampleCovariance:
+    """Sigma_y = Cov(y_0..y_{N-1}) of eq. (C2) for a known system, jitter and noise.
+
+    Parameters
+    ----------
+    system, u, jitter, T, N
+        As in :func:`jitterid.dft_covariance`.
+    noise_std : float
+        Std of the white part w_k (>= 0).
+    noise_model : NoiseModel, optional
+        The coloured noise v(t); None for white noise only (then Sigma_y is Lemma 2's
+        diagonal, notes section 2).
+
+    Returns
+    -------
+    SampleCovariance
+    """
+    if noise_model is not None and not isinstance(noise_model, NoiseModel):
+        raise TypeError(f"noise_model must be a NoiseModel or None; got {type(noise_model).__name__}")
+    T = positive(T, "T")
+    N = count(N, "N", minimum=1)
+    white = positive(noise_std, "noise_std", allow_zero=True) ** 2
+    var = sample_moments(system.response(u), jitter, T, N).var
+    gamma = None if noise_model is None else jittered_autocovariance(noise_model, jitter, T)
+    return SampleCovariance(var + white, gamma)
+
+
+def coloured_dft_covariance(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    f: ArrayLike,
+    noise_std: float,
+    noise_model: NoiseModel | None = None,
+    psi: ArrayLike | None = None,
+) -> ComplexArray:
+    """R_Y(f, psi) = Cov(Y_d(f), Y_d(psi)) with coloured noise: (17)-(19) extended by (C2).
+
+    :func:`jitterid.dft_covariance` plus the Toeplitz noise term E Gamma E^H; equal to it
+    for ``noise_model=None``. Rows over ``f``, columns over ``psi`` (default ``f``).
+    """
+    cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
+    return cov.dft(T, f, psi, sign=1.0)
+
+
+def coloured_dft_pseudo_covariance(
+    system: TransferFunction,
+    u: Input,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    f: ArrayLike,
+    noise_std: float,
+    noise_model: NoiseModel | None = None,
+    psi: ArrayLike | None = None,
+) -> ComplexArray:
+    """C_Y(f, psi) = E[(Y(f) - mu(f))(Y(psi) - mu(psi))] with coloured noise, (C2)."""
+    cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
+    return cov.dft(T, f, psi, sign=-1.0)

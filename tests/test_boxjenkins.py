@@ -1,0 +1,399 @@
+"""Box-Jenkins structures under jitter (issue 7): coloured noise models, their exact simulation,
+the covariance of jittered noise samples against brute-force Monte Carlo, the O(N) criterion
+against dense linear algebra, the BJ/JBJ estimators and the 'bj' experiment."""
+
+import copy
+import dataclasses
+import hashlib
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy import integrate, stats
+
+import jitterid as ji
+from jitterid.bjcriteria import BJProblem
+from jitterid.cli import main
+from jitterid.criteria import Problem
+from jitterid.experiments import ExperimentError, load_experiment, packaged_path, parse_experiment
+from jitterid.experiments.bj import spectra_figure
+from jitterid.experiments.report import markdown_report
+from jitterid.experiments.runner import realize, seed_streams
+
+T, N = 1.0, 200
+TRUTH = np.array([6.25, -1.5, 2.0])
+# Complex poles and a zero, driven with intensity 0.5: exercises every term of (N1)-(N3).
+RESONANT = ji.NoiseModel(ji.TransferFunction([0.3, 1.0], [1.0, 0.8, 2.0]), intensity=0.5)
+OU = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 1.0]))  # r_v(t) = exp(-|t|) / 2
+# The bj experiment's noise: slow (correlation time 20 s), std 0.2.
+SLOW = ji.NoiseModel(ji.TransferFunction([0.2 * np.sqrt(0.1)], [1.0, 0.05]))
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+Z_MAX = 4.5  # |z| bound for Monte Carlo comparisons (two-sided p = 7e-6 per comparison)
+
+
+def data_with(noise_model, seed, *, white=0.01, law=None, n=N):
+    rng = np.random.default_rng(seed)
+    u = ji.telegraph_input(n * T + 2, rng)
+    truth = ji.PolePairGain().system(TRUTH)
+    law = ji.Uniform(0.5) if law is None else law
+    return ji.simulate(truth, u, law, T, n, white, rng, noise_model=noise_model)
+
+
+# --------------------------------------------------------------------------- noise model
+
+
+def test_autocovariance_and_spectrum_follow_from_the_impulse_response():
+    """(N1): r_v(t) = lambda int_0^inf h(s) h(s + t) ds, and (N2): int S_v df = r_v(0)."""
+    _, r, p = RESONANT.tf._modal
+
+    def h(s):
+        return float(np.real(np.sum(r * np.exp(p * s))))
+
+    for lag in (0.0, 0.7, 2.5):
+        direct = RESONANT.intensity * integrate.quad(lambda s, lag=lag: h(s) * h(s + lag), 0, np.inf, limit=200)[0]
+        assert RESONANT.autocovariance(lag) == pytest.approx(direct, rel=1e-8, abs=1e-12)
+    total = integrate.quad(lambda f: float(RESONANT.spectrum(f)), -np.inf, np.inf, limit=400)[0]
+    assert total == pytest.approx(RESONANT.variance, rel=1e-7)
+    assert OU.variance == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("model", [RESONANT, OU], ids=["resonant", "first-order"])
+def test_exact_simulation_matches_the_process_covariance(model):
+    """Sample covariance of many draws at fixed, unsorted instants (a repeated one, gaps from 0
+    to 50 s) against r_v(t_i - t_j); the Gaussian standard error of each entry is
+    sqrt((r_ij^2 + r_ii r_jj) / R)."""
+    t = np.array([3.0, 0.0, 0.3, 0.3, 1.7, 53.0, 0.31])
+    R = 40_000
+    v = model.sample(np.broadcast_to(t, (R, t.size)), np.random.default_rng(11))
+    S = v.T @ v / R
+    E = model.autocovariance(t[:, None] - t[None, :])
+    se = np.sqrt((E**2 + np.outer(np.diag(E), np.diag(E))) / R)
+    assert np.max(np.abs(S - E) / se) < Z_MAX
+    np.testing.assert_array_equal(v[:, 2], v[:, 3])  # one instant, one value
+    assert np.abs(v.mean(axis=0)).max() < Z_MAX * np.sqrt(model.variance / R)
+
+
+@pytest.mark.parametrize(
+    ("model", "law"),
+    [(RESONANT, ji.Uniform(0.5)), (OU, ji.Gaussian(0.5))],
+    ids=["uniform-jitter", "gaussian-jitter"],
+)
+def test_jittered_noise_autocovariance_matches_brute_force_monte_carlo(model, law):
+    """(C1)-(C3): lag covariances of v(kT + tau_k), simulated exactly for R realizations, against
+    gamma(m); the standard error comes from the spread of the per-realization averages. For
+    Gaussian jitter (support wider than T) the factorised form c M(p) M(-p) e^{p m T} is wrong
+    at lag 1, where samples can swap order, and the exact quadrature is needed."""
+    R, n = 40_000, 12
+    rng = np.random.default_rng(5)
+    instants = T * np.arange(n) + law.sample((R, n), rng)
+    v = model.sample(instants, rng)
+    gamma = ji.jittered_autocovariance(model, law, T)
+    for m in range(5):
+        per_run = np.mean(v[:, : n - m] * v[:, m:], axis=1)
+        est, se = per_run.mean(), per_run.std(ddof=1) / np.sqrt(R)
+        assert abs(est - gamma(np.array(m))) < Z_MAX * se, (m, est, gamma(np.array(m)), se)
+        if m == 1 and gamma.start > 1:
+            c, p = model.modes
+            mgf = [law.expect(lambda tau, z=z: np.exp(z * tau)) for z in (p, -p)]
+            naive = float(np.real(np.sum(c * mgf[0] * mgf[1] * np.exp(p * T))))
+            assert abs(est - naive) > Z_MAX * se, (est, naive, se)
+    assert gamma(np.array(0)) == pytest.approx(model.variance)
+
+
+@pytest.mark.parametrize("law", [ji.NoJitter(), ji.Uniform(0.5), ji.Gaussian(0.4)], ids=str)
+def test_jittered_noise_spectrum_is_the_phi_squared_aliased_spectrum_plus_a_white_floor(law):
+    """gamma(m) = int S_v |phi|^2 e^{i 2 pi f m T} df for m != 0 and r_v(0) at m = 0, so by
+    Poisson's formula the sampled spectrum is sum_k S_v |phi|^2 (f + k/T) plus the flat
+    T (r_v(0) - int S_v |phi|^2 df) >= 0: jitter turns that part of the coloured noise white."""
+    wide = ji.NoiseModel(ji.TransferFunction([3.0], [1.0, 3.0]))
+
+    def smoothed(f):
+        return wide.spectrum(f) * np.abs(law.cf(f)) ** 2
+
+    kept = 2 * integrate.quad(smoothed, 0, np.inf, limit=500, epsabs=1e-13)[0]
+    floor = T * (wide.variance - kept)
+    f = np.array([0.0, 0.1, 0.25, 0.5])
+    K = 2000
+    k = np.arange(-K, K + 1) / T
+
+    def tail(fi):
+        # Without jitter |phi| = 1 and the alias sum converges like S_v ~ f^-2: add the terms
+        # |k| > K as an integral (midpoint rule, error ~ K^-4). With jitter |phi|^2 decays
+        # too (f^-2 or faster) and the truncation error is below 1e-10.
+        if not isinstance(law, ji.NoJitter):
+            return 0.0
+        right = integrate.quad(lambda x: smoothed(fi + x), (K + 0.5) / T, np.inf, epsabs=1e-14)[0]
+        left = integrate.quad(lambda x: smoothed(fi - x), (K + 0.5) / T, np.inf, epsabs=1e-14)[0]
+        return T * (right + left)
+
+    aliased = np.array([np.sum(smoothed(fi + k)) + tail(fi) for fi in f])
+    got = ji.jittered_autocovariance(wide, law, T).spectrum(f)
+    np.testing.assert_allclose(got, aliased + floor, rtol=1e-7)
+    assert floor == pytest.approx(0.0, abs=1e-9) if isinstance(law, ji.NoJitter) else floor > 0.01
+
+
+# --------------------------------------------------------------------------- Sigma_y
+
+
+@pytest.mark.parametrize("law", [ji.Uniform(0.5), ji.Gaussian(0.4), ji.NoJitter()], ids=str)
+def test_banded_criterion_and_dft_covariance_match_dense_linear_algebra(law):
+    """(C4) ln det and solve, the Toeplitz product, R_Y and C_Y and R_Y(f, f) against the dense
+    N x N Sigma_y = diag(d) + Toeplitz(gamma)."""
+    n = 41
+    rng = np.random.default_rng(2)
+    gamma = ji.jittered_autocovariance(RESONANT, law, T)
+    d = rng.uniform(0.0, 0.05, n)
+    cov = ji.SampleCovariance(d, gamma)
+    lags = np.abs(np.arange(n)[:, None] - np.arange(n)[None, :])
+    dense = np.diag(d) + gamma(lags)
+    np.testing.assert_allclose(cov.dense(), dense, atol=1e-15)
+    assert cov.logdet == pytest.approx(np.linalg.slogdet(dense)[1], rel=1e-12)
+    r = rng.standard_normal((n, 3))
+    np.testing.assert_allclose(cov.solve(r), np.linalg.solve(dense, r), rtol=1e-9, atol=1e-9)
+    f, psi = np.arange(n // 2) / (n * T), np.array([0.013, 0.21, 0.37])
+    E, Epsi = (np.exp(-2j * np.pi * np.outer(x, np.arange(n) * T)) for x in (f, psi))
+    np.testing.assert_allclose(cov.dft(T, f), E @ dense @ E.conj().T, atol=1e-12)
+    np.testing.assert_allclose(cov.dft(T, f, psi), E @ dense @ Epsi.conj().T, atol=1e-12)
+    np.testing.assert_allclose(cov.dft(T, f, sign=-1.0), E @ dense @ E.T, atol=1e-12)
+    np.testing.assert_allclose(cov.dft_diagonal(T, psi), np.diag(Epsi @ dense @ Epsi.conj().T).real, atol=1e-12)
+
+
+def test_without_coloured_noise_the_dft_covariance_is_lemma_2s():
+    d = data_with(None, 1, n=40)
+    g = ji.PolePairGain().system(TRUTH)
+    f = ji.default_frequencies(40, T)
+    ours = ji.coloured_dft_covariance(g, d.u, ji.Uniform(0.5), T, 40, f, 0.01)
+    np.testing.assert_allclose(ours, ji.dft_covariance(g, d.u, ji.Uniform(0.5), T, 40, f, 0.01), atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["bcls", "wbcls", "asml", "asml-diag", "gaussian"])
+def test_bj_criteria_reduce_to_the_oe_ones_as_the_coloured_noise_vanishes(method):
+    data = data_with(None, 3, n=64)
+    faint = ji.NoiseModel(ji.TransferFunction([1e-9], [1.0, 1.0]))  # variance 5e-19
+    f = ji.default_frequencies(64, T)
+    bj = BJProblem(data, ji.PolePairGain(), ji.Uniform(0.5), ji.KnownNoise(faint), method, f, 0.01)
+    oe = Problem(data, ji.PolePairGain(), ji.Uniform(0.5), method, f, 0.01)
+    x = np.array([6.0, -1.4, 2.1])
+    assert bj.objective(x) == pytest.approx(oe.objective(x), rel=1e-9)
+    np.testing.assert_allclose(bj.grad_y(x), oe.grad_y(x), rtol=1e-7, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- estimators
+
+
+def test_practically_white_noise_gives_the_oe_estimate_and_white_noise_stays_oe():
+    """Noise with bandwidth 40/T is white once sampled: BJ (known H, no white part) and OE
+    (one white level, estimated) agree within their standard errors. noise=None is OE."""
+    wide = ji.NoiseModel(ji.TransferFunction([0.05 * np.sqrt(80.0)], [1.0, 40.0]))  # std 0.05
+    d = data_with(wide, 4, white=0.0)
+    data = ji.SampledData(d.y, d.T, d.u)
+    oe = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian")
+    bj = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=wide, noise_std=0.0)
+    assert oe.success
+    assert bj.success
+    assert bj.names == ("k0", "pr", "pi")
+    se_oe, se_bj = np.array(list(oe.stderr.values()))[:3], np.array(list(bj.stderr.values()))
+    assert np.all(np.abs(oe.x[:3] - bj.x) < np.minimum(se_oe, se_bj))
+    assert oe.params["noise_std"] == pytest.approx(0.05, abs=3 * oe.stderr["noise_std"])
+    plain = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=None)
+    np.testing.assert_array_equal(plain.x, oe.x)
+
+
+def test_small_monte_carlo_bj_is_unbiased_with_honest_errors_where_oe_is_not():
+    """Slow coloured noise (std 0.2, 20 s correlation) over the sensor's white noise 0.01. OE,
+    told the sensor's white level, can explain the extra variance only through the jitter term
+    Var s_k of the system: its estimates are biased (some searches fail). BJ (H estimated):
+    mean within 3 SEM of the truth and sum z^2 = sum ((theta - theta0) / stderr)^2 within the
+    chi-square 0.1 % - 99.9 % range for every parameter, i.e. honest standard errors."""
+    R = 10
+    z_bj, x_bj, x_oe = [], [], []
+    for seed in range(R):
+        data = data_with(SLOW, 300 + seed)
+        x_oe.append(ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian").x)
+        bj = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(0, 1))
+        assert bj.success, bj.message
+        assert bj.names == ("k0", "pr", "pi", "hb0", "ha0")
+        x_bj.append(bj.x[:3])
+        z_bj.append((bj.x[:3] - TRUTH) / np.array([bj.stderr[n] for n in ("k0", "pr", "pi")]))
+
+    def bias_in_sems(x):
+        x = np.array(x)
+        return (x.mean(axis=0) - TRUTH) / (x.std(axis=0, ddof=1) / np.sqrt(len(x)))
+
+    assert np.all(np.abs(bias_in_sems(x_bj)) < 3), bias_in_sems(x_bj)
+    assert np.max(np.abs(bias_in_sems(x_oe))) > 3, bias_in_sems(x_oe)
+    lo, hi = stats.chi2.ppf([0.001, 0.999], R)
+    ss_bj = np.sum(np.square(z_bj), axis=0)
+    assert np.all((lo < ss_bj) & (ss_bj < hi)), ss_bj
+
+
+def test_jbj_estimates_jitter_system_and_noise_jointly():
+    data = data_with(SLOW, 21)
+    res = ji.fit(data, ji.PolePairGain(), ji.UniformFamily(), "gaussian", noise=ji.RationalNoise(0, 1))
+    assert res.success
+    assert res.names == ("a", "k0", "pr", "pi", "hb0", "ha0")
+    se = res.stderr
+    for name, true in (("a", 0.5), ("k0", 6.25), ("pr", -1.5), ("pi", 2.0)):
+        assert abs(res.params[name] - true) < 4 * se[name], (name, res.params[name], se[name])
+    assert res.jitter == ji.Uniform(res.params["a"])
+    model = ji.fitted_noise(res, ji.RationalNoise(0, 1))
+    assert model.tf.den[-1] == pytest.approx(res.params["ha0"])
+
+
+@pytest.mark.parametrize("method", ["bcls", "wbcls"])
+def test_least_squares_criteria_plug_in_the_noise_model_for_their_error_bars(method):
+    """bcls/wbcls cannot identify H (no ln det): its parameters are fitted to the BCLS
+    residuals and held, so they get no standard error; bcls keeps the OE estimate."""
+    data = data_with(SLOW, 8)
+    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method, noise=ji.RationalNoise(0, 1))
+    assert res.success
+    assert res.names == ("k0", "pr", "pi", "hb0", "ha0")
+    assert np.isnan(res.stderr["hb0"])
+    assert np.isnan(res.stderr["ha0"])
+    assert all(np.isfinite(res.stderr[n]) and res.stderr[n] > 0 for n in ("k0", "pr", "pi"))
+    if method == "bcls":
+        np.testing.assert_array_equal(res.x[:3], ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls").x)
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "match"),
+    [
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise="ou"), TypeError, "noise must be a noise structure"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ls", noise=ji.RationalNoise()), ValueError, "method must be one of .*noise=None"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ml", noise=ji.RationalNoise()), ValueError, "method must be one of"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(), start=[1.0, 2.0]), ValueError, "start must have 5 values"),
+        (lambda d: ji.simulate(ji.TransferFunction([1.0], [1.0, 1.0]), d.u, ji.Uniform(0.5), T, 10, 0.0, 0, noise_model=ji.RationalNoise()), TypeError, "noise_model must be a NoiseModel"),
+        (lambda d: ji.RationalNoise(1, 1), ValueError, "num_order .* strictly proper"),
+        (lambda d: ji.NoiseModel(ji.TransferFunction([1.0, 0.0], [1.0, 1.0])), ValueError, "strictly proper"),
+        (lambda d: ji.NoiseModel(ji.TransferFunction([1.0], [1.0, -1.0])), ValueError, "noise model H.* not stable"),
+        (lambda d: ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 1.0]), intensity=0.0), ValueError, "intensity"),
+        (lambda d: ji.NoiseModel("1/(s+1)"), TypeError, "tf must be a TransferFunction"),
+        (lambda d: OU.sample(np.zeros((2, 2, 2)), 0), ValueError, "instants must have shape"),
+        (lambda d: ji.jittered_autocovariance(OU, ji.Uniform(0.5), 0.0), ValueError, "T must"),
+        (lambda d: ji.jittered_autocovariance(OU, ji.Uniform(300.0), 1.0), ValueError, "jitter: its support"),
+        (lambda d: ji.fitted_noise(ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5)), ji.RationalNoise()), ValueError, "no noise parameters"),
+    ],
+)
+def test_bad_input_is_refused_naming_the_argument(call, exc, match):
+    with pytest.raises(exc, match=match):
+        call(data_with(None, 9, n=40))
+
+
+# --------------------------------------------------------------------------- experiment
+
+TINY = tomllib.loads("""
+[experiment]
+name = "tiny_bj"
+runs = 2
+seed = 3
+[sampling]
+T = 1.0
+N = 60
+noise_std = 0.01
+noise_known = false
+[input]
+kind = "telegraph"
+[system]
+structure = "pole_pair"
+truth = { k0 = 6.25, pr = -1.5, pi = 2.0 }
+[jitter]
+model = "known"
+[[cases]]
+name = "u"
+law = { kind = "uniform", a = 0.5 }
+[noise]
+structure = "rational"
+truth = { hb0 = 0.06, ha0 = 0.1 }
+[estimators]
+methods = ["bcls", "gaussian", "bj-gaussian", "jbj-gaussian"]
+""")
+
+
+def edited(path, value):
+    data = copy.deepcopy(TINY)
+    *parents, last = path.split(".")
+    node = data
+    for p in parents:
+        node = node[p]
+    if value is None:
+        del node[last]
+    else:
+        node[last] = value
+    return data
+
+
+def test_packaged_bj_study_is_table_2_with_coloured_noise():
+    exp, t2 = load_experiment(packaged_path("bj")), load_experiment(packaged_path("table2"))
+    assert (exp.T, exp.N, exp.system, exp.cases[0].law) == (t2.T, t2.N, t2.system, t2.cases[0].law)
+    assert exp.noise is not None
+    assert exp.noise.true_model().variance == pytest.approx(0.2**2, rel=1e-8)
+    assert {"ls", "bcls", "asml-diag", "bj-gaussian", "jbj-gaussian"} <= set(exp.methods)
+    assert exp.runs >= 128
+
+
+def test_white_noise_experiments_keep_their_fingerprint():
+    """The new ``noise`` field is left out while None, so stores of Tables 1-3 stay valid."""
+    exp = load_experiment(packaged_path("table2"))
+    core = dataclasses.replace(exp, runs=0, title="", paper_table=None, paper_labels=(), description="", source="")
+    fields = dataclasses.asdict(core)
+    assert fields.pop("noise") is None
+    text = json.dumps(fields, sort_keys=True)
+    assert exp.fingerprint() == hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "named"),
+    [
+        ("noise.trut", {"hb0": 0.1}, "did you mean 'truth'"),
+        ("noise.truth", {"hb0": 0.1}, "missing required key 'noise.truth.ha0'"),
+        ("noise.num_order", 1, "noise.num_order gives an invalid model"),
+        ("noise.structure", "arma", "noise.structure must be one of rational"),
+        ("noise", None, "'bj-\\*'/'jbj-\\*' estimators need a \\[noise\\] section"),
+        ("estimators.methods", ["bj-gausian"], "did you mean 'bj-gaussian'"),
+        ("estimators.crb", True, "estimators.crb .* set crb = false"),
+    ],
+)
+def test_a_bad_noise_definition_fails_naming_the_key(path, value, named):
+    with pytest.raises(ExperimentError, match=named):
+        parse_experiment(edited(path, value), "tiny_bj.toml")
+
+
+def test_jbj_needs_a_known_jitter_in_the_definition():
+    data = edited("jitter", {"model": "uniform"})
+    with pytest.raises(ExperimentError, match=r"'jbj-' estimator with jitter\.model a family"):
+        parse_experiment(data, "tiny_bj.toml")
+
+
+def test_a_bj_realization_report_and_figure(tmp_path):
+    exp = parse_experiment(copy.deepcopy(TINY), "tiny_bj.toml")
+    streams = seed_streams(exp.seed, 1, exp.runs)
+    rows = [e for r in range(exp.runs) for e in realize(exp, 0, r, streams[0][r])[0]]
+    by = {(e.method, e.realization): e for e in rows}
+    assert set(by["bj-gaussian", 0].params) == {"k0", "pr", "pi", "hb0", "ha0", "noise_std"}
+    assert set(by["jbj-gaussian", 0].params) == {"a", "k0", "pr", "pi", "hb0", "ha0", "noise_std"}
+    assert all(e.success for e in rows)
+    text = markdown_report(exp, rows, "test")
+    assert "## Stated uncertainty" in text
+    assert "| bj-gaussian |" in text
+    assert "| θ⁰ | true | 6.2500 | -1.5000 | 2.0000 |" in text
+    path = spectra_figure(tmp_path, exp, rows)
+    assert path.stat().st_size > 10_000
+
+
+def test_reproduce_bj_prints_its_definition():
+    out = CliRunner().invoke(main, ["reproduce", "bj", "--print-toml"])
+    assert out.exit_code == 0, out.output
+    assert tomllib.loads(out.output)["noise"]["structure"] == "rational"
+
+
+def test_bj_benchmark_runs_at_small_n():
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_bj.py"), "--sizes", "200", "800", "--repeats", "1"],
+        capture_output=True, text=True, check=True, timeout=600,
+    ).stdout
+    assert "log-log slope" in out
