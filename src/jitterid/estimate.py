@@ -12,7 +12,7 @@ bounds.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from functools import partial
 
 import numpy as np
@@ -451,7 +451,7 @@ def _fit(
         jitter=law,
         noise_std=noise_used,
         freqs=f,
-        _covariance=partial(_single_threaded, sandwich_covariance, problem, np.asarray(x, float)),
+        _covariance=partial(sandwich_covariance, problem, np.asarray(x, float)),
         structure=structure,
     )
 
@@ -468,13 +468,6 @@ def _run_wbcls(
         nfev += out[4]
         x0 = out[0]
     return problem, (*out[:4], nfev)
-
-
-def _single_threaded(func: Callable[..., FloatArray], *args: object) -> FloatArray:
-    """Run ``func`` with one BLAS thread: the lazy covariance is computed outside ``fit``, and
-    its small complex Cholesky factorisations run ~100x slower multi-threaded here."""
-    with threadpool_limits(limits=1, user_api="blas"):
-        return func(*args)
 
 
 def _check_prefit(prefit: FitResult, pre: Problem) -> None:

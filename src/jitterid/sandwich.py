@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from threadpoolctl import threadpool_limits
 
 if TYPE_CHECKING:
     from .criteria import Problem
@@ -62,6 +63,13 @@ def sandwich_covariance(problem: Problem, x: FloatArray, robust: bool | None = N
     For ``ml``: the inverse observed information, or with ``robust`` the Huber-White
     sandwich of the per-sample scores (module docstring).
     """
+    # Called lazily, outside fit's BLAS limit; its small complex Cholesky factorisations run
+    # ~100x slower multi-threaded on small machines.
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _covariance(problem, x, robust)
+
+
+def _covariance(problem: Problem, x: FloatArray, robust: bool | None) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
     if p == 0:
