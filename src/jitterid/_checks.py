@@ -7,6 +7,8 @@ input never surfaces as a traceback from deep inside numpy.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -61,3 +63,17 @@ def generator(rng: np.random.Generator | int | None, name: str = "rng") -> np.ra
         f"{name} must be a numpy.random.Generator or an integer seed; got {rng!r}. "
         "Pass np.random.default_rng(seed) so results are reproducible."
     )
+
+
+def parameter_vector(
+    params: ArrayLike, names: Sequence[str], bounds: Sequence[tuple[float, float]]
+) -> NDArray[np.float64]:
+    """``params`` as a float vector with one value per name, each inside its bounds."""
+    x = np.atleast_1d(real_array(params, "params"))
+    if x.size != len(names):
+        raise ValueError(f"params must have {len(names)} values {tuple(names)}; got {x.size}")
+    for val, name, (lo, hi) in zip(x, names, bounds, strict=True):
+        if not lo <= val <= hi:
+            raise ValueError(f"parameter {name} = {val:g} is outside its bounds [{lo}, {hi}]")
+    return x
+

@@ -38,7 +38,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import count, generator, positive, real_array
+from ._checks import count, generator, parameter_vector, positive, real_array
 from .models import TransferFunction
 
 __all__ = ["KnownNoise", "NoiseModel", "NoiseStructure", "RationalNoise", "as_noise_structure"]
@@ -197,16 +197,7 @@ class NoiseStructure(abc.ABC):
     def starts(self, T: float, scale: float) -> list[FloatArray]: ...
 
     def _check(self, params: ArrayLike) -> FloatArray:
-        # Same count-and-bounds check and messages as ModelStructure._check.
-        x = np.atleast_1d(real_array(params, "params"))
-        if x.size != len(self.param_names):
-            raise ValueError(
-                f"params must have {len(self.param_names)} values {self.param_names}; got {x.size}"
-            )
-        for val, name, (lo, hi) in zip(x, self.param_names, self.bounds, strict=True):
-            if not lo <= val <= hi:
-                raise ValueError(f"parameter {name} = {val:g} is outside its bounds [{lo}, {hi}]")
-        return x
+        return parameter_vector(params, self.param_names, self.bounds)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import count, real_array
+from ._checks import count, parameter_vector
 from .models import TransferFunction
 
 __all__ = ["KnownSystem", "ModelStructure", "PolePairGain", "RationalModel"]
@@ -41,15 +41,7 @@ class ModelStructure(abc.ABC):
     def starts(self, T: float) -> list[FloatArray]: ...
 
     def _check(self, params: ArrayLike) -> FloatArray:
-        x = np.atleast_1d(real_array(params, "params"))
-        if x.size != len(self.param_names):
-            raise ValueError(
-                f"params must have {len(self.param_names)} values {self.param_names}; got {x.size}"
-            )
-        for val, name, (lo, hi) in zip(x, self.param_names, self.bounds, strict=True):
-            if not lo <= val <= hi:
-                raise ValueError(f"parameter {name} = {val:g} is outside its bounds [{lo}, {hi}]")
-        return x
+        return parameter_vector(params, self.param_names, self.bounds)
 
 
 @dataclass(frozen=True)
