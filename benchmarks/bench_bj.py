@@ -2,7 +2,7 @@
 
 The time-domain criterion (y - m)^T Sigma_y^{-1} (y - m) + ln det Sigma_y with Sigma_y =
 diag(Var s_k + sigma_w^2) + Toeplitz(gamma) is evaluated through the AR whitening and a banded
-Cholesky factor (:mod:`jitterid.noisecov`, (C4)): O(N (n + M0)^2). Printed per N: one full
+Cholesky factor (:mod:`jitterid.noise.covariance`, (C4)): O(N (n + M0)^2). Printed per N: one full
 criterion evaluation (moments of Lemmas 1-2, jittered noise covariance, banded factor, solve),
 the Sigma_y part alone, and a dense O(N^3) Cholesky of the same Sigma_y for comparison (up to
 N = 4000), then the log-log slope of the criterion's time against N, and the wall time of one
@@ -23,7 +23,7 @@ from scipy.linalg import cho_factor
 from threadpoolctl import threadpool_limits
 
 import jitterid as ji
-from jitterid.bjcriteria import BJProblem
+from jitterid.estimation.bjcriteria import BJProblem
 
 T = 1.0
 TRUTH = [6.25, -1.5, 2.0]

@@ -33,7 +33,7 @@ if cap > 0:
     resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
 import numpy as np
 import jitterid as ji
-from jitterid import _modal
+from jitterid.moments import modal as _modal
 T = 1.0
 rng = np.random.default_rng(N)
 truth = ji.PolePairGain().system([6.25, -1.5, 2.0])
@@ -94,7 +94,7 @@ def run_child(N: int, method: str, reps: int, cap_gb: float, timeout: float) -> 
 def paths_ratio(N: int) -> tuple[float, float, float]:
     """(fast time, reference time, max |difference|) for mu_Y on the DFT grid."""
     import jitterid as ji
-    from jitterid import spectral
+    from jitterid.moments import reference as spectral
 
     T = 1.0
     rng = np.random.default_rng(7)

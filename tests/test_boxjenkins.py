@@ -17,9 +17,9 @@ from click.testing import CliRunner
 from scipy import integrate, stats
 
 import jitterid as ji
-from jitterid.bjcriteria import BJProblem
 from jitterid.cli import main
-from jitterid.criteria import Problem
+from jitterid.estimation.bjcriteria import BJProblem
+from jitterid.estimation.problem import Problem
 from jitterid.experiments import ExperimentError, load_experiment, packaged_path, parse_experiment
 from jitterid.experiments.bj import spectra_figure
 from jitterid.experiments.report import markdown_report

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import jitterid as ji
 from jitterid.cli import main
 from jitterid.cli._specs import parse_jitter, parse_model
-from jitterid.criteria import METHODS
+from jitterid.estimation.problem import METHODS
 
 
 def run(*args: str | Path) -> Result:

@@ -9,7 +9,7 @@ import pytest
 from scipy import stats
 
 import jitterid as ji
-from jitterid.diagnostics import (
+from jitterid.analysis.diagnostics import (
     _ml_noise_variance,
     bias_frequency,
     detect_jitter,
@@ -19,7 +19,7 @@ from jitterid.diagnostics import (
     model_output,
     standardized_residuals,
 )
-from jitterid.uncertainty import bode_band, jitter_pdf_band
+from jitterid.analysis.uncertainty import bode_band, jitter_pdf_band
 
 TRUTH = [6.25, -1.5, 2.0]
 T, N, NOISE = 1.0, 200, 0.01

@@ -1,4 +1,4 @@
-"""Tests of jitterid.distributions against independent referees.
+"""Tests of jitterid.jitter.laws against independent referees.
 
 Referees: Monte Carlo averages over the law's own sampler (within a few standard errors),
 scipy.integrate.quad of the density, the closed-form Irwin-Hall density, scipy.stats, and the
@@ -17,7 +17,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy import integrate, stats
 
-from jitterid.distributions import (
+from jitterid.jitter.laws import (
     CustomJitter,
     Gaussian,
     GaussianFamily,

@@ -13,8 +13,8 @@ import pytest
 from click.testing import CliRunner
 
 import jitterid as ji
-from jitterid import criteria
 from jitterid.cli import main
+from jitterid.estimation import problem as criteria
 from jitterid.experiments import (
     PAPER_EXPERIMENTS,
     ExperimentError,

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 import jitterid as ji
-from jitterid import _jacobians, _modal
-from jitterid._quadrature import jitter_nodes
-from jitterid.criteria import Problem, adjoint_dtft, default_frequencies
-from jitterid.likelihood import _modal_gradient, _pole_sensitivity
-from jitterid.moments import sample_moments
+from jitterid.estimation import jacobians as _jacobians
+from jitterid.estimation.likelihood import _modal_gradient, _pole_sensitivity
+from jitterid.estimation.problem import Problem, adjoint_dtft, default_frequencies
+from jitterid.moments.quadrature import jitter_nodes
+from jitterid.moments import modal as _modal
+from jitterid.moments.sample import sample_moments
 
 T, N, NOISE = 1.0, 60, 0.01
 TRUTH = np.array([6.25, -1.5, 2.0])

@@ -15,8 +15,8 @@ import pytest
 from scipy import stats
 
 import jitterid as ji
-from jitterid import likelihood as lk
-from jitterid.criteria import Problem, default_frequencies
+from jitterid.estimation import likelihood as lk
+from jitterid.estimation.problem import Problem, default_frequencies
 
 T, N, NOISE = 1.0, 200, 0.01
 TRUTH = np.array([6.25, -1.5, 2.0])
@@ -68,7 +68,7 @@ def test_default_rule_matches_a_high_resolution_rule(name):
 
 def test_node_signal_and_its_parameter_gradient_match_the_simulator():
     """The likelihood's own evaluation of s and ds/dtheta at fixed instants against
-    jitterid.models.Response and central differences of it."""
+    jitterid.systems.tf.Response and central differences of it."""
     rng = np.random.default_rng(4)
     u = ji.telegraph_input(30.0, rng)
     t = np.sort(rng.uniform(-0.5, 29.5, 3000))

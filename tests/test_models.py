@@ -6,7 +6,7 @@ from scipy import signal as sps
 from scipy.integrate import solve_ivp
 
 from jitterid.inputs import Multisine, PiecewiseConstant, telegraph_input, zoh_input
-from jitterid.models import TransferFunction
+from jitterid.systems.tf import TransferFunction
 
 SYSTEMS = {
     "first order": TransferFunction([1.0], [1.0, 2.0]),

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import jitterid as ji
-from jitterid import spectral
-from jitterid._quadrature import jitter_nodes
-from jitterid.moments import sample_moments
+from jitterid.moments.quadrature import jitter_nodes
+from jitterid.moments import reference as spectral
+from jitterid.moments.sample import sample_moments
 
 T = 1.0
 

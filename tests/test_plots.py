@@ -8,8 +8,8 @@ import pytest
 
 import jitterid as ji
 from jitterid import plots
-from jitterid.diagnostics import JitterDetection
-from jitterid.uncertainty import BodeBand, PdfBand
+from jitterid.analysis.diagnostics import JitterDetection
+from jitterid.analysis.uncertainty import BodeBand, PdfBand
 
 
 @pytest.fixture(autouse=True)

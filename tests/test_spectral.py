@@ -1,4 +1,4 @@
-"""Tests of the paper's frequency-domain route (`jitterid.spectral`).
+"""Tests of the paper's frequency-domain route (`jitterid.moments.reference`).
 
 Referees are independent routes: explicit sums, brute-force Monte Carlo of the sampling
 model itself, closed forms obtained by different algebra, and the time-domain mean of notes
@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from jitterid import spectral
-from jitterid.spectral import (
+from jitterid.moments.reference import (
     dft_covariance_lines,
     dirichlet,
     dtft,
@@ -27,6 +26,7 @@ from jitterid.spectral import (
     window_covariance,
     window_second_moment,
 )
+from jitterid.moments import reference as spectral
 
 TWO_PI_I = 2j * np.pi
 Z_MC = 5.0  # Monte Carlo tolerance in standard errors
@@ -86,7 +86,7 @@ class NoJitterLaw:
 
 def _laws(T: float) -> list[Any]:
     """Symmetric uniform and Gaussian, plus asymmetric laws (which expose phi(x)/phi(-x) mixups);
-    the package's own laws are added when jitterid.distributions is available."""
+    the package's own laws are added when jitterid.jitter.laws is available."""
     laws: list[Any] = [
         UniformLaw(-0.45 * T, 0.45 * T),
         GaussianLaw(0.3 * T),
@@ -94,7 +94,7 @@ def _laws(T: float) -> list[Any]:
         GaussianLaw(0.25 * T, mean=0.2 * T),
     ]
     try:
-        from jitterid import distributions
+        from jitterid.jitter import laws as distributions
     except ImportError:  # pragma: no cover - depends on the parallel module
         return laws
     return [*laws, distributions.Uniform(0.5 * T), distributions.Gaussian(0.2 * T)]

@@ -6,9 +6,7 @@ that remove the jitter's bias (BCLS, WBCLS, AsML), plus the exact real-valued Ga
 criterion. Frequencies are in Hz throughout.
 """
 
-from .boxjenkins import fitted_noise
-from .criteria import default_frequencies
-from .diagnostics import (
+from .analysis.diagnostics import (
     JitterDetection,
     ResidualTest,
     bias_frequency,
@@ -19,7 +17,15 @@ from .diagnostics import (
     model_output,
     standardized_residuals,
 )
-from .distributions import (
+from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
+from .estimation.boxjenkins import fitted_noise
+from .estimation.fit import fit
+from .estimation.likelihood import ExactLikelihood, crb, gaussian_bound, log_density
+from .estimation.problem import default_frequencies
+from .estimation.result import FitResult, FitStatus
+from .inputs import Input, Multisine, PiecewiseConstant, telegraph_input, zoh_input
+from .io import DataFileError, Dataset, Source, load, save_data, save_input
+from .jitter.laws import (
     CustomJitter,
     Gaussian,
     GaussianFamily,
@@ -31,20 +37,15 @@ from .distributions import (
     Uniform,
     UniformFamily,
 )
-from .estimate import fit
-from .inputs import Input, Multisine, PiecewiseConstant, telegraph_input, zoh_input
-from .io import DataFileError, Dataset, Source, load, save_data, save_input
-from .likelihood import ExactLikelihood, crb, gaussian_bound, log_density
-from .models import Response, TransferFunction
-from .moments import (
+from .moments.reference import dirichlet, dtft
+from .moments.sample import (
     SampleMoments,
     dft_covariance,
     dft_pseudo_covariance,
     expected_dft,
     sample_moments,
 )
-from .noise import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
-from .noisecov import (
+from .noise.covariance import (
     JitteredAutocovariance,
     SampleCovariance,
     coloured_dft_covariance,
@@ -52,11 +53,10 @@ from .noisecov import (
     jittered_autocovariance,
     sample_covariance,
 )
-from .result import FitResult, FitStatus
+from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
 from .simulate import SampledData, simulate
-from .spectral import dirichlet, dtft
-from .structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
-from .uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
+from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
+from .systems.tf import Response, TransferFunction
 
 __version__ = "0.1.0"
 

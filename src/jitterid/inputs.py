@@ -4,7 +4,7 @@ Every input is zero before its ``start`` and the system is at rest there, so a j
 instant before t = 0 is well defined. Sampling at or past an input's ``end`` is an error,
 because the output there depends on an input nobody specified.
 
-Two kinds exist, because the exact response (``jitterid.models``) is computed differently:
+Two kinds exist, because the exact response (``jitterid.systems.tf``) is computed differently:
 
 - :class:`PiecewiseConstant` (switch times and levels): the paper's PRBS
   (:func:`telegraph_input`) and the zero-order hold of a sample sequence (:func:`zoh_input`).
@@ -186,7 +186,7 @@ class Multisine(Input):
     def fourier(self, psi: ArrayLike) -> NDArray[np.complex128]:
         raise NotImplementedError(
             "a multisine has a line spectrum, not a function U(psi); use "
-            "jitterid.spectral.expected_dft_lines for the frequency-domain reference"
+            "jitterid.moments.reference.expected_dft_lines for the frequency-domain reference"
         )
 
 

@@ -1,4 +1,4 @@
-"""Matplotlib figures for the diagnostics; computing lives in :mod:`jitterid.diagnostics`.
+"""Matplotlib figures for the diagnostics; computing lives in :mod:`jitterid.analysis.diagnostics`.
 
 Every function takes ``ax=None`` (new axes are created) or the axes to draw on, and returns
 a dict of the artists it made, in the style of python-control. Frequencies are in Hz.
@@ -12,10 +12,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .diagnostics import JitterDetection
-from .distributions import JitterLaw
-from .models import TransferFunction
-from .uncertainty import BodeBand, PdfBand
+from .analysis.diagnostics import JitterDetection
+from .analysis.uncertainty import BodeBand, PdfBand
+from .jitter.laws import JitterLaw
+from .systems.tf import TransferFunction
 
 __all__ = ["plot_bode", "plot_gain_factor", "plot_jitter_pdf", "plot_residuals"]
 
@@ -49,7 +49,7 @@ def plot_bode(
     Parameters
     ----------
     band : BodeBand
-        From :func:`jitterid.uncertainty.bode_band`.
+        From :func:`jitterid.analysis.uncertainty.bode_band`.
     references : mapping of str to TransferFunction, optional
         Other systems to draw on the same frequencies, e.g. ``{"ordinary LS": ls.system,
         "truth": g0}``.
@@ -112,7 +112,7 @@ def plot_jitter_pdf(
     Parameters
     ----------
     band : PdfBand
-        From :func:`jitterid.diagnostics.jitter_pdf_band`.
+        From :func:`jitterid.analysis.diagnostics.jitter_pdf_band`.
     truth : JitterLaw, optional
         A reference law drawn dashed.
     label : str
@@ -163,7 +163,7 @@ def plot_residuals(detection: JitterDetection, *, ax: Any = None) -> Artists:
     Parameters
     ----------
     detection : JitterDetection
-        From :func:`jitterid.diagnostics.detect_jitter`.
+        From :func:`jitterid.analysis.diagnostics.detect_jitter`.
     ax : pair of Axes, optional
         (time axes, slope axes); new ones if None.
 

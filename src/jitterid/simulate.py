@@ -8,10 +8,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._checks import count, generator, positive, real_array
-from .distributions import JitterLaw
 from .inputs import Input
-from .models import TransferFunction
-from .noise import NoiseModel
+from .jitter.laws import JitterLaw
+from .noise.models import NoiseModel
+from .systems.tf import TransferFunction
 
 __all__ = ["SampledData", "simulate"]
 
@@ -113,7 +113,7 @@ def simulate(
         coloured noise (so adding ``noise_model`` leaves the other draws unchanged).
     noise_model : NoiseModel, optional
         Coloured noise v(t) = (h * e)(t), eq. (1c), sampled exactly at the jittered instants
-        (the exact discretisation (N3) of :mod:`jitterid.noise`, not an Euler step). Default:
+        (the exact discretisation (N3) of :mod:`jitterid.noise.models`, not an Euler step). Default:
         white noise only (the OE structure (2a)).
 
     Returns

@@ -10,18 +10,18 @@ from typing import Any
 
 import numpy as np
 
-from ..diagnostics import (
+from ..analysis.diagnostics import (
     JitterDetection,
     ResidualTest,
     bias_frequency,
     ls_gain_factor,
 )
-from ..distributions import JitterFamily, JitterLaw
+from ..analysis.uncertainty import bode_band, jitter_pdf_band
+from ..estimation.result import FitResult
 from ..io import Dataset
-from ..models import TransferFunction
-from ..result import FitResult
-from ..structures import ModelStructure
-from ..uncertainty import bode_band, jitter_pdf_band
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..systems.structures import ModelStructure
+from ..systems.tf import TransferFunction
 
 __all__ = ["FitReport", "write_outputs"]
 

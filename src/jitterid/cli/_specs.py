@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..distributions import (
+from ..jitter.laws import (
     Gaussian,
     GaussianFamily,
     JitterFamily,
@@ -27,7 +27,7 @@ from ..distributions import (
     Uniform,
     UniformFamily,
 )
-from ..structures import ModelStructure, PolePairGain, RationalModel
+from ..systems.structures import ModelStructure, PolePairGain, RationalModel
 
 __all__ = ["model_label", "parse_floats", "parse_jitter", "parse_model"]
 

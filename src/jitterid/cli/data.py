@@ -19,8 +19,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..criteria import METHODS
-from ..diagnostics import (
+from ..analysis.diagnostics import (
     bias_frequency,
     detect_jitter,
     input_correlation_test,
@@ -28,10 +27,11 @@ from ..diagnostics import (
     ls_gain_factor,
     standardized_residuals,
 )
-from ..distributions import JitterFamily, JitterLaw, NoJitter
-from ..estimate import fit as fit_model
+from ..estimation.fit import fit as fit_model
+from ..estimation.problem import METHODS
 from ..inputs import telegraph_input, zoh_input
 from ..io import Dataset, load, save_data, save_input
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..simulate import simulate as simulate_data
 from . import main
 from ._report import FitReport, write_outputs

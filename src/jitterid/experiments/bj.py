@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..distributions import JitterFamily, JitterLaw, NoJitter
-from ..noise import NoiseModel
-from ..noisecov import jittered_autocovariance
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..noise.covariance import jittered_autocovariance
+from ..noise.models import NoiseModel
 from .config import Experiment, split_method
 from .store import Estimate
 

@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ..distributions import (
+from ..inputs import Input, Multisine, telegraph_input
+from ..jitter.laws import (
     Gaussian,
     GaussianFamily,
     JitterFamily,
@@ -31,10 +32,9 @@ from ..distributions import (
     Uniform,
     UniformFamily,
 )
-from ..inputs import Input, Multisine, telegraph_input
-from ..models import TransferFunction
-from ..noise import NoiseModel, RationalNoise
-from ..structures import ModelStructure, PolePairGain, RationalModel
+from ..noise.models import NoiseModel, RationalNoise
+from ..systems.structures import ModelStructure, PolePairGain, RationalModel
+from ..systems.tf import TransferFunction
 from ._schema import ExperimentError
 
 __all__ = [

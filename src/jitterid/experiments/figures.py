@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..distributions import Gaussian, NoJitter, SumOfUniforms, Uniform
 from ..inputs import telegraph_input
-from ..models import TransferFunction
+from ..jitter.laws import Gaussian, NoJitter, SumOfUniforms, Uniform
+from ..moments.reference import dirichlet, expected_dft_lines
 from ..simulate import simulate
-from ..spectral import dirichlet, expected_dft_lines
+from ..systems.tf import TransferFunction
 from .config import Experiment
 from .report import summarize
 from .store import Estimate

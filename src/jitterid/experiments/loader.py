@@ -2,7 +2,7 @@
 
 A typo or a bad value fails at once with an :class:`ExperimentError` naming the file and
 the dotted key (``table2.toml: sampling.N must be an integer >= 4; got 0``), before any
-work starts. Methods are checked against :data:`jitterid.criteria.METHODS` when the file
+work starts. Methods are checked against :data:`jitterid.estimation.problem.METHODS` when the file
 is loaded, so a method added to the library is accepted without a change here.
 """
 
@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import boxjenkins, criteria
+from ..estimation import boxjenkins
+from ..estimation import problem as criteria
 from ._schema import ExperimentError, Section
 from .config import (
     BJ_PREFIXES,

@@ -28,15 +28,15 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from ..distributions import JitterFamily, JitterLaw
-from ..estimate import fit
+from ..estimation.fit import fit
+from ..estimation.likelihood import crb
+from ..estimation.result import FitResult
 from ..inputs import Input
-from ..likelihood import crb
-from ..models import TransferFunction
-from ..noise import NoiseStructure
-from ..result import FitResult
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..noise.models import NoiseStructure
 from ..simulate import SampledData, simulate
-from ..structures import ModelStructure
+from ..systems.structures import ModelStructure
+from ..systems.tf import TransferFunction
 from .config import Experiment, split_method
 from .store import Estimate, Store
 

@@ -1,4 +1,4 @@
-"""Parameter derivatives of every criterion of :mod:`jitterid.criteria`, in O(N) per evaluation.
+"""Parameter derivatives of every criterion of :mod:`jitterid.estimation.problem`, in O(N) per evaluation.
 
 Each criterion depends on the parameters only through the per-sample moments (notes 1-2)
 
@@ -8,15 +8,15 @@ Each criterion depends on the parameters only through the per-sample moments (no
 so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them all:
 
 - system parameters: the modal sensitivities d(D, rho, p)/dtheta
-  (:func:`jitterid._modal.modal_sensitivity`, the quantities of the likelihood's
+  (:func:`jitterid.moments.modal.modal_sensitivity`, the quantities of the likelihood's
   ``_modal_gradient`` in closed form) and the exact switch-state derivative dx(t_j)/dp
   (:meth:`TransferFunction.switch_state_sensitivity`) give the derivative tables of (M1) in
-  :mod:`jitterid._modal`, which turns them into dm, dVar with node work that does not grow
+  :mod:`jitterid.moments.modal`, which turns them into dm, dVar with node work that does not grow
   with the number of parameters. Inputs that are not piecewise constant fall back to central
   differences of the moments.
 - the scale a of a scale family (tau = a xi: ``UniformFamily``, ``GaussianFamily``, and ``a``
   of ``SumOfUniformsFamily``): dm/da = E[s'(kT + tau) tau] / a plus the jumps of s,
-  (M3) of :mod:`jitterid._modal`, from the same pass. Other jitter parameters (``n``) change
+  (M3) of :mod:`jitterid.moments.modal`, from the same pass. Other jitter parameters (``n``) change
   the shape of the law and move the quadrature nodes: a one-sided difference of the moments
   (the step of scipy's "2-point" rule, which these replace), one extra evaluation each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
@@ -33,7 +33,7 @@ frequency set):
 - gaussian (notes 3): dV = sum_k -2 e_k dm_k / w_k + (1 - e_k^2 / w_k) dw_k / w_k, e = y - m.
 
 Each is also paired with its expected (Fisher/Gauss-Newton) Hessian, used by the Newton search
-of :func:`jitterid.estimate._run`: 2 dm^T W^{-1} dm + dw^T W^{-2} dw for ``gaussian``, and the
+of :func:`jitterid.estimation.fit._run`: 2 dm^T W^{-1} dm + dw^T W^{-2} dw for ``gaussian``, and the
 frequency-domain analogues for ``asml``/``asml-diag``.
 """
 
@@ -45,7 +45,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_solve, solve_triangular
 
-from ._modal import (
+from ..inputs import PiecewiseConstant
+from ..jitter.laws import GaussianFamily, JitterLaw, SumOfUniformsFamily, UniformFamily
+from ..moments.modal import (
     SegmentPlan,
     cached_plan,
     derivative_tables,
@@ -53,14 +55,12 @@ from ._modal import (
     modal_sensitivity,
     tables,
 )
-from .distributions import GaussianFamily, JitterLaw, SumOfUniformsFamily, UniformFamily
-from .inputs import PiecewiseConstant
-from .models import TransferFunction
-from .moments import SampleMoments, sample_moments
-from .spectral import dtft
+from ..moments.reference import dtft
+from ..moments.sample import SampleMoments, sample_moments
+from ..systems.tf import TransferFunction
 
 if TYPE_CHECKING:
-    from .criteria import Problem
+    from .problem import Problem
 
 __all__: list[str] = []
 
@@ -69,7 +69,7 @@ ComplexArray = NDArray[np.complex128]
 
 # The index of the scale parameter a of the families whose law is that of a xi, xi free of a
 # (the support, knots and cuts of the rule scale with a): its derivative is (M3) of
-# jitterid._modal, exact and without moving the nodes.
+# jitterid.moments.modal, exact and without moving the nodes.
 _SCALE = {UniformFamily: 0, GaussianFamily: 0, SumOfUniformsFamily: 1}
 _FD_REL = float(np.sqrt(np.finfo(float).eps))  # scipy's 2-point step: sqrt(eps) max(1, |x|)
 _CD_REL = 1e-6  # central differences (inputs that are not piecewise constant)
@@ -80,7 +80,7 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
     """The node plan for ``law``: rebuilt only when the law or the panel edges change.
 
     The edges depend on the system only through min(1 / rate, ...) (see
-    :func:`jitterid._quadrature.relative_cuts`); the problem remembers the last plan with
+    :func:`jitterid.moments.quadrature.relative_cuts`); the problem remembers the last plan with
     its jitter parameters and that limit, so that the search, which changes the system at
     every step, skips even the cache lookup.
     """

@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .distributions import JitterLaw
+from ..jitter.laws import JitterLaw
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -65,7 +65,7 @@ def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -
     The pdf's knots, subdivided so that no panel exceeds the support width, ``1 / rate``, the
     jitter's standard deviation or ``max_panel``. Two signals whose rates give the same
     edges get the same nodes, which lets a caller keep a rule across parameter values
-    (:mod:`jitterid._modal`). Empty for a point mass.
+    (:mod:`jitterid.moments.modal`). Empty for a point mass.
     """
     lo, hi = (float(v) for v in law.support)
     if hi <= lo:

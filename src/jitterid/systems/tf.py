@@ -15,8 +15,8 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import real_array
-from .inputs import Input, Multisine, PiecewiseConstant
+from .._checks import real_array
+from ..inputs import Input, Multisine, PiecewiseConstant
 
 __all__ = ["Response", "TransferFunction"]
 

@@ -5,8 +5,8 @@ the system's starting point; for a free jitter law a small grid of starting valu
 tried; the weighted and likelihood criteria start from the BCLS estimate. Least-squares
 criteria are minimised by scipy's trust-region Gauss-Newton/Levenberg-Marquardt
 (``least_squares``), the exact likelihood (``ml``) by the damped Newton iteration of
-:meth:`jitterid.likelihood.ExactLikelihood.maximise`, the others by a damped Newton (Fisher
-scoring) search, all with analytic derivatives (:mod:`jitterid._jacobians`); all respect the
+:meth:`jitterid.estimation.likelihood.ExactLikelihood.maximise`, the others by a damped Newton (Fisher
+scoring) search, all with analytic derivatives (:mod:`jitterid.estimation.jacobians`); all respect the
 bounds.
 """
 
@@ -20,23 +20,23 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from . import _jacobians
-from ._checks import real_array
+from .._checks import real_array
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..noise.models import NoiseModel, NoiseStructure
+from ..simulate import SampledData
+from ..systems.structures import ModelStructure, as_structure
+from ..systems.tf import TransferFunction
+from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
-from .criteria import (
+from .covariance import sandwich_covariance
+from .problem import (
     LEAST_SQUARES,
     METHODS,
     NEEDS_NOISE,
     Problem,
     default_frequencies,
 )
-from .distributions import JitterFamily, JitterLaw, NoJitter
-from .models import TransferFunction
-from .noise import NoiseModel, NoiseStructure
 from .result import FitResult, FitStatus
-from .sandwich import sandwich_covariance
-from .simulate import SampledData
-from .structures import ModelStructure, as_structure
 
 __all__ = ["fit"]
 
@@ -52,7 +52,7 @@ def _oe_start(data: SampledData, structure: ModelStructure) -> tuple[FloatArray,
         return np.zeros(0), float(np.sqrt(np.mean(r0**2)))
 
     # The samples at kT are the moments of a point-mass jitter: the same O(N) path and
-    # analytic Jacobian as the jitter-aware criteria (jitterid._jacobians).
+    # analytic Jacobian as the jitter-aware criteria (jitterid.estimation.jacobians).
     oe = Problem(data, structure, NoJitter(), "ls", default_frequencies(data.N, data.T), None)
 
     def resid(x: FloatArray) -> FloatArray:
@@ -110,7 +110,7 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
                 return np.full(2 * problem.freqs.size, _BAD)
 
         def jac(x: FloatArray) -> FloatArray:
-            # Analytic (jitterid._jacobians): one pass instead of P + 1 evaluations.
+            # Analytic (jitterid.estimation.jacobians): one pass instead of P + 1 evaluations.
             try:
                 return problem.jacobian(x)
             except ValueError:  # only where resid failed too; such a step is never taken
@@ -143,7 +143,7 @@ def _newton(
 ) -> tuple[FloatArray, bool, str, int]:
     """Minimise ``gaussian``, ``asml`` or ``asml-diag`` by damped Newton (Fisher scoring).
 
-    Each evaluation gives V, dV/dx and the expected Hessian M of V (jitterid._jacobians): the
+    Each evaluation gives V, dV/dx and the expected Hessian M of V (jitterid.estimation.jacobians): the
     step solves (M + lam diag M) d = -g on the parameters not held at a bound (a parameter on
     its bound whose gradient points outwards is held). lam follows the trust-region rule on
     rho = (actual decrease) / (predicted decrease g.d + d.M.d / 2): divided by 4 when
@@ -302,7 +302,7 @@ def fit(
     method : str
         ``"ls"`` (8), ``"bcls"`` (14), ``"wbcls"`` (20), ``"asml"`` (22), ``"asml-diag"`` (23),
         ``"gaussian"`` (the exact real-valued Gaussian criterion, notes section 3) or ``"ml"``
-        (the exact likelihood, notes section 4; :mod:`jitterid.likelihood`).
+        (the exact likelihood, notes section 4; :mod:`jitterid.estimation.likelihood`).
     start : array_like or FitResult, optional
         Starting vector in the result's ``names`` order. Default: an ordinary OE fit that
         ignores the jitter (Section 4.5) and, for a free jitter law, a grid of starts, then
@@ -321,7 +321,7 @@ def fit(
     noise : NoiseStructure or NoiseModel, optional
         Coloured measurement noise v = (h * e)(t), eq. (1c): a structure with free parameters
         (``RationalNoise(0, 1)``) or a known ``NoiseModel``, for the Box-Jenkins structures BJ
-        (2b) and, with a jitter family, JBJ (2d) (:mod:`jitterid.boxjenkins`; methods
+        (2b) and, with a jitter family, JBJ (2d) (:mod:`jitterid.estimation.boxjenkins`; methods
         ``bcls``, ``wbcls``, ``asml``, ``asml-diag``, ``gaussian``). ``noise_std`` is then the
         std of an additional white part. Default None: white noise only (OE, (2a)).
 
@@ -460,7 +460,7 @@ def _run_wbcls(
     make: partial[Problem], noise: float | None, x0: FloatArray, max_nfev: int
 ) -> tuple[Problem, tuple[FloatArray, float, FitStatus, str, int]]:
     """WBCLS (20) with R frozen at x0, then re-frozen once at that estimate (iterated
-    feasible GLS; :mod:`jitterid.criteria` explains why R is not left to vary)."""
+    feasible GLS; :mod:`jitterid.estimation.problem` explains why R is not left to vary)."""
     nfev = 0
     for _ in range(2):
         problem = make(method="wbcls", noise_std=noise, weights_at=np.array(x0, float))

@@ -11,8 +11,8 @@
 * :func:`ls_gain_factor` - the ordinary LS fit sees G(f) scaled by |phi(f)|, the jitter's
   characteristic function (paper, Lemma 1 and (13)); :func:`bias_frequency` is where that
   gain bias reaches a tolerance.
-* Confidence bands for the plots (:func:`jitterid.uncertainty.bode_band`,
-  :func:`jitterid.uncertainty.jitter_pdf_band`) live in :mod:`jitterid.uncertainty`.
+* Confidence bands for the plots (:func:`jitterid.analysis.uncertainty.bode_band`,
+  :func:`jitterid.analysis.uncertainty.jitter_pdf_band`) live in :mod:`jitterid.analysis.uncertainty`.
 
 Frequencies are in Hz; phases in degrees.
 """
@@ -25,12 +25,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, stats
 
-from ._checks import count, real_array
-from .distributions import JitterLaw, NoJitter
-from .models import TransferFunction
-from .moments import sample_moments
-from .result import FitResult
-from .simulate import SampledData
+from .._checks import count, real_array
+from ..estimation.result import FitResult
+from ..jitter.laws import JitterLaw, NoJitter
+from ..moments.sample import sample_moments
+from ..simulate import SampledData
+from ..systems.tf import TransferFunction
 
 __all__ = [
     "JitterDetection",

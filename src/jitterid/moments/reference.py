@@ -23,7 +23,7 @@ Contents
   trapezoidal quadrature over ``psi``; :func:`integral_grid_size` picks the grid.
 
 Jitter laws are duck-typed: any object with a vectorised method ``cf(f)`` returning
-``phi(f)`` (the paper's sign convention) works, e.g. the laws of :mod:`jitterid.distributions`.
+``phi(f)`` (the paper's sign convention) works, e.g. the laws of :mod:`jitterid.jitter.laws`.
 
 Notes
 -----

@@ -30,7 +30,7 @@ pr, pi). Every criterion V(theta, y) also provides dV/dy, from which
 parameter derivatives: :meth:`Problem.jacobian` (residuals of ls, bcls, wbcls) and
 :meth:`Problem.objective_gradient` (V, dV/dtheta and the expected Hessian of gaussian, asml,
 asml-diag), from one O(N) pass over the moments and their derivatives
-(:mod:`jitterid._jacobians`, :mod:`jitterid._modal`).
+(:mod:`jitterid.estimation.jacobians`, :mod:`jitterid.moments.modal`).
 """
 
 from __future__ import annotations
@@ -41,15 +41,15 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
-from . import _jacobians
-from ._modal import SegmentPlan
-from .distributions import JitterFamily, JitterLaw, NoJitter
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..moments.modal import SegmentPlan
+from ..moments.reference import dtft
+from ..moments.sample import SampleMoments, difference_grid
+from ..simulate import SampledData
+from ..systems.structures import ModelStructure
+from ..systems.tf import TransferFunction
+from . import jacobians as _jacobians
 from .likelihood import ExactLikelihood
-from .models import TransferFunction
-from .moments import SampleMoments, difference_grid
-from .simulate import SampledData
-from .spectral import dtft
-from .structures import ModelStructure
 
 __all__ = ["METHODS", "Problem", "default_frequencies"]
 
@@ -106,7 +106,7 @@ class Problem:
     Y: ComplexArray = field(init=False)
     likelihood: ExactLikelihood | None = field(init=False, default=None)
     _cache: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
-    # last derivatives, frequency-difference grid (see :mod:`jitterid._jacobians`)
+    # last derivatives, frequency-difference grid (see :mod:`jitterid.estimation.jacobians`)
     _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
     _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
     _split: tuple[bytes, tuple[JitterLaw, TransferFunction, float]] | None = field(

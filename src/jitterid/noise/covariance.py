@@ -10,7 +10,7 @@ the autocovariance smoothed by the law of a jitter difference (characteristic fu
 
     Sigma_y = diag(Var s_k + sigma_w^2) + Toeplitz(gamma),  gamma(m) = Cov(v_k, v_{k+m}).  (C2)
 
-Modal form. With r_v(t) = sum_j c_j e^{p_j |t|} (:mod:`jitterid.noise`, (N1)) and support
+Modal form. With r_v(t) = sum_j c_j e^{p_j |t|} (:mod:`jitterid.noise.models`, (N1)) and support
 [lo, hi] of the jitter, (k - l) T + tau_k - tau_l keeps the sign of k - l once |k - l| >= M0 =
 max(1, ceil((hi - lo) / T)). For m >= M0 the expectation factorises over the independent
 jitters:
@@ -50,14 +50,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cho_solve_banded, cholesky_banded, matmul_toeplitz, solve_banded
 
-from ._checks import count, positive, real_array
-from ._quadrature import _relative_cuts
-from .distributions import JitterLaw
-from .inputs import Input
-from .models import TransferFunction
-from .moments import covariance_from_variances, sample_moments
-from .noise import NoiseModel
-from .spectral import dtft
+from .._checks import count, positive, real_array
+from ..inputs import Input
+from ..jitter.laws import JitterLaw
+from ..moments.quadrature import _relative_cuts
+from ..moments.reference import dtft
+from ..moments.sample import covariance_from_variances, sample_moments
+from ..systems.tf import TransferFunction
+from .models import NoiseModel
 
 __all__ = [
     "JitteredAutocovariance",

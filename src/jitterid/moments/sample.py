@@ -7,7 +7,7 @@ sections 1-2): with m_k = E[s(kT + tau)] and w_k = Var[s(kT + tau)] + sigma_v^2,
     R_Y(f, psi)   = sum_k w_k exp(-i 2 pi (f - psi) k T)              (17)-(19)
     C_Y(f, psi)   = sum_k w_k exp(-i 2 pi (f + psi) k T)  (pseudo-covariance)
 
-The paper's own frequency-domain integrals are in :mod:`jitterid.spectral`; the tests
+The paper's own frequency-domain integrals are in :mod:`jitterid.moments.reference`; the tests
 check that both routes give the same numbers.
 """
 
@@ -18,13 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import count, positive, real_array
-from ._modal import SegmentPlan, modal_moments, tables
-from ._quadrature import DEFAULT_ORDER, jitter_nodes
-from .distributions import JitterLaw
-from .inputs import Input, PiecewiseConstant
-from .models import Response, TransferFunction
-from .spectral import dtft
+from .._checks import count, positive, real_array
+from ..inputs import Input, PiecewiseConstant
+from ..jitter.laws import JitterLaw
+from ..systems.tf import Response, TransferFunction
+from .modal import SegmentPlan, modal_moments, tables
+from .quadrature import DEFAULT_ORDER, jitter_nodes
+from .reference import dtft
 
 __all__ = [
     "SampleMoments",
@@ -67,7 +67,7 @@ def sample_moments(
     The variance is computed as E[(s - m_k)^2] in a second pass over the same nodes, so it
     does not suffer the cancellation of E[s^2] - m_k^2 when the jitter is small. For a
     piecewise-constant input the node sums are taken per input segment from the modal form
-    (:mod:`jitterid._modal`, (M1)-(M2)); without jitter the samples are s(kT) themselves.
+    (:mod:`jitterid.moments.modal`, (M1)-(M2)); without jitter the samples are s(kT) themselves.
     Work O(N), memory bounded by the chunk size.
     """
     T = positive(T, "T")

@@ -26,7 +26,7 @@ stationary law, from which the first state is drawn. The white measurement noise
 structure (2a) is the separate ``noise_std`` of :func:`jitterid.simulate` and
 :func:`jitterid.fit`; ``noise=None`` there is the OE case.
 
-The covariance of the *jittered* samples v(kT + tau_k) is in :mod:`jitterid.noisecov`.
+The covariance of the *jittered* samples v(kT + tau_k) is in :mod:`jitterid.noise.covariance`.
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import count, generator, parameter_vector, positive, real_array
-from .models import TransferFunction
+from .._checks import count, generator, parameter_vector, positive, real_array
+from ..systems.tf import TransferFunction
 
 __all__ = ["KnownNoise", "NoiseModel", "NoiseStructure", "RationalNoise", "as_noise_structure"]
 

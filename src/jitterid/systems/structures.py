@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import count, parameter_vector
-from .models import TransferFunction
+from .._checks import count, parameter_vector
+from .tf import TransferFunction
 
 __all__ = ["KnownSystem", "ModelStructure", "PolePairGain", "RationalModel"]
 

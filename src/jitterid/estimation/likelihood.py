@@ -4,7 +4,7 @@ Given the input, the samples are independent and each has the density
 
     p(y_k | theta) = int p(tau) N(y_k; s(kT + tau; theta), sigma_v^2) dtau,            (L1)
 
-one integral per sample, evaluated with the jitter quadrature of :mod:`jitterid._quadrature`
+one integral per sample, evaluated with the jitter quadrature of :mod:`jitterid.moments.quadrature`
 in log space (log-sum-exp per sample, so that no density underflows):
 
     log p(y_k) = logsumexp_j [ln w_j - (y_k - s(t_j))^2 / (2 sigma_v^2)] - ln(sqrt(2 pi) sigma_v).
@@ -52,13 +52,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import count, positive, real_array
-from ._quadrature import jitter_nodes
-from .distributions import JitterFamily, JitterLaw
-from .inputs import Input, PiecewiseConstant
-from .models import Response, TransferFunction
-from .moments import sample_moments
-from .structures import ModelStructure, as_structure
+from .._checks import count, positive, real_array
+from ..inputs import Input, PiecewiseConstant
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..moments.quadrature import jitter_nodes
+from ..moments.sample import sample_moments
+from ..systems.structures import ModelStructure, as_structure
+from ..systems.tf import Response, TransferFunction
 
 __all__ = [
     "DEFAULT_ORDER",
@@ -143,7 +143,7 @@ class _NodeSignal:
     """s(t) and ds/dtheta at a fixed set of instants, for any system.
 
     The input's segment of every instant is found once, so a new system costs a few real
-    exponentials per node and pole pair: the modal formula of :class:`jitterid.models.Response`
+    exponentials per node and pole pair: the modal formula of :class:`jitterid.systems.tf.Response`
     (tested against it), x = e^{p dt} X_j + u_j expm1(p dt) / p on the segment starting at the
     switch time t_j with state X_j. Its pole derivative, from the same exponentials, is
     dx/dp = e^{p dt} (dt X_j + dX_j/dp) + u_j (dt e^{p dt} / p - expm1(p dt) / p^2).

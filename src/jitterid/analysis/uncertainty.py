@@ -1,7 +1,7 @@
 """Confidence bands from a fit's covariance: the Bode response and the jitter density.
 
 Both are as honest as the covariance C (``FitResult.cov``): for ``ml`` the inverse observed
-information, for the moment estimators the sandwich covariance (:mod:`jitterid.sandwich`).
+information, for the moment estimators the sandwich covariance (:mod:`jitterid.estimation.covariance`).
 
 :func:`bode_band` offers two routes from the estimate x and the system parameters' block of C:
 
@@ -26,10 +26,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
-from ._checks import count, generator, real_array
-from .distributions import JitterFamily
-from .result import FitResult
-from .structures import ModelStructure
+from .._checks import count, generator, real_array
+from ..estimation.result import FitResult
+from ..jitter.laws import JitterFamily
+from ..systems.structures import ModelStructure
 
 __all__ = ["BodeBand", "PdfBand", "bode_band", "jitter_pdf_band"]
 

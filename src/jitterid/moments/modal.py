@@ -1,14 +1,14 @@
 """The jitter quadrature grouped by input segment: fast m_k, Var_k and their derivatives.
 
 For a piecewise-constant input (level u_j on [t_j, t_{j+1})) the output of a system with
-distinct poles is, from the modal form of :mod:`jitterid.models` (notes 5),
+distinct poles is, from the modal form of :mod:`jitterid.systems.tf` (notes 5),
 
     s(t) = c_j + Re sum_p beta_jp e^{p (t - t_j)},      t_j <= t < t_{j+1},
     c_j = u_j G(0),   beta_jp = rho_p (x_p(t_j) + u_j / p),                          (M1)
 
 over the poles with Im p >= 0 (rho doubled for a complex pair, so that the conjugate pole's
 term is the conjugate), x_p(t_j) the modal states at the switch times. The quadrature nodes of
-sample k (:func:`jitterid._quadrature.jitter_nodes`) are grouped into *pieces*: the nodes of
+sample k (:func:`jitterid.moments.quadrature.jitter_nodes`) are grouped into *pieces*: the nodes of
 one sample that fall in one input segment. With e_p = e^{p dt}, dt = t - t_j,
 
     m_k = sum over pieces of k of [c_j S0 + Re sum_p beta_jp S1_p],
@@ -17,7 +17,7 @@ one sample that fall in one input segment. With e_p = e^{p dt}, dt = t - t_j,
 the sums running over the piece's nodes (weights w). Lemma 1's m_k = E[s(kT + tau)] (notes 1)
 thus costs one real exponential and one sine/cosine pair per node and pole pair. The
 variance E[(s - m_k)^2] (Lemma 2, notes 2) is the second pass over the same nodes, as in
-:func:`jitterid.moments.sample_moments`, so it has no cancellation for small jitter.
+:func:`jitterid.moments.sample.sample_moments`, so it has no cancellation for small jitter.
 
 Derivatives. With ds/dtheta = dc_j + Re sum_p (dbeta_jp + beta_jp dp dt) e_p, the parameter
 derivatives of m_k and Var_k = sum w (s - m_k)^2 are per-piece combinations of
@@ -29,7 +29,7 @@ dVar_k = 2 sum_pieces [dc_j T0 + Re sum_p (dbeta_jp T1_p + beta_jp dp T2_p)] - 2
 D_k = sum_k w d (zero up to the quadrature's mass error). The node work is therefore
 independent of the number of parameters; dc, dbeta come from the modal sensitivities
 (:func:`modal_sensitivity`) and the switch-state derivative dx(t_j)/dp
-(:meth:`jitterid.models.TransferFunction.switch_state_sensitivity`). For the scale a of a
+(:meth:`jitterid.systems.tf.TransferFunction.switch_state_sensitivity`). For the scale a of a
 jitter law tau = a xi (xi free of a), s' = Re sum_p beta_jp p e_p on each segment gives
 
     dm_k / da = (1/a) (E[s'(kT + tau) tau] + sum_j D (u_j - u_{j-1}) tau_j p(tau_j)),   (M3)
@@ -39,7 +39,7 @@ feedthrough D): the same sums with dbeta = beta p (t_j - kT) / a and dp = p / a,
 
 The node geometry (dt, w, pieces) depends on the jitter law and on the panel edges only, not on
 the system, so a :class:`SegmentPlan` built once is reused for every parameter value with the
-same edges (:func:`jitterid._quadrature.relative_cuts`), from a small process-wide cache
+same edges (:func:`jitterid.moments.quadrature.relative_cuts`), from a small process-wide cache
 (:func:`cached_plan`). It is kept in memory up to ``_PLAN_BYTES`` (16 bytes per node) and
 otherwise rebuilt chunk by chunk at every evaluation, so memory stays bounded whatever N.
 """
@@ -54,11 +54,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ._quadrature import DEFAULT_CHUNK, DEFAULT_ORDER, NodeChunk, jitter_nodes, relative_cuts
-from .distributions import JitterLaw
-from .inputs import PiecewiseConstant
-from .models import TransferFunction
-from .structures import ModelStructure, PolePairGain, RationalModel
+from ..inputs import PiecewiseConstant
+from ..jitter.laws import JitterLaw
+from ..systems.structures import ModelStructure, PolePairGain, RationalModel
+from ..systems.tf import TransferFunction
+from .quadrature import DEFAULT_CHUNK, DEFAULT_ORDER, NodeChunk, jitter_nodes, relative_cuts
 
 __all__: list[str] = []
 
@@ -269,7 +269,7 @@ def kept_modal(tf: TransferFunction) -> tuple[float, ComplexArray, ComplexArray,
     """(D, rho, p, columns): poles with Im p >= 0, rho doubled for a complex pair.
 
     The same convention as the likelihood's node signal, so that the tables and the modal
-    sensitivities of :mod:`jitterid.likelihood` line up column by column.
+    sensitivities of :mod:`jitterid.estimation.likelihood` line up column by column.
     """
     d, r, p = tf._modal
     cols = np.flatnonzero(p.imag >= 0)
@@ -326,7 +326,7 @@ def modal_sensitivity(
     form for :class:`PolePairGain` and :class:`RationalModel`, else central differences of the
     structure's map theta -> (num, den) (exact up to rounding for maps polynomial in theta).
     No root finding at shifted points: the central differences of the modal form itself
-    (:func:`jitterid.likelihood._modal_gradient`) cost 2P root findings, most of a Jacobian's
+    (:func:`jitterid.estimation.likelihood._modal_gradient`) cost 2P root findings, most of a Jacobian's
     time at N = 200.
     """
     n = tf.den.size

@@ -1,7 +1,7 @@
 """Box-Jenkins structures under jitter: the search behind ``fit(..., noise=...)``.
 
 BJ (2b): system and noise model H free, jitter law known; JBJ (2d): the jitter family free
-too. The criteria are in :mod:`jitterid.bjcriteria`. The search: an OE BCLS fit (Section
+too. The criteria are in :mod:`jitterid.estimation.bjcriteria`. The search: an OE BCLS fit (Section
 4.5); the noise parameters (and an unknown white std) fitted to its residuals by the
 Gaussian criterion with the system fixed (multi-start over the noise structure's starts); a
 generalised least-squares stage that whitens the residuals by that noise covariance and
@@ -19,15 +19,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares, minimize
 
-from ._checks import real_array
+from .._checks import real_array
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..noise.models import NoiseModel, NoiseStructure, as_noise_structure
+from ..simulate import SampledData
+from ..systems.structures import ModelStructure, as_structure
+from ..systems.tf import TransferFunction
 from .bjcriteria import BJ_METHODS, LEAST_SQUARES, BJProblem, bj_covariance
-from .criteria import default_frequencies
-from .distributions import JitterFamily, JitterLaw
-from .models import TransferFunction
-from .noise import NoiseModel, NoiseStructure, as_noise_structure
+from .problem import default_frequencies
 from .result import FitResult, FitStatus
-from .simulate import SampledData
-from .structures import ModelStructure, as_structure
 
 __all__ = ["BJ_METHODS", "fit_bj", "fitted_noise"]
 
@@ -220,7 +220,7 @@ def fit_bj(
     estimated as parameter ``noise_std`` by ``asml``, ``asml-diag``, ``gaussian`` when neither
     is given (``bcls``/``wbcls`` plug it in with the noise parameters).
     """
-    from .estimate import fit  # the OE fit gives the BCLS start (Section 4.5)
+    from .fit import fit  # the OE fit gives the BCLS start (Section 4.5)
 
     if method not in BJ_METHODS:
         hint = " ('ls' ignores the jitter; fit it with noise=None)" if method == "ls" else ""

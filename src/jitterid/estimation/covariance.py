@@ -9,7 +9,7 @@ the samples are independent with variances w_k,
 This holds for every criterion of the library, whether or not it is a likelihood, so every
 estimator gets honest error bars by one route. For least-squares criteria H is the
 Gauss-Newton matrix 2 J^T J with the analytic Jacobian; otherwise central differences of
-the analytic gradient (:mod:`jitterid._jacobians`).
+the analytic gradient (:mod:`jitterid.estimation.jacobians`).
 
 The exact likelihood (``ml``, V = -2 ln L) gets the inverse observed information instead,
 Cov = (-d^2 ln L)^{-1} = 2 H^{-1}, since the score is not linear in y; ``robust=True`` gives
@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from threadpoolctl import threadpool_limits
 
 if TYPE_CHECKING:
-    from .criteria import Problem
+    from .problem import Problem
 
 __all__: list[str] = []
 
@@ -94,7 +94,7 @@ def _covariance(problem: Problem, x: FloatArray, robust: bool | None) -> FloatAr
         dz[i] = hz[i]
         G[i] = (problem.grad_y(embed(z0 + dz)) - problem.grad_y(embed(z0 - dz))) / (2 * hz[i])
     if problem.method in ("ls", "bcls", "wbcls"):
-        J = problem.jacobian(x)[:, idx]  # analytic (jitterid._jacobians)
+        J = problem.jacobian(x)[:, idx]  # analytic (jitterid.estimation.jacobians)
         H = 2 * J.T @ J
     else:
         # Central differences of the analytic gradient: 2 p evaluations, against ~2 p^2 for

@@ -1,10 +1,10 @@
 """The Box-Jenkins criteria (BJ (2b), JBJ (2d)) and their delta-method covariance.
 
 y_k = s(kT + tau_k; theta) + v(kT + tau_k; eta) + w_k with coloured noise v (eq. (1c),
-:mod:`jitterid.noise`) and a white part w_k of std sigma_w (known, or estimated as
+:mod:`jitterid.noise.models`) and a white part w_k of std sigma_w (known, or estimated as
 ``noise_std``). The mean is Lemma 1's m_k as for OE; the covariance is Sigma_y of (C2)
-(:mod:`jitterid.noisecov`): the diagonal signal part of Lemma 2 plus the Toeplitz covariance
-of the jittered noise. The criteria of :mod:`jitterid.criteria` with this covariance:
+(:mod:`jitterid.noise.covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz covariance
+of the jittered noise. The criteria of :mod:`jitterid.estimation.problem` with this covariance:
 
 =============  ===================================================================  =========
 method         criterion                                                            paper
@@ -21,7 +21,7 @@ Parameter order: jitter-family parameters (JBJ), system, noise structure, then
 (no ln det term): their noise parameters are *plug-in* values held fixed (``pinned``), so
 they get NaN standard errors.
 
-Error bars: the delta method of :mod:`jitterid.sandwich` with the full covariance, because
+Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance, because
 the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
 d theta dy^T (central differences of dV/dy), H the Hessian of V (Gauss-Newton 2 J^T J for
 the least-squares criteria); G Sigma_y G^T is an FFT Toeplitz product.
@@ -36,16 +36,16 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from threadpoolctl import threadpool_limits
 
-from .criteria import adjoint_dtft
-from .distributions import JitterFamily, JitterLaw
-from .models import TransferFunction
-from .moments import SampleMoments, sample_moments
-from .noise import NoiseModel, NoiseStructure
-from .noisecov import JitteredAutocovariance, SampleCovariance, jittered_autocovariance
-from .sandwich import _hessian, _steps
-from .simulate import SampledData
-from .spectral import dtft
-from .structures import ModelStructure
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..moments.reference import dtft
+from ..moments.sample import SampleMoments, sample_moments
+from ..noise.covariance import JitteredAutocovariance, SampleCovariance, jittered_autocovariance
+from ..noise.models import NoiseModel, NoiseStructure
+from ..simulate import SampledData
+from ..systems.structures import ModelStructure
+from ..systems.tf import TransferFunction
+from .covariance import _hessian, _steps
+from .problem import adjoint_dtft
 
 __all__ = ["BJ_METHODS", "BJProblem", "bj_covariance"]
 

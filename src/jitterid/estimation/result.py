@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from .distributions import JitterLaw
-from .models import TransferFunction
-from .structures import ModelStructure
+from ..jitter.laws import JitterLaw
+from ..systems.structures import ModelStructure
+from ..systems.tf import TransferFunction
 
 __all__ = ["FitResult", "FitStatus"]
 
@@ -86,7 +86,7 @@ class FitResult:
         a / sqrt(3 (n + 1)), the paper's sigma.
     structure : ModelStructure or None
         The model structure fitted (to rebuild G from parameters, e.g. for
-        :func:`jitterid.uncertainty.bode_band`); None if not recorded.
+        :func:`jitterid.analysis.uncertainty.bode_band`); None if not recorded.
     """
 
     method: str
