@@ -12,8 +12,8 @@ import jitterid as ji
 from jitterid.estimation import jacobians as _jacobians
 from jitterid.estimation.likelihood import _modal_gradient, _pole_sensitivity
 from jitterid.estimation.problem import Problem, adjoint_dtft, default_frequencies
-from jitterid.moments.quadrature import jitter_nodes
 from jitterid.moments import modal as _modal
+from jitterid.moments.quadrature import jitter_nodes
 from jitterid.moments.sample import sample_moments
 
 T, N, NOISE = 1.0, 60, 0.01

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import jitterid as ji
-from jitterid.moments.quadrature import jitter_nodes
 from jitterid.moments import reference as spectral
+from jitterid.moments.quadrature import jitter_nodes
 from jitterid.moments.sample import sample_moments
 
 T = 1.0

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
+from jitterid.moments import reference as spectral
 from jitterid.moments.reference import (
     dft_covariance_lines,
     dirichlet,
@@ -26,7 +27,6 @@ from jitterid.moments.reference import (
     window_covariance,
     window_second_moment,
 )
-from jitterid.moments import reference as spectral
 
 TWO_PI_I = 2j * np.pi
 Z_MC = 5.0  # Monte Carlo tolerance in standard errors
