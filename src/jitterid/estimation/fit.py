@@ -29,6 +29,7 @@ from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
 from .covariance import sandwich_covariance
+from .ml import run_ml
 from .problem import (
     LEAST_SQUARES,
     METHODS,
@@ -37,6 +38,7 @@ from .problem import (
     default_frequencies,
 )
 from .result import FitResult, FitStatus
+from .search import evaluator, newton_search
 
 __all__ = ["fit"]
 
@@ -96,7 +98,7 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
     if x0.size == 0:
         return x0, problem.objective(x0), FitStatus.CONVERGED, "no free parameters", 1
     if problem.method == "ml":
-        return _run_ml(problem, x0, max_nfev)
+        return run_ml(problem, x0, max_nfev)
     if problem.method in LEAST_SQUARES:
 
         def resid(x: FloatArray) -> FloatArray:
@@ -122,7 +124,7 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
             status = FitStatus.OPTIMISER_FAILED
         x, nfev, msg = sol.x, int(sol.nfev), str(sol.message)
     else:
-        x, ok, msg, nfev = _newton(problem, x0, lo, hi, max_nfev)
+        x, ok, msg, nfev = newton_search(evaluator(problem.objective_gradient), x0, lo, hi, max_nfev)
         status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
         if not ok and nfev >= max_nfev:
             status = FitStatus.MAX_EVALUATIONS
@@ -135,144 +137,6 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
     if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
     problem.release()
-    return x, cost, status, msg, nfev
-
-
-def _newton(
-    problem: Problem, x0: FloatArray, lo: FloatArray, hi: FloatArray, max_nfev: int, tol: float = 1e-8
-) -> tuple[FloatArray, bool, str, int]:
-    """Minimise ``gaussian``, ``asml`` or ``asml-diag`` by damped Newton (Fisher scoring).
-
-    Each evaluation gives V, dV/dx and the expected Hessian M of V (jitterid.estimation.jacobians): the
-    step solves (M + lam diag M) d = -g on the parameters not held at a bound (a parameter on
-    its bound whose gradient points outwards is held). lam follows the trust-region rule on
-    rho = (actual decrease) / (predicted decrease g.d + d.M.d / 2): divided by 4 when
-    rho >= 3/4, multiplied by 4 (at least to 1e-3) when rho < 1/4; a step with rho < 1e-4 is
-    rejected. Converged when the Newton decrement g^T M^{-1} g (twice the predicted remaining
-    decrease) is below ``tol``. Near the optimum M is within O(1/sqrt(N)) of the Hessian, so
-    the search needs a handful of evaluations where L-BFGS-B needed tens.
-
-    Returns
-    -------
-    x, converged, message, evaluations
-    """
-
-    def evaluate(x: FloatArray) -> tuple[float, FloatArray, FloatArray] | None:
-        try:
-            v, g, M = problem.objective_gradient(x)
-        except ValueError:  # e.g. an unstable system
-            return None
-        ok = np.isfinite(v) and np.all(np.isfinite(g)) and np.all(np.isfinite(M))
-        return (v, g, M) if ok else None
-
-    x = np.clip(np.asarray(x0, float), lo, hi)
-    first = evaluate(x)
-    if first is None:
-        return x, False, "the criterion cannot be evaluated at the start", 1
-    v, g, M = first
-    n, lam = 1, 0.0
-    while n < max_nfev:
-        free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
-        dec = float(-g @ _damped_step(M, g, free, 0.0))
-        if dec <= tol:
-            return x, True, f"converged: Newton decrement {dec:.2g} <= {tol:g}", n
-        d = np.clip(x + _damped_step(M, g, free, lam), lo, hi) - x
-        pred = float(-(g @ d) - 0.5 * d @ M @ d)
-        trial = evaluate(x + d) if pred > 0 else None
-        n += 1
-        gain = v - trial[0] if trial is not None else -np.inf
-        lam = lam / 4 if gain >= 0.75 * pred else lam
-        lam = lam if gain >= 0.25 * pred else max(4 * lam, 1e-3)
-        if trial is not None and gain >= 1e-4 * pred:
-            x = x + d
-            v, g, M = trial
-        elif lam > 1e8:
-            return x, False, "no step decreases the criterion (damping exhausted)", n
-    return x, False, f"evaluation budget ({max_nfev}) used up", n
-
-
-def _damped_step(M: FloatArray, g: FloatArray, free: NDArray[np.bool_], lam: float) -> FloatArray:
-    """-(M + lam diag M)^{-1} g on the free parameters, zero elsewhere (scaled Cholesky)."""
-    step = np.zeros_like(g)
-    idx = np.flatnonzero(free)
-    if idx.size == 0:
-        return step
-    Mf = M[np.ix_(idx, idx)]
-    scale = np.sqrt(np.abs(np.diag(Mf)))
-    scale[scale == 0] = 1.0
-    A = Mf / np.outer(scale, scale) + (lam + 1e-12) * np.eye(idx.size)
-    try:
-        L = np.linalg.cholesky(A)
-        step[idx] = -np.linalg.solve(L.T, np.linalg.solve(L, g[idx] / scale)) / scale
-    except np.linalg.LinAlgError:  # not positive definite: a scaled gradient step
-        step[idx] = -g[idx] / scale**2 / (1.0 + lam)
-    return step
-
-
-def _ml_start(problem: Problem, x0: FloatArray) -> tuple[FloatArray, int]:
-    """The ML search's start for a jitter family with shape parameters (n of (26)).
-
-    BCLS fixes the jitter's scale well (through the variances) but hardly its shape: on the
-    paper's Table 3 data its criterion differs by 2e-4 (relative) between n = 0 and n = 8,
-    and the n it returns is whatever the search stopped at. The likelihood does tell shapes
-    apart, and is multimodal in n (with kinks at the integers), so the search from that n
-    lands in a mode that depends on the BCLS iterate's last digits. Each shape of the
-    family's default starts, at the scale that keeps the BCLS jitter std, is scored by one
-    likelihood evaluation, and the search starts from the best (the BCLS point included).
-    Returns the start and the number of evaluations used.
-    """
-    jitter, lik = problem.jitter, problem.likelihood
-    assert lik is not None
-    if not isinstance(jitter, JitterFamily) or problem.n_jitter < 2:
-        return x0, 0
-    scale = _jacobians._SCALE.get(type(jitter))
-    if scale is None:
-        return x0, 0
-    nj = problem.n_jitter
-    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
-    std = problem.split(x0)[0].std
-    candidates = [x0]
-    for js in jitter.default_starts(problem.data.T):
-        cand = x0.copy()
-        shape = np.asarray(js, float)
-        cand[:nj] = np.where(np.arange(nj) == scale, x0[scale], shape)
-        # the law is that of a xi: its std is proportional to a
-        cand[scale] = np.clip(x0[scale] * std / jitter.law(cand[:nj].tolist()).std, lo[scale], hi[scale])
-        if not any(np.array_equal(cand, c) for c in candidates):
-            candidates.append(cand)
-    y = problem.data.y
-    scores = []
-    for cand in candidates:
-        try:
-            scores.append(lik.loglik(cand, y))
-        except ValueError:
-            scores.append(-np.inf)
-    return candidates[int(np.argmax(scores))], len(candidates)
-
-
-def _run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
-    """Maximise the exact likelihood; the quadrature rule, designed at the start, is
-    re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6."""
-    lik, y = problem.likelihood, problem.data.y
-    assert lik is not None
-    x0, scored = _ml_start(problem, x0)
-    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev - scored, 2))
-    nfev += scored
-    for _ in range(3):
-        lik.design(x)
-        fresh = lik.loglik(x, y)
-        nfev += 1
-        if abs(fresh - loglik) <= 1e-6 * max(1.0, abs(fresh)):
-            break
-        x, loglik, ok, msg, n = lik.maximise(y, x, max_evaluations=max(max_nfev - nfev, 2))
-        nfev += n
-    status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
-    if not ok and nfev >= max_nfev:
-        status = FitStatus.MAX_EVALUATIONS
-    cost = -2 * lik.loglik(x, y)
-    if not np.isfinite(cost):
-        status = FitStatus.NOT_FINITE
-    lik._cache.clear()  # the nodes (MBs) are rebuilt from the kept design if cov is asked for
     return x, cost, status, msg, nfev
 
 
