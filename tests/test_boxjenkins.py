@@ -240,7 +240,7 @@ def test_jbj_estimates_jitter_system_and_noise_jointly():
     se = res.stderr
     for name, true in (("a", 0.5), ("k0", 6.25), ("pr", -1.5), ("pi", 2.0)):
         assert abs(res.params[name] - true) < 4 * se[name], (name, res.params[name], se[name])
-    assert res.jitter == ji.Uniform(res.params["a"])
+    assert res.jitter_law == ji.Uniform(res.params["a"])
     model = ji.fitted_noise(res, ji.RationalNoise(0, 1))
     assert model.tf.den[-1] == pytest.approx(res.params["ha0"])
 

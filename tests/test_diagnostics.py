@@ -10,7 +10,6 @@ from scipy import stats
 
 import jitterid as ji
 from jitterid.analysis.diagnostics import (
-    _ml_noise_variance,
     bias_frequency,
     detect_jitter,
     input_correlation_test,
@@ -20,6 +19,7 @@ from jitterid.analysis.diagnostics import (
     standardized_residuals,
 )
 from jitterid.analysis.uncertainty import bode_band, jitter_pdf_band
+from jitterid.estimation.covariance import noise_variance_ml
 
 TRUTH = [6.25, -1.5, 2.0]
 T, N, NOISE = 1.0, 200, 0.01
@@ -216,7 +216,7 @@ def test_standardized_residuals_against_monte_carlo_moments(ls_fit):
     data, ls = ls_fit
     law = ji.Uniform(0.5)
     truth = ji.PolePairGain().system(TRUTH)
-    res = dataclasses.replace(ls, system=truth, jitter=law, noise_std=NOISE)
+    res = dataclasses.replace(ls, system=truth, jitter_law=law, noise_std=NOISE)
     z = standardized_residuals(data, res)
     rng = np.random.default_rng(0)
     s = truth.response(data.u)(data.t_nominal[None, :] + law.sample((8_000, 1), rng))
@@ -228,9 +228,9 @@ def test_standardized_residuals_against_monte_carlo_moments(ls_fit):
     z0 = standardized_residuals(data, dataclasses.replace(res, noise_std=0.0))
     assert np.std(z0) == pytest.approx(1.0, abs=0.15)
     r_mc = data.y - s.mean(0)
-    assert np.sqrt(_ml_noise_variance(r_mc, s.var(0))) == pytest.approx(NOISE, rel=0.25)
+    assert np.sqrt(noise_variance_ml(r_mc, s.var(0))) == pytest.approx(NOISE, rel=0.25)
     # An over-estimated jitter law must not blow up samples where the output is flat.
-    over = dataclasses.replace(res, jitter=ji.Uniform(0.6), noise_std=0.0)
+    over = dataclasses.replace(res, jitter_law=ji.Uniform(0.6), noise_std=0.0)
     assert np.max(np.abs(standardized_residuals(data, over))) < 6
 
 
@@ -284,8 +284,9 @@ def _with_cov(res: ji.FitResult, names, x, cov, system, jitter) -> ji.FitResult:
         names=tuple(names),
         x=np.asarray(x, float),
         system=system,
-        jitter=jitter,
-        _covariance=lambda: cov,
+        jitter_law=jitter,
+        jitter_model=ji.UniformFamily() if "a" in names else jitter,
+        cov=cov,
     )
 
 

@@ -16,6 +16,7 @@ from scipy import stats
 
 import jitterid as ji
 from jitterid.estimation import likelihood as lk
+from jitterid.estimation.covariance import covariance
 from jitterid.estimation.problem import Problem, default_frequencies
 
 T, N, NOISE = 1.0, 200, 0.01
@@ -315,13 +316,21 @@ def test_ml_fit_recovers_the_truth_with_error_bars_near_the_crb(table2_ml_fit):
     # the quadrature rule re-designed at the optimum changes nothing
     lik = ji.ExactLikelihood(ji.PolePairGain(), LAWS["uniform"], data.u, T, N, NOISE)
     assert -2 * lik.loglik(res.x, data.y) == pytest.approx(res.cost, abs=1e-6)
-    robust = res._covariance.func(res._covariance.args[0], res.x, robust=True)
+    robust = covariance(_ml_problem(data), res.x, "robust")
     np.testing.assert_allclose(np.sqrt(np.diag(robust)), se, rtol=0.35)
+
+
+def _ml_problem(data):
+    return Problem(data, ji.PolePairGain(), LAWS["uniform"], "ml", res_freqs(data), NOISE)
+
+
+def res_freqs(data):
+    return ji.default_frequencies(data.N, data.T)
 
 
 def test_ml_grad_y_matches_differences_of_the_criterion(table2_ml_fit):
     data, res = table2_ml_fit
-    problem = res._covariance.args[0]
+    problem = _ml_problem(data)
     g = problem.grad_y(res.x)
     for k in (0, 57, 199):
         h = 1e-6

@@ -18,6 +18,7 @@ from .analysis.diagnostics import (
     standardized_residuals,
 )
 from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
+from .data import SampledData
 from .estimation.boxjenkins import fitted_noise
 from .estimation.fit import fit
 from .estimation.likelihood import ExactLikelihood, crb, gaussian_bound, log_density
@@ -54,7 +55,7 @@ from .noise.covariance import (
     sample_covariance,
 )
 from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
-from .simulate import SampledData, simulate
+from .simulate import simulate
 from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
 from .systems.tf import Response, TransferFunction
 

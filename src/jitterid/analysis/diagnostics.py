@@ -26,10 +26,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import optimize, stats
 
 from .._checks import count, real_array
+from ..data import SampledData
+from ..estimation.covariance import noise_variance_ml
 from ..estimation.result import FitResult
 from ..jitter.laws import JitterLaw, NoJitter
 from ..moments.sample import sample_moments
-from ..simulate import SampledData
 from ..systems.tf import TransferFunction
 
 __all__ = [
@@ -365,8 +366,7 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
     """(y_k - E y_k) / sqrt(Var y_k) under the fitted system, jitter law and noise.
 
     E y_k = E s(kT + tau) and Var y_k = Var s(kT + tau) + sigma_v^2 with tau from
-    ``result.jitter``. If the fit has no noise std (``result.noise_std == 0``, e.g. ``bcls``
-    without one), sigma_v^2 is its maximum-likelihood value given the residuals r_k and the
+    ``result.jitter_law``. If the fit has no noise std (``result.noise_std`` None or 0), sigma_v^2 is its maximum-likelihood value given the residuals r_k and the
     jitter variances (a 1-D search), so that samples where the output is flat and the jitter
     variance vanishes are not divided by ~0.
 
@@ -384,27 +384,12 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
         raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
-    mom = sample_moments(result.system.response(data.u), result.jitter, data.T, data.N)
+    mom = sample_moments(result.system.response(data.u), result.jitter_law, data.T, data.N)
     r = data.y - mom.mean
-    noise_var = result.noise_std**2
+    noise_var = (result.noise_std or 0.0) ** 2
     if noise_var <= 0:
-        noise_var = _ml_noise_variance(r, mom.var)
+        noise_var = noise_variance_ml(r, mom.var)
     return np.asarray(r / np.sqrt(mom.var + noise_var), dtype=float)
-
-
-def _ml_noise_variance(r: FloatArray, var: FloatArray) -> float:
-    """argmax over s >= 0 of the Gaussian likelihood of r_k ~ N(0, var_k + s)."""
-    power = float(np.mean(r**2))
-    if power == 0:
-        return 1e-300
-    lo, hi = np.log(1e-12 * power), np.log(10 * power)
-
-    def nll(log_s: float) -> float:
-        w = var + np.exp(log_s)
-        return float(np.sum(np.log(w) + r**2 / w))
-
-    sol = optimize.minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
-    return float(np.exp(sol.x))
 
 
 # ------------------------------------------------------------------------ LS gain bias

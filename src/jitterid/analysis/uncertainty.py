@@ -274,9 +274,9 @@ def jitter_pdf_band(
     n_draws = count(n_draws, "n_draws", minimum=10)
     gen = generator(rng)
     t = np.atleast_1d(real_array(tau, "tau"))
-    if result.jitter.std == 0:
+    if result.jitter_law.std == 0:
         raise ValueError("the fit's jitter law has zero spread (no jitter); there is no density")
-    pdf = np.asarray(result.jitter.pdf(t), float)
+    pdf = np.asarray(result.jitter_law.pdf(t), float)
     if family is None:
         return PdfBand(t, pdf, pdf.copy(), pdf.copy(), level, ())
     if not isinstance(family, JitterFamily):

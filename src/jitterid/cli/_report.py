@@ -103,7 +103,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             "jitter": {
                 "spec": rep.jitter_spec,
                 "estimated": isinstance(rep.jitter, JitterFamily),
-                **_law_dict(res.jitter),
+                **_law_dict(res.jitter_law),
             },
             "noise_std": res.noise_std,
             "parameters": res.params,
@@ -151,8 +151,8 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
     fig.savefig(out / "bode.png", dpi=110)
     names["bode"] = "bode.png"
 
-    if res.jitter.std > 0:
-        hi = 1.5 * min(res.jitter.support[1], 4 * res.jitter.std)
+    if res.jitter_law.std > 0:
+        hi = 1.5 * min(res.jitter_law.support[1], 4 * res.jitter_law.std)
         family = rep.jitter if isinstance(rep.jitter, JitterFamily) else None
         tau = np.linspace(-hi, hi, 601)
         label = "estimated" if family else "assumed (known)"
@@ -208,7 +208,7 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
     )
     lo, hi = det.jitter_std_ci
     pct = f"{100 * rep.level:g}%"
-    law = res.jitter
+    law = res.jitter_law
     lines = [
         "# jitterid fit report",
         "",
@@ -246,8 +246,12 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         *_table(rep),
         "",
         f"- jitter law: {law} ({'estimated' if isinstance(rep.jitter, JitterFamily) else 'assumed'})",
-        f"- noise std: {res.noise_std:.4g}"
-        + (" (estimated)" if "noise_std" in res.names else " (given or unused)"),
+        (
+            "- noise std: not used"
+            if res.noise_std is None
+            else f"- noise std: {res.noise_std:.4g}"
+            + (" (estimated)" if "noise_std" in res.names else " (given, or from the residuals)")
+        ),
         (
             f"- G(s) numerator {np.array2string(res.system.num, precision=5)}, denominator "
             f"{np.array2string(res.system.den, precision=5)} (s in rad/s)"

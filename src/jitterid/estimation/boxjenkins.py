@@ -269,7 +269,7 @@ def fit_bj(
             best = _search(problem, x0, max_nfev)
             nfev += best[4]
     x, cost, status, msg, _ = best
-    law, tf, _, white_used = problem.split(x)
+    law, tf, noise_fitted, white_used = problem.split(x)
     return FitResult(
         method=method,
         names=problem.names,
@@ -279,9 +279,13 @@ def fit_bj(
         message=msg,
         nfev=nfev,
         system=tf,
-        jitter=law,
+        jitter_law=law,
         noise_std=white_used,
         freqs=f,
-        _covariance=partial(bj_covariance, problem, np.asarray(x, float)),
+        cov=bj_covariance(problem, np.asarray(x, float)),
+        cov_type="sandwich",
         structure=structure,
+        jitter_model=jitter,
+        noise_structure=nstruct,
+        noise_model=noise_fitted,
     )

@@ -11,9 +11,19 @@ estimator gets honest error bars by one route. For least-squares criteria H is t
 Gauss-Newton matrix 2 J^T J with the analytic Jacobian; otherwise central differences of
 the analytic gradient (:mod:`jitterid.estimation.jacobians`).
 
-The exact likelihood (``ml``, V = -2 ln L) gets the inverse observed information instead,
-Cov = (-d^2 ln L)^{-1} = 2 H^{-1}, since the score is not linear in y; ``robust=True`` gives
-the Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores.
+The variances w_k = Var s(kT + tau) + sigma_v^2 always include the measurement noise: where
+the criterion does not use sigma_v (``bcls``), the known value or, failing that, its
+maximum-likelihood value given the residuals (:func:`noise_variance_ml`) is used.
+
+``cov_type`` chooses the form (:data:`jitterid.estimation.result.COV_TYPES`):
+
+- ``"sandwich"`` (default of the moment estimators): w_k from the model, as above;
+- ``"robust"``: w_k = (y_k - m_k)^2 (White's HC0), honest when the jitter law or the noise
+  level is misspecified (default for ``ls``, whose model has no jitter); for ``ml`` the
+  Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores;
+- ``"oim"`` (default for ``ml``): the inverse observed information, Cov = 2 H^{-1} for
+  V = -2 ln L (``ml``) or V = -2 ln L_G + const (``gaussian``, the Gaussian pseudo-likelihood);
+- ``"none"``: not computed (NaN), for Monte Carlo loops that do not need it.
 """
 
 from __future__ import annotations
@@ -23,12 +33,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import optimize
 from threadpoolctl import threadpool_limits
 
 if TYPE_CHECKING:
     from .problem import Problem
 
-__all__: list[str] = []
+__all__ = ["covariance", "default_cov_type", "noise_variance_ml"]
 
 FloatArray = NDArray[np.float64]
 _REL_STEP = 1e-4
@@ -55,24 +66,59 @@ def _hessian(fun: Callable[[FloatArray], float], x: FloatArray, h: FloatArray) -
     return H
 
 
-def sandwich_covariance(problem: Problem, x: FloatArray, robust: bool | None = None) -> FloatArray:
+def default_cov_type(method: str) -> str:
+    """``"oim"`` for ``ml``, ``"robust"`` for ``ls``, ``"sandwich"`` otherwise."""
+    return {"ml": "oim", "ls": "robust"}.get(method, "sandwich")
+
+
+def check_cov_type(method: str, cov_type: str | None) -> str:
+    """The covariance form for ``method``: ``cov_type`` validated, or the default."""
+    if cov_type is None:
+        return default_cov_type(method)
+    allowed = {"ml": ("oim", "robust", "none"), "gaussian": ("sandwich", "robust", "oim", "none")}
+    ok = allowed.get(method, ("sandwich", "robust", "none"))
+    if cov_type not in ok:
+        raise ValueError(
+            f"cov_type must be one of {ok} for method {method!r}; got {cov_type!r} ('oim' needs "
+            "a likelihood: ml or gaussian; 'sandwich' with model variances is for the moment "
+            "estimators)"
+        )
+    return cov_type
+
+
+def noise_variance_ml(r: FloatArray, var: FloatArray) -> float:
+    """argmax over s >= 0 of the Gaussian likelihood of r_k ~ N(0, var_k + s): the white-noise
+    variance that, added to the jitter variances ``var``, best explains the residuals ``r``."""
+    power = float(np.mean(r**2))
+    if power == 0:
+        return 1e-300
+    lo, hi = np.log(1e-12 * power), np.log(10 * power)
+
+    def nll(log_s: float) -> float:
+        w = var + np.exp(log_s)
+        return float(np.sum(np.log(w) + r**2 / w))
+
+    sol = optimize.minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+    return float(np.exp(sol.x))
+
+
+def covariance(
+    problem: Problem, x: FloatArray, cov_type: str, noise_std: float | None = None
+) -> FloatArray:
     """Covariance of the estimate ``x`` of ``problem``; NaN for parameters on a bound.
 
-    ``robust`` uses squared residuals (y_k - m_k)^2 for the variances (White's HC0) instead
-    of the model's w_k; the default is robust only for ``ls``, whose model has no jitter.
-    For ``ml``: the inverse observed information, or with ``robust`` the Huber-White
-    sandwich of the per-sample scores (module docstring).
+    ``noise_std`` is the white-noise std for the model variances where the criterion does
+    not carry it (module docstring); ignored otherwise.
     """
-    # Called lazily, outside fit's BLAS limit; its small complex Cholesky factorisations run
-    # ~100x slower multi-threaded on small machines.
+    # Small complex Cholesky factorisations run ~100x slower multi-threaded on small machines.
     with threadpool_limits(limits=1, user_api="blas"):
-        return _covariance(problem, x, robust)
+        return _covariance(problem, np.asarray(x, float), cov_type, noise_std)
 
 
-def _covariance(problem: Problem, x: FloatArray, robust: bool | None) -> FloatArray:
+def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float | None) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
-    if p == 0:
+    if p == 0 or cov_type == "none":
         return cov
     h, free = _steps(x, problem.bounds)
     idx = np.flatnonzero(free)
@@ -87,7 +133,7 @@ def _covariance(problem: Problem, x: FloatArray, robust: bool | None) -> FloatAr
 
     z0, hz = x[idx], h[idx]
     if problem.method == "ml":
-        return _ml_covariance(problem, x, idx, embed, z0, hz, bool(robust), cov)
+        return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov)
     G = np.empty((idx.size, problem.data.N))
     for i in range(idx.size):
         dz = np.zeros(idx.size)
@@ -107,14 +153,20 @@ def _covariance(problem: Problem, x: FloatArray, robust: bool | None) -> FloatAr
             down = problem.objective_gradient(embed(z0 - dz))[1][idx]
             H[:, i] = (up - down) / (2 * hz[i])
         H = 0.5 * (H + H.T)
-    if robust is None:
-        robust = problem.method == "ls"
-    w = (problem.data.y - problem.moments(x).mean) ** 2 if robust else problem.variances(x)
-    B = (G * w) @ G.T
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
         return cov
+    if cov_type == "oim":  # V = -2 ln L_G + const: Cov = (-d2 ln L_G)^{-1} = 2 H^{-1}
+        cov[np.ix_(idx, idx)] = 2 * Hinv
+        return cov
+    if cov_type == "robust":
+        w = (problem.data.y - problem.moments(x).mean) ** 2
+    else:
+        w = problem.variances(x)
+        if not problem.uses_noise and noise_std is not None:
+            w = w + float(noise_std) ** 2
+    B = (G * w) @ G.T
     cov[np.ix_(idx, idx)] = Hinv @ B @ Hinv.T
     return cov
 

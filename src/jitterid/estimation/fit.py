@@ -21,14 +21,14 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from .._checks import real_array
+from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..noise.models import NoiseModel, NoiseStructure
-from ..simulate import SampledData
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
-from .covariance import sandwich_covariance
+from .covariance import check_cov_type, covariance, noise_variance_ml
 from .ml import run_ml
 from .problem import (
     LEAST_SQUARES,
@@ -151,6 +151,7 @@ def fit(
     noise_std: float | None = None,
     max_nfev: int = 2000,
     noise: NoiseStructure | NoiseModel | None = None,
+    cov_type: str | None = None,
 ) -> FitResult:
     """Estimate a continuous-time model from jittered samples.
 
@@ -188,6 +189,12 @@ def fit(
         (2b) and, with a jitter family, JBJ (2d) (:mod:`jitterid.estimation.boxjenkins`; methods
         ``bcls``, ``wbcls``, ``asml``, ``asml-diag``, ``gaussian``). ``noise_std`` is then the
         std of an additional white part. Default None: white noise only (OE, (2a)).
+    cov_type : {"sandwich", "robust", "oim", "none"}, optional
+        The covariance computed for the result (:mod:`jitterid.estimation.covariance`):
+        ``"sandwich"`` (default of the moment estimators; model variances including the
+        measurement noise), ``"robust"`` (Huber-White; default for ``ls``; use it when the
+        jitter law may be misspecified), ``"oim"`` (inverse observed information; default
+        for ``ml``, also for ``gaussian``) or ``"none"`` (not computed).
 
     Returns
     -------
@@ -199,7 +206,7 @@ def fit(
     with threadpool_limits(limits=1, user_api="blas"):
         return _fit(
             data, system, jitter, method, start, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev,
-            noise_model=noise,
+            noise_model=noise, cov_type=cov_type,
         )
 
 
@@ -214,7 +221,10 @@ def _fit(
     noise_std: float | None = None,
     max_nfev: int = 2000,
     noise_model: NoiseStructure | NoiseModel | None = None,
+    cov_type: str | None = None,
 ) -> FitResult:
+    if method in METHODS:
+        cov_type = check_cov_type(method, cov_type)
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         return fit_bj(data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev)
     prefit = start if isinstance(start, FitResult) else None
@@ -302,21 +312,37 @@ def _fit(
             problem = pre
     assert best is not None
     x, cost, status, msg, _ = best
+    x = np.asarray(x, float)
+    assert cov_type is not None
     law, tf, noise_used = problem.split(x)
+    noise_rec: float | None
+    if problem.uses_noise:
+        noise_rec = noise_used
+    elif noise is not None:
+        noise_rec = float(noise)
+    elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value given the residuals
+        mom = problem.moments(x)
+        noise_rec = float(np.sqrt(noise_variance_ml(data.y - mom.mean, mom.var)))
+    else:
+        noise_rec = None
+    cov = covariance(problem, x, cov_type, noise_rec)
+    problem.release()
     return FitResult(
         method=method,
         names=problem.names,
-        x=np.asarray(x, float),
+        x=x,
         cost=float(cost),
         status=status,
         message=msg,
         nfev=nfev,
         system=tf,
-        jitter=law,
-        noise_std=noise_used,
+        jitter_law=law,
+        noise_std=noise_rec,
         freqs=f,
-        _covariance=partial(sandwich_covariance, problem, np.asarray(x, float)),
+        cov=cov,
+        cov_type=cov_type,
         structure=structure,
+        jitter_model=jitter,
     )
 
 

@@ -26,7 +26,7 @@ keeps the literal theta-dependent form, for comparison.
 The parameter vector is ordered: jitter-family parameters (if the law is free), then the
 system's parameters, then ``noise_std`` when it is estimated (Table 3's order: n, a, k0,
 pr, pi). Every criterion V(theta, y) also provides dV/dy, from which
-:func:`sandwich_covariance` builds the delta-method covariance of the estimate, and its
+:func:`jitterid.estimation.covariance.covariance` builds the delta-method covariance of the estimate, and its
 parameter derivatives: :meth:`Problem.jacobian` (residuals of ls, bcls, wbcls) and
 :meth:`Problem.objective_gradient` (V, dV/dtheta and the expected Hessian of gaussian, asml,
 asml-diag), from one O(N) pass over the moments and their derivatives
@@ -41,11 +41,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
+from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..moments.modal import SegmentPlan
 from ..moments.reference import dtft
 from ..moments.sample import SampleMoments, difference_grid
-from ..simulate import SampledData
+from ..params import ParamLayout
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
@@ -101,8 +102,7 @@ class Problem:
     freqs: FloatArray
     noise_std: float | None
     weights_at: FloatArray | None = None  # wbcls: theta at which R is frozen (module doc)
-    names: tuple[str, ...] = field(init=False)
-    bounds: tuple[tuple[float, float], ...] = field(init=False)
+    layout: ParamLayout = field(init=False)
     Y: ComplexArray = field(init=False)
     likelihood: ExactLikelihood | None = field(init=False, default=None)
     _cache: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
@@ -116,16 +116,9 @@ class Problem:
     _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
-        jnames: tuple[str, ...] = ()
-        jbounds: tuple[tuple[float, float], ...] = ()
-        if isinstance(self.jitter, JitterFamily):
-            jnames, jbounds = tuple(self.jitter.param_names), tuple(self.jitter.bounds)
-        names = jnames + self.structure.param_names
-        bounds = jbounds + self.structure.bounds
-        if self.estimates_noise:
-            names += ("noise_std",)
-            bounds += ((1e-12, np.inf),)
-        self.names, self.bounds = names, bounds
+        self.layout = ParamLayout.build(
+            self.jitter, self.structure, noise_std=self.estimates_noise
+        )
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
         if self.method == "ml":
             d = self.data
@@ -133,8 +126,21 @@ class Problem:
             self.likelihood = ExactLikelihood(self.structure, self.jitter, d.u, d.T, d.N, noise)
 
     @property
+    def names(self) -> tuple[str, ...]:
+        return self.layout.names
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        return self.layout.bounds
+
+    @property
     def estimates_noise(self) -> bool:
         return self.method in ESTIMATES_NOISE and self.noise_std is None
+
+    @property
+    def uses_noise(self) -> bool:
+        """Whether the criterion's variances include the white noise (known or estimated)."""
+        return self.estimates_noise or self.noise_std is not None
 
     @property
     def n_jitter(self) -> int:
@@ -154,14 +160,14 @@ class Problem:
         return out
 
     def _split_new(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
-        nj, ns = self.n_jitter, len(self.structure.param_names)
+        lay = self.layout
         if self.method == "ls":
             law: JitterLaw = NoJitter()
         elif isinstance(self.jitter, JitterFamily):
-            law = self.jitter.law(x[:nj].tolist())
+            law = self.jitter.law(lay.block(x, "jitter").tolist())
         else:
             law = self.jitter
-        tf = self.structure.system(x[nj : nj + ns])
+        tf = self.structure.system(lay.block(x, "system"))
         noise = float(x[-1]) if self.estimates_noise else float(self.noise_std or 0.0)
         return law, tf, noise
 

@@ -1,24 +1,37 @@
-"""The immutable result of :func:`jitterid.fit`."""
+"""The immutable result of :func:`jitterid.fit`.
+
+A :class:`FitResult` keeps what it was fitted with (the system structure, the jitter law or
+family, the noise model) and its covariance, computed when :func:`~jitterid.fit` returns.
+It holds no reference to the data or to the criterion, so it pickles to a few KB, and
+:meth:`FitResult.to_json` / :meth:`FitResult.from_json` round-trip it through JSON.
+"""
 
 from __future__ import annotations
 
 import enum
-from collections.abc import Callable
+import json
+import warnings
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from ..jitter.laws import JitterLaw
+from .. import _serial
+from ..data import SampledData
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..moments.sample import sample_moments
+from ..noise.models import NoiseModel, NoiseStructure
+from ..params import ParamLayout
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 
-__all__ = ["FitResult", "FitStatus"]
+__all__ = ["COV_TYPES", "FitResult", "FitStatus"]
 
 FloatArray = NDArray[np.float64]
+
+COV_TYPES = ("sandwich", "robust", "oim", "none")
 
 
 class FitStatus(enum.Enum):
@@ -41,16 +54,17 @@ class FitStatus(enum.Enum):
 
 @dataclass(frozen=True, eq=False)
 class FitResult:
-    """Outcome of one estimation, immutable; derived statistics are computed lazily.
+    """Outcome of one estimation, immutable.
 
     Attributes
     ----------
     method : str
-        The criterion minimised (``"ls"``, ``"bcls"``, ``"wbcls"``, ``"asml"``,
+        The estimator's name (``"ls"``, ``"bcls"``, ``"wbcls"``, ``"asml"``,
         ``"asml-diag"``, ``"gaussian"``, ``"ml"``).
     names : tuple of str
-        Parameter names in vector order: jitter-family parameters, system parameters,
-        then ``noise_std`` if it was estimated.
+        Parameter names in vector order (:class:`jitterid.params.ParamLayout`): jitter-family
+        parameters, system parameters, noise-model parameters, then ``noise_std`` if it was
+        estimated.
     x : ndarray
         The estimate as a vector in ``names`` order.
     cost : float
@@ -58,35 +72,37 @@ class FitResult:
     status : FitStatus
         How the search ended; ``status.value`` says what to do on failure.
     message : str
-        The optimiser's own message.
+        The search's own message.
     nfev : int
-        Criterion evaluations used by the search (all starts).
+        Criterion evaluations used by the search (all starts and stages).
     system : TransferFunction
         The fitted system G_theta.
-    jitter : JitterLaw
+    jitter_law : JitterLaw
         The jitter law: the known one, or the fitted member of the family.
-    noise_std : float
-        The measurement-noise standard deviation used or estimated (0 if unused).
+    noise_std : float or None
+        The white measurement-noise standard deviation: known, estimated (then also in
+        ``params``), or for a criterion that does not use it, its plug-in estimate from the
+        residuals that the covariance used; None where no estimate was needed (``ls``).
     freqs : ndarray
         The frequency set (Hz) of the frequency-domain criteria.
-    success : bool
-        ``status.success``: a failed search never looks like a good fit.
-    params : dict
-        ``{name: value}``.
     cov : ndarray
-        Delta-method (sandwich) covariance of ``x``: H^{-1} G diag(w) G^T H^{-1}, with H
-        the criterion's Hessian, G = d^2 V / d theta dy and w the per-sample variances
-        (model-based; robust squared residuals for ``ls``, whose model ignores jitter).
-        For ``ml`` the inverse observed information (-d^2 ln L / d theta^2)^{-1}.
-        Parameters on a bound get NaN rows and columns.
-    stderr : dict
-        ``{name: sqrt(cov[i, i])}``.
-    jitter_std : float
-        Standard deviation of the (fitted) jitter law; for the family (26) it equals
-        a / sqrt(3 (n + 1)), the paper's sigma.
-    structure : ModelStructure or None
-        The model structure fitted (to rebuild G from parameters, e.g. for
-        :func:`jitterid.analysis.uncertainty.bode_band`); None if not recorded.
+        Covariance of ``x`` (see ``cov_type``); NaN rows and columns for parameters on a
+        bound, all NaN for ``cov_type="none"``.
+    cov_type : str
+        ``"sandwich"``: the delta-method covariance H^{-1} G diag(w) G^T H^{-1} with the
+        model's sample variances w_k = Var s(kT + tau) + noise_std^2
+        (:mod:`jitterid.estimation.covariance`); ``"robust"``: the same with squared
+        residuals for w_k (Huber-White; for ``ml``, the sandwich of the per-sample scores),
+        honest under a misspecified jitter law; ``"oim"``: the inverse observed
+        information (``ml``, ``gaussian``); ``"none"``: not computed.
+    structure : ModelStructure
+        The system structure fitted (a known system is a ``KnownSystem``).
+    jitter_model : JitterLaw or JitterFamily
+        The jitter law or family passed to :func:`~jitterid.fit`.
+    noise_structure : NoiseStructure or None
+        The coloured-noise structure (Box-Jenkins), None for white noise.
+    noise_model : NoiseModel or None
+        The fitted coloured-noise model, None for white noise.
     """
 
     method: str
@@ -97,32 +113,68 @@ class FitResult:
     message: str
     nfev: int
     system: TransferFunction
-    jitter: JitterLaw
-    noise_std: float
+    jitter_law: JitterLaw
+    noise_std: float | None
     freqs: FloatArray = field(repr=False)
-    _covariance: Callable[[], FloatArray] = field(repr=False)
-    structure: ModelStructure | None = field(default=None, repr=False)
+    cov: FloatArray = field(repr=False)
+    cov_type: str
+    structure: ModelStructure = field(repr=False)
+    jitter_model: JitterLaw | JitterFamily = field(repr=False)
+    noise_structure: NoiseStructure | None = field(default=None, repr=False)
+    noise_model: NoiseModel | None = field(default=None, repr=False)
 
+    def __post_init__(self) -> None:
+        x = np.asarray(self.x, float).reshape(-1)
+        cov = np.asarray(self.cov, float)
+        if cov.shape != (x.size, x.size):
+            raise ValueError(f"cov must be {x.size} x {x.size}; got {cov.shape}")
+        if self.cov_type not in COV_TYPES:
+            raise ValueError(f"cov_type must be one of {COV_TYPES}; got {self.cov_type!r}")
+        for a in (x, cov):
+            a.setflags(write=False)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "cov", cov)
+        object.__setattr__(self, "names", tuple(self.names))
+
+    # ------------------------------------------------------------------ values
     @property
     def success(self) -> bool:
         return self.status.success
 
     @property
     def params(self) -> dict[str, float]:
+        """``{name: value}``."""
         return {n: float(v) for n, v in zip(self.names, self.x, strict=True)}
-
-    @cached_property
-    def cov(self) -> FloatArray:
-        return self._covariance()
 
     @property
     def stderr(self) -> dict[str, float]:
+        """``{name: sqrt(cov[i, i])}``; NaN for a parameter on a bound (see :meth:`summary`)."""
         se = np.sqrt(np.abs(np.diag(self.cov)))
         return {n: float(v) for n, v in zip(self.names, se, strict=True)}
 
     @property
+    def layout(self) -> ParamLayout:
+        """The parameter layout of ``names`` (blocks, bounds)."""
+        return ParamLayout.build(
+            self.jitter_model,
+            self.structure,
+            self.noise_structure,
+            noise_std="noise_std" in self.names,
+        )
+
+    @property
+    def jitter(self) -> JitterLaw:
+        """Deprecated alias of :attr:`jitter_law`."""
+        warnings.warn(
+            "FitResult.jitter is deprecated; use FitResult.jitter_law", DeprecationWarning, 2
+        )
+        return self.jitter_law
+
+    @property
     def jitter_std(self) -> float:
-        return float(self.jitter.std)
+        """Standard deviation of the (fitted) jitter law; for the family (26) it equals
+        a / sqrt(3 (n + 1)), the paper's sigma."""
+        return float(self.jitter_law.std)
 
     def conf_int(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
         """Normal-approximation confidence intervals ``{name: (low, high)}``."""
@@ -132,26 +184,75 @@ class FitResult:
         se = self.stderr
         return {n: (v - z * se[n], v + z * se[n]) for n, v in self.params.items()}
 
+    # ------------------------------------------------------------------ the model's output
+    def _check_data(self, data: SampledData) -> None:
+        if not isinstance(data, SampledData):
+            raise TypeError(
+                f"data must be a SampledData (see jitterid.simulate, jitterid.load); got "
+                f"{type(data).__name__}"
+            )
+
+    def predict(self, data: SampledData) -> FloatArray:
+        """E y_k = E s(kT + tau) under the fitted system and jitter law, for ``data``'s input
+        and grid (Lemma 1 in the time domain)."""
+        self._check_data(data)
+        mom = sample_moments(self.system.response(data.u), self.jitter_law, data.T, data.N)
+        return np.asarray(mom.mean, dtype=float)
+
+    def residuals(self, data: SampledData) -> FloatArray:
+        """y_k - E y_k for ``data`` (see :meth:`predict`)."""
+        return np.asarray(data.y - self.predict(data), dtype=float)
+
+    def bode_band(self, f_hz: Any, level: float = 0.95, **kwargs: Any) -> Any:
+        """Bode magnitude and phase with pointwise confidence bands at ``f_hz`` (Hz); see
+        :func:`jitterid.bode_band` for the options."""
+        from ..analysis.uncertainty import bode_band
+
+        return bode_band(self, f_hz, level, **kwargs)
+
+    def jitter_pdf_band(self, tau_s: Any, rng: Any, **kwargs: Any) -> Any:
+        """The fitted jitter density at ``tau_s`` (s) with a pointwise band; see
+        :func:`jitterid.jitter_pdf_band`."""
+        from ..analysis.uncertainty import jitter_pdf_band
+
+        return jitter_pdf_band(self, tau_s, rng, **kwargs)
+
+    # ------------------------------------------------------------------ reports
     def summary(self) -> str:
         """A readable table of the estimate."""
         ci = self.conf_int()
         se = self.stderr
+        lo, hi = self.layout.lower_upper() if self.x.size else (np.zeros(0), np.zeros(0))
         lines = [
             f"jitterid fit, method {self.method!r}: {self.status.value}",
-            f"  optimiser: {self.message} ({self.nfev} evaluations), criterion {self.cost:.6g}",
+            f"  search: {self.message} ({self.nfev} evaluations), criterion {self.cost:.6g}",
+            f"  covariance: {self.cov_type}",
             f"  {'parameter':<10} {'estimate':>12} {'std err':>12} {'95% interval':>27}",
         ]
-        for n, v in self.params.items():
+        notes = []
+        for i, (n, v) in enumerate(self.params.items()):
             lines.append(
                 f"  {n:<10} {v:>12.6g} {se[n]:>12.4g}   [{ci[n][0]:>11.5g}, {ci[n][1]:>11.5g}]"
             )
-        lines.append(f"  jitter law {self.jitter}  (std {self.jitter_std:.4g})")
+            if np.isnan(se[n]) and self.cov_type != "none":
+                on = i < lo.size and (v <= lo[i] or v >= hi[i])
+                notes.append(
+                    f"  {n}: no standard error, "
+                    + ("the estimate is on its bound" if on else "next to a bound or singular")
+                )
+        lines += notes
+        lines.append(f"  jitter law {self.jitter_law}  (std {self.jitter_std:.4g})")
         lines.append(f"  system {self.system}")
+        if self.noise_model is not None:
+            lines.append(f"  noise model {self.noise_model}")
+        if self.noise_std is not None:
+            lines.append(f"  noise std {self.noise_std:.4g}")
         return "\n".join(lines)
 
     def __str__(self) -> str:
         return self.summary()
 
+    # ------------------------------------------------------------------ export
     def to_scipy(self) -> Any:
         """The fitted G(s) as a ``scipy.signal.lti`` (transfer-function form; s in rad/s)."""
         from scipy import signal
@@ -171,3 +272,35 @@ class FitResult:
                 "pip install 'jitterid[control]' (or pip install control)"
             ) from exc
         return control.tf(self.system.num.tolist(), self.system.den.tolist())
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every field as JSON-compatible values (the inverse is :meth:`from_dict`)."""
+        out: dict[str, Any] = {}
+        for name in self.__dataclass_fields__:
+            v = getattr(self, name)
+            out[name] = v.name if isinstance(v, FitStatus) else _serial.encode(v)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> FitResult:
+        """A FitResult from :meth:`to_dict`'s output."""
+        kw = {k: _serial.decode(v) for k, v in d.items()}
+        try:
+            kw["status"] = FitStatus[d["status"]]
+        except KeyError:
+            raise ValueError(
+                f"status must be one of {[s.name for s in FitStatus]}; got {d.get('status')!r}"
+            ) from None
+        for k in ("x", "freqs"):
+            kw[k] = np.asarray(kw[k], float)
+        kw["cov"] = np.asarray(kw["cov"], float).reshape(len(kw["x"]), len(kw["x"]))
+        return cls(**kw)
+
+    def to_json(self) -> str:
+        """The result as a JSON string (:meth:`from_json` reads it back)."""
+        return json.dumps(self.to_dict())
+
+    @classmethod
+    def from_json(cls, text: str) -> FitResult:
+        """A FitResult from :meth:`to_json`'s output."""
+        return cls.from_dict(json.loads(text))

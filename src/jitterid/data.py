@@ -1,0 +1,75 @@
+"""The data: samples requested on the grid kT, with the known input and what is known of the noise."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._checks import positive, real_array
+from .inputs import Input
+
+__all__ = ["SampledData"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class SampledData:
+    """Samples requested on the grid t_k = k T, k = 0..N-1, and what is known about them.
+
+    Attributes
+    ----------
+    y : ndarray, shape (N,)
+        The measured samples.
+    T : float
+        Nominal sampling interval (s).
+    u : Input
+        The known continuous-time input that drove the system.
+    noise_std : float or None
+        Standard deviation of the white measurement noise v_k, if known; ``None`` lets
+        the estimators that need it estimate it.
+    instants : ndarray or None
+        The true sampling instants kT + tau_k. For diagnostics of simulated data only: no
+        estimator reads it.
+    """
+
+    y: FloatArray
+    T: float
+    u: Input
+    noise_std: float | None = None
+    instants: FloatArray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        y = real_array(self.y, "y", ndim=1)
+        if y.size < 4:
+            raise ValueError(f"y must hold at least 4 samples; got {y.size}")
+        T = positive(self.T, "T")
+        if not isinstance(self.u, Input):
+            raise TypeError(f"u must be a jitterid input; got {type(self.u).__name__}")
+        if self.noise_std is not None:
+            object.__setattr__(
+                self, "noise_std", positive(self.noise_std, "noise_std", allow_zero=True)
+            )
+        if self.instants is not None:
+            inst = real_array(self.instants, "instants", ndim=1)
+            if inst.size != y.size:
+                raise ValueError(
+                    f"instants must have one entry per sample: len(y) = {y.size}, "
+                    f"len(instants) = {inst.size}"
+                )
+            inst.setflags(write=False)
+            object.__setattr__(self, "instants", inst)
+        y.setflags(write=False)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "T", T)
+
+    @property
+    def N(self) -> int:
+        return int(self.y.size)
+
+    @property
+    def t_nominal(self) -> FloatArray:
+        """The requested instants k T."""
+        return self.T * np.arange(self.N, dtype=float)

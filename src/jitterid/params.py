@@ -1,0 +1,201 @@
+"""One parameter layout: the named blocks of a problem's parameter vector.
+
+Every estimator, bound and band in jitterid sees the parameters as one vector ordered by
+blocks (the paper's Table 3 order):
+
+    jitter-family parameters | system parameters | noise-model parameters | noise_std
+
+Only the blocks a problem has are present: a known jitter law has no jitter block, white
+noise no noise-model block, and ``noise_std`` is a parameter only where the criterion
+estimates it. :class:`ParamLayout` is the only place that splits such a vector, turns it
+into a dict by name, or turns a dict / vector / fitted result back into a vector.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["BLOCKS", "ParamLayout"]
+
+FloatArray = NDArray[np.float64]
+Bounds = tuple[tuple[float, float], ...]
+
+BLOCKS = ("jitter", "system", "noise", "noise_std")
+NOISE_STD_BOUNDS = (1e-12, np.inf)
+
+
+@dataclass(frozen=True)
+class ParamLayout:
+    """Names, bounds and block boundaries of a parameter vector.
+
+    Parameters
+    ----------
+    jitter, system, noise : tuple of str
+        Parameter names of the jitter family, the system structure and the noise-model
+        structure (empty where the block is absent).
+    noise_std : bool
+        Whether the white-noise standard deviation is the last parameter.
+    bounds : tuple of (float, float)
+        Closed bounds of every parameter, in vector order.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> lay = ParamLayout.build(ji.SumOfUniformsFamily(), ji.PolePairGain())
+    >>> lay.names
+    ('n', 'a', 'k0', 'pr', 'pi')
+    >>> lay.block([2, 0.3, 6.25, -1.5, 2], "system").tolist()
+    [6.25, -1.5, 2.0]
+    >>> lay.vector({"n": 2, "a": 0.3, "k0": 6.25, "pr": -1.5, "pi": 2}).tolist()
+    [2.0, 0.3, 6.25, -1.5, 2.0]
+    """
+
+    jitter: tuple[str, ...] = ()
+    system: tuple[str, ...] = ()
+    noise: tuple[str, ...] = ()
+    noise_std: bool = False
+    bounds: Bounds = ()
+
+    def __post_init__(self) -> None:
+        if len(self.bounds) != len(self.names):
+            raise ValueError(
+                f"bounds must hold one (low, high) pair per parameter {self.names}; "
+                f"got {len(self.bounds)}"
+            )
+        if len(set(self.names)) != len(self.names):
+            raise ValueError(f"parameter names must be unique; got {self.names}")
+
+    @classmethod
+    def build(
+        cls,
+        jitter: Any = None,
+        structure: Any = None,
+        noise: Any = None,
+        *,
+        noise_std: bool = False,
+    ) -> ParamLayout:
+        """The layout of a problem from its parts.
+
+        ``jitter``, ``structure`` and ``noise`` contribute their ``param_names`` and
+        ``bounds`` when they have them (a jitter family, a model structure, a noise-model
+        structure); a known law, a known system or ``None`` contribute nothing.
+        """
+
+        def part(obj: Any) -> tuple[tuple[str, ...], Bounds]:
+            names = tuple(getattr(obj, "param_names", ()) or ())
+            bounds = tuple(tuple(map(float, b)) for b in (getattr(obj, "bounds", ()) or ()))
+            return names, bounds[: len(names)] if names else ()  # type: ignore[return-value]
+
+        (jn, jb), (sn, sb), (nn, nb) = part(jitter), part(structure), part(noise)
+        bounds = jb + sb + nb + ((NOISE_STD_BOUNDS,) if noise_std else ())
+        return cls(jn, sn, nn, bool(noise_std), bounds)
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def names(self) -> tuple[str, ...]:
+        """All parameter names in vector order."""
+        return self.jitter + self.system + self.noise + (("noise_std",) if self.noise_std else ())
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def slice(self, block: str) -> slice:
+        """The positions of ``block`` (one of :data:`BLOCKS`) in the vector."""
+        sizes = {
+            "jitter": len(self.jitter),
+            "system": len(self.system),
+            "noise": len(self.noise),
+            "noise_std": int(self.noise_std),
+        }
+        if block not in sizes:
+            raise ValueError(f"block must be one of {BLOCKS}; got {block!r}")
+        start = 0
+        for b in BLOCKS:
+            if b == block:
+                return slice(start, start + sizes[b])
+            start += sizes[b]
+        raise AssertionError  # pragma: no cover
+
+    def block(self, x: Any, block: str) -> FloatArray:
+        """The entries of ``x`` (a vector in layout order) that belong to ``block``."""
+        return np.asarray(x, float)[self.slice(block)]
+
+    def lower_upper(self) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper bounds as two arrays."""
+        b = np.array(self.bounds, dtype=float).reshape(-1, 2)
+        return b[:, 0], b[:, 1]
+
+    # ------------------------------------------------------------------ conversions
+    def to_dict(self, x: Any) -> dict[str, float]:
+        """``{name: value}`` of a vector in layout order."""
+        v = np.asarray(x, float).reshape(-1)
+        if v.size != self.size:
+            raise ValueError(f"expected {self.size} values {self.names}; got {v.size}")
+        return {n: float(a) for n, a in zip(self.names, v, strict=True)}
+
+    def vector(self, values: Any, name: str = "params") -> FloatArray:
+        """A vector in layout order from a dict by name, a vector, or a fitted result.
+
+        Parameters
+        ----------
+        values : dict, array_like or FitResult
+            ``{name: value}`` with every parameter of the layout (no others); a sequence of
+            ``size`` numbers in :attr:`names` order; or any object with ``names`` and ``x``
+            (a :class:`~jitterid.FitResult`), whose entries are matched by name (entries the
+            layout does not have, e.g. an estimated ``noise_std``, are ignored).
+        name : str
+            The argument's name, for error messages.
+        """
+        if hasattr(values, "names") and hasattr(values, "x"):
+            values = dict(zip(values.names, np.asarray(values.x, float), strict=True))
+            values = {k: v for k, v in values.items() if k in self.names}
+        if isinstance(values, Mapping):
+            unknown = [k for k in values if k not in self.names]
+            if unknown:
+                hints = []
+                for k in unknown:
+                    lower = {n.lower(): n for n in self.names}
+                    close = difflib.get_close_matches(str(k).lower(), list(lower), n=1)
+                    close = [lower[c] for c in close]
+                    hints.append(f"{k!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+                raise ValueError(
+                    f"{name}: unknown parameter(s) {', '.join(hints)}; the parameters are "
+                    f"{self.names}"
+                )
+            missing = [n for n in self.names if n not in values]
+            if missing:
+                raise ValueError(
+                    f"{name}: missing value(s) for {tuple(missing)}; give every parameter of "
+                    f"{self.names}"
+                )
+            out = np.array([_number(values[n], f"{name}[{n!r}]") for n in self.names], float)
+        else:
+            try:
+                out = np.atleast_1d(np.asarray(values, dtype=float)).reshape(-1)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"{name} must be a dict by name, a vector in the order {self.names}, or a "
+                    f"FitResult; got {type(values).__name__}"
+                ) from None
+            if out.size != self.size:
+                raise ValueError(
+                    f"{name} must hold {self.size} values in the order {self.names}; got "
+                    f"{out.size} (or pass a dict by name)"
+                )
+        if not np.all(np.isfinite(out)):
+            raise ValueError(f"{name} must be finite; got {out.tolist()}")
+        return out
+
+
+def _number(v: Any, name: str) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number; got {v!r}") from None
