@@ -110,7 +110,7 @@ def paths_ratio(N: int) -> tuple[float, float, float]:
     n_psi = spectral.integral_grid_size(psi_max, T, N, (0.0, u.end + 25.0))
     t0 = time.perf_counter()
     ref = spectral.expected_dft_integral(
-        lambda p: g.freqresp(p) * u.fourier(p), law, T, N, f, psi_max=psi_max, n_psi=n_psi
+        lambda p: g.frequency_response(p) * u.fourier(p), law, T, N, f, psi_max=psi_max, n_psi=n_psi
     )
     t_ref = time.perf_counter() - t0
     return t_fast, t_ref, float(np.max(np.abs(fast - ref)))

@@ -25,8 +25,8 @@ def test_to_scipy_has_the_same_frequency_response(result):
     f = np.array([0.0, 0.05, 0.2, 0.5, 2.0])
     lti = result.to_scipy()
     assert isinstance(lti, signal.lti)
-    _, h = signal.freqresp(lti, w=2 * np.pi * f)  # scipy works in rad/s
-    np.testing.assert_allclose(h, result.system.freqresp(f), rtol=1e-12)
+    _, h = signal.frequency_response(lti, w=2 * np.pi * f)  # scipy works in rad/s
+    np.testing.assert_allclose(h, result.system.frequency_response(f), rtol=1e-12)
     np.testing.assert_allclose(np.sort_complex(lti.poles), np.sort_complex(result.system.poles))
 
 
@@ -36,7 +36,7 @@ def test_to_control_has_the_same_frequency_response(result):
     tf = result.to_control()
     assert isinstance(tf, control.TransferFunction)
     h = np.array([complex(tf(2j * np.pi * fi)) for fi in f])
-    np.testing.assert_allclose(h, result.system.freqresp(f), rtol=1e-12)
+    np.testing.assert_allclose(h, result.system.frequency_response(f), rtol=1e-12)
     assert control.dcgain(tf) == pytest.approx(result.system.dcgain)
 
 

@@ -449,7 +449,7 @@ def test_bode_band_delta_and_sampling_agree(table2_ml_fit):
     f = np.linspace(0.01, 0.5, 30)
     delta = ji.bode_band(res, f)
     draw = ji.bode_band(res, f, method="sampling", rng=3, draws=20000)
-    np.testing.assert_allclose(delta.magnitude, np.abs(res.system.freqresp(f)))
+    np.testing.assert_allclose(delta.magnitude, np.abs(res.system.frequency_response(f)))
     width = delta.magnitude_hi - delta.magnitude_lo
     np.testing.assert_allclose(draw.magnitude_lo, delta.magnitude_lo, atol=0.1 * width.max())
     np.testing.assert_allclose(draw.magnitude_hi, delta.magnitude_hi, atol=0.1 * width.max())
@@ -471,7 +471,7 @@ def test_bode_band_delta_and_sampling_agree(table2_ml_fit):
 @pytest.mark.slow
 def test_bode_band_covers_the_true_response():
     f = np.array([0.05, 0.2, 0.35])
-    true = np.abs(ji.PolePairGain().system(TRUTH).freqresp(f))
+    true = np.abs(ji.PolePairGain().system(TRUTH).frequency_response(f))
     hits = []
     for seed in range(128):
         res = ji.fit(table_data(7000 + seed), ji.PolePairGain(), LAWS["uniform"], method="ml")

@@ -72,7 +72,7 @@ def test_multisine_steady_state_is_the_frequency_response():
     f0 = 0.3
     u = Multisine([f0], [2.0], end=100.0, steady_state=True)
     t = np.linspace(-50, 90, 77)
-    g = tf.freqresp(f0)
+    g = tf.frequency_response(f0)
     expected = 2.0 * np.abs(g) * np.sin(2 * np.pi * f0 * t + np.angle(g))
     np.testing.assert_allclose(tf.response(u)(t), expected, atol=1e-12)
 
@@ -107,7 +107,7 @@ def test_fourier_transform_of_piecewise_constant_by_quadrature():
 
 def test_freqresp_in_hz():
     tf = SYSTEMS["first order"]
-    assert tf.freqresp(1.0) == pytest.approx(1 / (2j * np.pi + 2))
+    assert tf.frequency_response(1.0) == pytest.approx(1 / (2j * np.pi + 2))
 
 
 @pytest.mark.parametrize(

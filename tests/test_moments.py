@@ -73,7 +73,7 @@ def test_time_domain_mean_equals_the_papers_integral_14b():
     fast = ji.expected_dft(system, u, law, T, N, f)
 
     def spectrum(psi):
-        return system.freqresp(psi) * u.fourier(psi)
+        return system.frequency_response(psi) * u.fourier(psi)
 
     psi_max = 200.0
     n_psi = spectral.integral_grid_size(psi_max, T, N, (0.0, u.end + 25.0))

@@ -21,7 +21,7 @@ def _close_figures():
 @pytest.fixture
 def band() -> BodeBand:
     f = np.geomspace(0.01, 0.5, 50)
-    g = ji.PolePairGain().system([6.25, -1.5, 2.0]).freqresp(f)
+    g = ji.PolePairGain().system([6.25, -1.5, 2.0]).frequency_response(f)
     mag, ph = np.abs(g), np.degrees(np.unwrap(np.angle(g)))
     return BodeBand(f, mag, 0.9 * mag, 1.1 * mag, ph, ph - 5, ph + 5, 0.95)
 
@@ -31,7 +31,7 @@ def test_bode_draws_the_band_and_references(band):
     art = plots.plot_bode(band, {"other": ref})
     np.testing.assert_array_equal(art["magnitude"].get_ydata(), band.magnitude)
     np.testing.assert_array_equal(art["phase"].get_xdata(), band.f)
-    np.testing.assert_allclose(art["other magnitude"].get_ydata(), np.abs(ref.freqresp(band.f)))
+    np.testing.assert_allclose(art["other magnitude"].get_ydata(), np.abs(ref.frequency_response(band.f)))
     verts = art["magnitude_band"].get_paths()[0].vertices
     assert verts[:, 1].min() == pytest.approx(band.magnitude_lo.min())
     assert verts[:, 1].max() == pytest.approx(band.magnitude_hi.max())

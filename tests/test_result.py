@@ -40,7 +40,8 @@ def test_bcls_without_jitter_has_the_least_squares_covariance_of_the_noise():
     sigma^2 (J^T J)^{-1} (it was ~1e-17 when the noise was left out)."""
     data = table2_data(5, ji.NoJitter())
     res = ji.fit(data, ji.PolePairGain(), ji.NoJitter(), "bcls")
-    assert res.success and res.cov_type == "sandwich"
+    assert res.success
+    assert res.cov_type == "sandwich"
     se = np.sqrt(np.diag(res.cov))
     ref = np.sqrt(np.diag(ls_covariance_by_hand(data, res.x)))
     np.testing.assert_allclose(se, ref, rtol=0.05)
@@ -121,7 +122,8 @@ def test_cov_types_differ_where_they_should_and_none_skips_the_work():
     # the Gaussian criterion is the likelihood of the second-moment model: sandwich ~ oim
     np.testing.assert_allclose(se["oim"], se["sandwich"], rtol=0.35)
     assert not np.allclose(se["robust"], se["sandwich"], rtol=1e-3)
-    assert np.all(np.isnan(none.cov)) and none.cov_type == "none"
+    assert np.all(np.isnan(none.cov))
+    assert none.cov_type == "none"
     with pytest.raises(ValueError, match="cov_type must be one of"):
         ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls", cov_type="oim")
     with pytest.raises(ValueError, match="cov_type must be one of"):
@@ -139,10 +141,12 @@ def test_a_result_keeps_its_models_pickles_small_and_round_trips_through_json():
     again = pickle.loads(blob)
     np.testing.assert_array_equal(again.cov, res.cov)
     back = ji.FitResult.from_json(res.to_json())
-    assert back.names == res.names and back.status is res.status
+    assert back.names == res.names
+    assert back.status is res.status
     np.testing.assert_array_equal(back.x, res.x)
     np.testing.assert_array_equal(back.cov, res.cov)
-    assert back.jitter_law == res.jitter_law and back.structure == res.structure
+    assert back.jitter_law == res.jitter_law
+    assert back.structure == res.structure
     np.testing.assert_array_equal(back.system.den, res.system.den)
     assert back.summary() == res.summary()
     with pytest.warns(DeprecationWarning, match="jitter_law"):

@@ -80,7 +80,7 @@ def plot_bode(
     }
     styles = ["--", ":", "-."]
     for i, (name, tf) in enumerate((references or {}).items()):
-        g = tf.freqresp(band.f)
+        g = tf.frequency_response(band.f)
         style = {"color": f"C{i + 1}", "ls": styles[i % len(styles)], "lw": 1.5, "label": name}
         out[f"{name} magnitude"] = ax_mag.loglog(band.f, np.abs(g), **style)[0]
         out[f"{name} phase"] = ax_ph.semilogx(band.f, np.degrees(np.unwrap(np.angle(g))), **style)[

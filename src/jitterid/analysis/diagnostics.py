@@ -19,6 +19,7 @@ Frequencies are in Hz; phases in degrees.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,16 +74,16 @@ def _slope_system(tf: TransferFunction) -> TransferFunction:
 
 
 def model_output(
-    model: FitResult | TransferFunction, data: SampledData
+    data: SampledData, model: FitResult | TransferFunction
 ) -> tuple[FloatArray, FloatArray]:
     """The model's output s(kT) and slope s'(kT) at the nominal instants.
 
     Parameters
     ----------
-    model : FitResult or TransferFunction
-        The fitted system.
     data : SampledData
         Its input and grid.
+    model : FitResult or TransferFunction
+        The fitted system.
 
     Returns
     -------
@@ -90,6 +91,13 @@ def model_output(
         The slope is exact (the response of s G(s)); for a biproper G the jumps of the
         direct term at input switches are not slopes and are left out.
     """
+    if isinstance(model, SampledData) and not isinstance(data, SampledData):
+        warnings.warn(
+            "model_output(model, data) is deprecated: pass the data first, model_output(data, model)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        data, model = model, data
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
     tf = _system(model)
@@ -192,7 +200,7 @@ def detect_jitter(
     also raise the statistic.
     """
     level = _level(level)
-    s, slope = model_output(model, data)
+    s, slope = model_output(data, model)
     r = data.y - s
     z, x = r**2, slope**2
     if np.ptp(x) <= 1e-12 * max(float(np.max(x)), 1e-300):

@@ -147,7 +147,7 @@ def bode_band(
     freqs = np.atleast_1d(real_array(f, "f"))
     idx = _indices(result, tuple(structure.param_names), "structure")
     theta = result.x[idx]
-    g0 = result.system.freqresp(freqs)
+    g0 = result.system.frequency_response(freqs)
     mag, phase = np.abs(g0), np.degrees(np.unwrap(np.angle(g0)))
 
     def band(m_lo: FloatArray, m_hi: FloatArray, p_lo: FloatArray, p_hi: FloatArray) -> BodeBand:
@@ -166,7 +166,7 @@ def bode_band(
         responses = []
         for th in samples[np.all((samples >= lo) & (samples <= hi), axis=1)]:
             try:
-                responses.append(structure.system(th).freqresp(freqs))
+                responses.append(structure.system(th).frequency_response(freqs))
             except ValueError:  # e.g. an unstable draw
                 continue
         if len(responses) < 0.9 * n:
@@ -189,7 +189,7 @@ def bode_band(
             th = theta.copy()
             th[i] += step
             try:
-                g_side.append(structure.system(th).freqresp(freqs))
+                g_side.append(structure.system(th).frequency_response(freqs))
                 h_side.append(h)
             except ValueError:
                 g_side.append(g0)

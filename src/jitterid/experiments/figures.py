@@ -136,7 +136,7 @@ def figure5(out: str | Path, exp: Experiment, estimates: Sequence[Estimate]) -> 
     f = np.linspace(0.0, 0.5, 1001)
     fig = Figure(figsize=(7, 4))
     ax = fig.add_subplot()
-    ax.plot(f, np.abs(exp.system.true_system().freqresp(f)), "k", lw=3, label="true θ⁰")
+    ax.plot(f, np.abs(exp.system.true_system().frequency_response(f)), "k", lw=3, label="true θ⁰")
     styles = {"ls": ("C3-", 1.2), "bcls": ("C0--", 1.5), "asml-diag": ("C2:", 2.0)}
     model = exp.system.model()
     for m, (style, lw) in styles.items():
@@ -147,7 +147,7 @@ def figure5(out: str | Path, exp: Experiment, estimates: Sequence[Estimate]) -> 
         g = model.system(theta)
         ax.plot(
             f,
-            np.abs(g.freqresp(f)),
+            np.abs(g.frequency_response(f)),
             style,
             lw=lw,
             label=f"θ = mean of {exp.label(m)} ({stats[model.param_names[0]].n} fits)",

@@ -122,7 +122,7 @@ class NoiseModel:
 
     def spectrum(self, f: ArrayLike) -> FloatArray:
         """Two-sided power spectral density S_v(f) = lambda |H(i 2 pi f)|^2 per Hz, eq. (N2)."""
-        return self.intensity * np.abs(self.tf.freqresp(real_array(f, "f"))) ** 2
+        return self.intensity * np.abs(self.tf.frequency_response(real_array(f, "f"))) ** 2
 
     def sample(self, instants: ArrayLike, rng: np.random.Generator | int) -> FloatArray:
         """Draw v at the given instants exactly, eq. (N3) (stationary start).

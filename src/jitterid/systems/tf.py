@@ -9,6 +9,7 @@ piecewise-constant input, x(t) = exp(p (t - t_j)) x(t_j) + u_j expm1(p (t - t_j)
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -40,7 +41,7 @@ class TransferFunction:
 
     Notes
     -----
-    Frequencies are in Hz throughout: ``freqresp(f)`` returns G(i 2 pi f). Simulation
+    Frequencies are in Hz throughout: ``frequency_response(f_hz)`` returns G(i 2 pi f). Simulation
     (:meth:`response`) needs a stable model with distinct poles; poles closer than 1e-6
     (relative) are refused, and accuracy degrades like 1e-16 / (pole separation).
     """
@@ -92,10 +93,26 @@ class TransferFunction:
     def dcgain(self) -> float:
         return float(self.num[-1] / self.den[-1])
 
-    def freqresp(self, f: ArrayLike) -> ComplexArray:
-        """G(i 2 pi f) at frequencies ``f`` in Hz."""
-        s = 2j * np.pi * np.asarray(f, dtype=float)
+    def frequency_response(self, f_hz: ArrayLike) -> ComplexArray:
+        """G(i 2 pi f) at frequencies ``f_hz`` in Hz.
+
+        Examples
+        --------
+        >>> complex(TransferFunction([2.0], [1.0, 2.0]).frequency_response(0.0))
+        (1+0j)
+        """
+        s = 2j * np.pi * real_array(f_hz, "f_hz")
         return np.polyval(self.num, s) / np.polyval(self.den, s)
+
+    def freqresp(self, f: ArrayLike) -> ComplexArray:
+        """Deprecated: :meth:`frequency_response` (which names its unit, Hz; scipy's
+        ``freqresp`` takes rad/s)."""
+        warnings.warn(
+            "TransferFunction.freqresp is deprecated; use frequency_response(f_hz) (Hz)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.frequency_response(f)
 
     @cached_property
     def _modal(self) -> tuple[float, ComplexArray, ComplexArray]:
