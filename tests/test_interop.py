@@ -25,7 +25,7 @@ def test_to_scipy_has_the_same_frequency_response(result):
     f = np.array([0.0, 0.05, 0.2, 0.5, 2.0])
     lti = result.to_scipy()
     assert isinstance(lti, signal.lti)
-    _, h = signal.frequency_response(lti, w=2 * np.pi * f)  # scipy works in rad/s
+    _, h = signal.freqresp(lti, w=2 * np.pi * f)  # scipy works in rad/s
     np.testing.assert_allclose(h, result.system.frequency_response(f), rtol=1e-12)
     np.testing.assert_allclose(np.sort_complex(lti.poles), np.sort_complex(result.system.poles))
 

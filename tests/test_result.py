@@ -93,8 +93,15 @@ def test_bcls_interval_coverage_with_small_jitter():
 
 @pytest.mark.slow
 def test_robust_covariance_is_honest_under_a_misspecified_law():
-    """Triangular jitter fitted with UniformFamily by ML: cov_type="robust" stated errors
-    within 0.8-1.25 of the actual spread (the default observed information was 0.49-0.85)."""
+    """Triangular jitter fitted with UniformFamily by ML: cov_type="robust" stated errors of
+    the system parameters within 0.8-1.25 of the actual spread (the default observed
+    information was 0.49-0.85).
+
+    The uniform's half-width a is left out: the support of U(-a, a) moves with a, so the
+    likelihood is not regular in a (with noise 0.01 the samples on steep edges nearly pin
+    the support) and no delta-method form is honest for it (measured: robust 0.36 of the
+    spread over these 100 runs). Its error bar is reported, and documented as unreliable.
+    """
     est, se = [], []
     law = ji.SumOfUniforms(1, 0.8)  # triangular on [-0.8, 0.8]
     for seed in range(100):
@@ -107,7 +114,8 @@ def test_robust_covariance_is_honest_under_a_misspecified_law():
     est, se = np.array(est), np.array(se)
     assert len(est) >= 90
     ratio = np.nanmedian(se, axis=0) / est.std(axis=0, ddof=1)
-    assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+    system = ratio[1:]  # k0, pr, pi (module docstring of this test for a)
+    assert np.all((system > 0.8) & (system < 1.25)), ratio
 
 
 def test_cov_types_differ_where_they_should_and_none_skips_the_work():
@@ -199,3 +207,33 @@ def test_layout_takes_a_fit_result_by_name():
     assert "noise_std" in res.names
     lay = ParamLayout.build(None, ji.PolePairGain())
     np.testing.assert_array_equal(lay.vector(res), res.x[:3])
+
+
+# ------------------------------------------------------------------ estimators as objects
+def test_estimator_objects_and_their_names_give_the_same_fit():
+    data = table2_data(13)
+    by_name = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
+    by_object = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), ji.BCLS())
+    np.testing.assert_array_equal(by_name.x, by_object.x)
+    assert by_object.method == "bcls"
+    once = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), ji.WBCLS(refreeze=0))
+    twice = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "wbcls")  # refreeze=1
+    assert once.success
+    assert twice.success
+    assert not np.array_equal(once.x, twice.x)  # the option reaches the search
+    np.testing.assert_allclose(once.x, twice.x, rtol=0.05)
+    with pytest.raises(ValueError, match="method must be one of"):
+        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bls")
+    with pytest.raises(ValueError, match="refreeze"):
+        ji.WBCLS(refreeze=-1)
+
+
+def test_registering_a_second_estimator_under_a_taken_name_is_refused():
+    from jitterid.estimation.estimators import register
+
+    class Other(ji.Estimator):
+        name = "bcls"
+        equation = "-"
+
+    with pytest.raises(ValueError, match="registered already"):
+        register(Other)

@@ -20,6 +20,16 @@ from .analysis.diagnostics import (
 from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
 from .data import SampledData
 from .estimation.boxjenkins import fitted_noise
+from .estimation.estimators import (
+    BCLS,
+    LS,
+    ML,
+    WBCLS,
+    AsML,
+    AsMLDiag,
+    Estimator,
+    GaussianCriterion,
+)
 from .estimation.fit import fit
 from .estimation.likelihood import ExactLikelihood, crb, gaussian_bound, log_density
 from .estimation.problem import default_frequencies
@@ -55,6 +65,7 @@ from .noise.covariance import (
     sample_covariance,
 )
 from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
+from .params import ParamLayout
 from .simulate import simulate
 from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
 from .systems.tf import Response, TransferFunction
@@ -96,6 +107,19 @@ __all__ = [
     "simulate",
     "telegraph_input",
     "zoh_input",
+]
+
+# Estimators as objects, the parameter layout.
+__all__ += [
+    "BCLS",
+    "LS",
+    "ML",
+    "WBCLS",
+    "AsML",
+    "AsMLDiag",
+    "Estimator",
+    "GaussianCriterion",
+    "ParamLayout",
 ]
 
 # Data files and diagnostics (issue 5).

@@ -39,7 +39,7 @@ from threadpoolctl import threadpool_limits
 if TYPE_CHECKING:
     from .problem import Problem
 
-__all__ = ["covariance", "default_cov_type", "noise_variance_ml"]
+__all__ = ["covariance", "noise_variance_ml"]
 
 FloatArray = NDArray[np.float64]
 _REL_STEP = 1e-4
@@ -64,26 +64,6 @@ def _hessian(fun: Callable[[FloatArray], float], x: FloatArray, h: FloatArray) -
                 fun(x + e[i] + e[j]) - fun(x + e[i] - e[j]) - fun(x - e[i] + e[j]) + fun(x - e[i] - e[j])
             ) / (4 * h[i] * h[j])
     return H
-
-
-def default_cov_type(method: str) -> str:
-    """``"oim"`` for ``ml``, ``"robust"`` for ``ls``, ``"sandwich"`` otherwise."""
-    return {"ml": "oim", "ls": "robust"}.get(method, "sandwich")
-
-
-def check_cov_type(method: str, cov_type: str | None) -> str:
-    """The covariance form for ``method``: ``cov_type`` validated, or the default."""
-    if cov_type is None:
-        return default_cov_type(method)
-    allowed = {"ml": ("oim", "robust", "none"), "gaussian": ("sandwich", "robust", "oim", "none")}
-    ok = allowed.get(method, ("sandwich", "robust", "none"))
-    if cov_type not in ok:
-        raise ValueError(
-            f"cov_type must be one of {ok} for method {method!r}; got {cov_type!r} ('oim' needs "
-            "a likelihood: ml or gaussian; 'sandwich' with model variances is for the moment "
-            "estimators)"
-        )
-    return cov_type
 
 
 def noise_variance_ml(r: FloatArray, var: FloatArray) -> float:

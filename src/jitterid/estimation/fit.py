@@ -28,12 +28,10 @@ from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
-from .covariance import check_cov_type, covariance, noise_variance_ml
+from .covariance import covariance, noise_variance_ml
+from .estimators import Estimator, as_estimator
 from .ml import run_ml
 from .problem import (
-    LEAST_SQUARES,
-    METHODS,
-    NEEDS_NOISE,
     Problem,
     default_frequencies,
 )
@@ -99,7 +97,7 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
         return x0, problem.objective(x0), FitStatus.CONVERGED, "no free parameters", 1
     if problem.method == "ml":
         return run_ml(problem, x0, max_nfev)
-    if problem.method in LEAST_SQUARES:
+    if as_estimator(problem.method).least_squares:
 
         def resid(x: FloatArray) -> FloatArray:
             try:
@@ -144,7 +142,7 @@ def fit(
     data: SampledData,
     system: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
-    method: str = "bcls",
+    method: str | Estimator = "bcls",
     start: ArrayLike | FitResult | None = None,
     *,
     freqs: ArrayLike | None = None,
@@ -164,10 +162,12 @@ def fit(
         known system (its parameters are then not estimated, as in Table 1).
     jitter : JitterLaw or JitterFamily
         A known jitter law (OE structure (2a)) or a family with free parameters (JOE, (2c)).
-    method : str
+    method : str or Estimator
         ``"ls"`` (8), ``"bcls"`` (14), ``"wbcls"`` (20), ``"asml"`` (22), ``"asml-diag"`` (23),
         ``"gaussian"`` (the exact real-valued Gaussian criterion, notes section 3) or ``"ml"``
-        (the exact likelihood, notes section 4; :mod:`jitterid.estimation.likelihood`).
+        (the exact likelihood, notes section 4; :mod:`jitterid.estimation.likelihood`), or
+        an estimator object carrying its options, e.g. ``WBCLS(refreeze=2)``
+        (:mod:`jitterid.estimation.estimators`).
     start : array_like or FitResult, optional
         Starting vector in the result's ``names`` order. Default: an ordinary OE fit that
         ignores the jitter (Section 4.5) and, for a free jitter law, a grid of starts, then
@@ -214,7 +214,7 @@ def _fit(
     data: SampledData,
     system: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
-    method: str = "bcls",
+    method: str | Estimator = "bcls",
     start: ArrayLike | FitResult | None = None,
     *,
     freqs: ArrayLike | None = None,
@@ -223,15 +223,14 @@ def _fit(
     noise_model: NoiseStructure | NoiseModel | None = None,
     cov_type: str | None = None,
 ) -> FitResult:
-    if method in METHODS:
-        cov_type = check_cov_type(method, cov_type)
+    est = as_estimator(method)
+    method = est.name
+    cov_type = est.check_cov_type(cov_type)
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         return fit_bj(data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev)
     prefit = start if isinstance(start, FitResult) else None
     if prefit is not None:
         start = None
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}; got {method!r}")
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}")
     structure = as_structure(system)
@@ -264,7 +263,7 @@ def _fit(
     nfev = 0
     rms: float | None = None
     if start is not None:
-        problem = make(method=method, noise_std=noise if method in NEEDS_NOISE else None)
+        problem = make(method=method, noise_std=noise if est.needs_noise else None)
         if method == "wbcls" and noise is None:
             theta_sys = _oe_start(data, structure)[0]
             problem = make(method=method, noise_std=_plugin_noise(make, theta_sys, jstarts, max_nfev))
@@ -272,7 +271,7 @@ def _fit(
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
         if method == "wbcls":
-            problem, best = _run_wbcls(make, problem.noise_std, np.clip(x0, *np.array(problem.bounds).T), max_nfev)
+            problem, best = _run_wbcls(make, est, problem.noise_std, np.clip(x0, *np.array(problem.bounds).T), max_nfev)
         else:
             best = _run(problem, x0, max_nfev)
         nfev = best[4]
@@ -296,7 +295,7 @@ def _fit(
             x_pre = best[0]
             if method == "wbcls" and noise is None:
                 noise = _noise_from_residuals(pre, x_pre)
-            problem = make(method=method, noise_std=noise if method in NEEDS_NOISE else None)
+            problem = make(method=method, noise_std=noise if est.needs_noise else None)
             if problem.estimates_noise and rms is None:
                 rms = _oe_start(data, structure)[1]
             noise0 = max(rms or 0.0, 1e-6)
@@ -304,7 +303,7 @@ def _fit(
                 noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * (rms or 0.0), 1e-12)
             x0 = np.r_[x_pre, noise0] if problem.estimates_noise else x_pre
             if method == "wbcls":
-                problem, best = _run_wbcls(make, problem.noise_std, x0, max_nfev)
+                problem, best = _run_wbcls(make, est, problem.noise_std, x0, max_nfev)
             else:
                 best = _run(problem, x0, max_nfev)
             nfev += best[4]
@@ -347,12 +346,12 @@ def _fit(
 
 
 def _run_wbcls(
-    make: partial[Problem], noise: float | None, x0: FloatArray, max_nfev: int
+    make: partial[Problem], est: Estimator, noise: float | None, x0: FloatArray, max_nfev: int
 ) -> tuple[Problem, tuple[FloatArray, float, FitStatus, str, int]]:
     """WBCLS (20) with R frozen at x0, then re-frozen once at that estimate (iterated
     feasible GLS; :mod:`jitterid.estimation.problem` explains why R is not left to vary)."""
     nfev = 0
-    for _ in range(2):
+    for _ in range(1 + getattr(est, "refreeze", 1)):
         problem = make(method="wbcls", noise_std=noise, weights_at=np.array(x0, float))
         out = _run(problem, x0, max_nfev)
         nfev += out[4]

@@ -50,6 +50,7 @@ from ..params import ParamLayout
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
+from .estimators import as_estimator, method_names
 from .likelihood import ExactLikelihood
 
 __all__ = ["METHODS", "Problem", "default_frequencies"]
@@ -58,12 +59,7 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 _Derivatives = tuple[SampleMoments, FloatArray, FloatArray, FloatArray]
 
-METHODS = ("ls", "bcls", "wbcls", "asml", "asml-diag", "gaussian", "ml")
-LEAST_SQUARES = ("ls", "bcls", "wbcls")
-# Methods whose criterion needs the measurement-noise variance.
-NEEDS_NOISE = ("wbcls", "asml", "asml-diag", "gaussian", "ml")
-# Of those, the ones that can estimate it (a ln det term makes it identifiable).
-ESTIMATES_NOISE = ("asml", "asml-diag", "gaussian", "ml")
+METHODS = method_names()  # the registered estimators (jitterid.estimation.estimators)
 
 
 def default_frequencies(N: int, T: float) -> FloatArray:
@@ -135,7 +131,7 @@ class Problem:
 
     @property
     def estimates_noise(self) -> bool:
-        return self.method in ESTIMATES_NOISE and self.noise_std is None
+        return as_estimator(self.method).estimates_noise and self.noise_std is None
 
     @property
     def uses_noise(self) -> bool:
