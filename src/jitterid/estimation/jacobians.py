@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_solve, solve_triangular
 
 from ..inputs import PiecewiseConstant
-from ..jitter.laws import GaussianFamily, JitterLaw, SumOfUniformsFamily, UniformFamily
+from ..jitter.laws import JitterLaw
 from ..moments.modal import (
     SegmentPlan,
     cached_plan,
@@ -67,10 +67,6 @@ __all__: list[str] = []
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
-# The index of the scale parameter a of the families whose law is that of a xi, xi free of a
-# (the support, knots and cuts of the rule scale with a): its derivative is (M3) of
-# jitterid.moments.modal, exact and without moving the nodes.
-_SCALE = {UniformFamily: 0, GaussianFamily: 0, SumOfUniformsFamily: 1}
 _FD_REL = float(np.sqrt(np.finfo(float).eps))  # scipy's 2-point step: sqrt(eps) max(1, |x|)
 _CD_REL = 1e-6  # central differences (inputs that are not piecewise constant)
 
@@ -147,7 +143,7 @@ def moment_derivatives(
     P = x.size
     dm, dv = np.zeros((P, d.N)), np.zeros((P, d.N))
     theta = x[nj : nj + ns]
-    scale = _SCALE.get(type(problem.jitter)) if nj else None  # exact type: a subclass may differ
+    scale = problem.jitter.scale_index if nj else None  # type: ignore[union-attr]
     modal = isinstance(d.u, PiecewiseConstant) and (ns > 0 or scale is not None)
     if modal:
         assert isinstance(d.u, PiecewiseConstant)

@@ -8,7 +8,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..jitter.laws import JitterFamily
-from . import jacobians as _jacobians
 from .problem import Problem
 from .result import FitStatus
 
@@ -33,7 +32,7 @@ def _ml_start(problem: Problem, x0: FloatArray) -> tuple[FloatArray, int]:
     assert lik is not None
     if not isinstance(jitter, JitterFamily) or problem.n_jitter < 2:
         return x0, 0
-    scale = _jacobians._SCALE.get(type(jitter))
+    scale = jitter.scale_index
     if scale is None:
         return x0, 0
     nj = problem.n_jitter

@@ -838,6 +838,12 @@ class JitterFamily(abc.ABC):
     """
 
     param_names: ClassVar[tuple[str, ...]]
+    #: Index of the scale parameter a when the family's law is that of a * xi with xi free of
+    #: a (its moments' derivative in a is then exact, without moving the quadrature nodes:
+    #: (M3) of :mod:`jitterid.moments.modal`). ``None`` declares that there is none: every
+    #: parameter's derivative then goes through the finite-difference route. A subclass
+    #: that maps its parameters otherwise must set it again.
+    scale_index: ClassVar[int | None] = None
 
     @property
     @abc.abstractmethod
@@ -931,6 +937,7 @@ class UniformFamily(JitterFamily):
     a_max: float | None = None
     a_min: float = _SCALE_FLOOR
     param_names: ClassVar[tuple[str, ...]] = ("a",)
+    scale_index: ClassVar[int | None] = 0
 
     def __post_init__(self) -> None:
         _upper(self.a_max, "a_max")
@@ -964,6 +971,7 @@ class GaussianFamily(JitterFamily):
     sigma_max: float | None = None
     sigma_min: float = _SCALE_FLOOR
     param_names: ClassVar[tuple[str, ...]] = ("sigma",)
+    scale_index: ClassVar[int | None] = 0
 
     def __post_init__(self) -> None:
         _upper(self.sigma_max, "sigma_max")
@@ -1002,6 +1010,7 @@ class SumOfUniformsFamily(JitterFamily):
     a_max: float | None = None
     a_min: float = _SCALE_FLOOR
     param_names: ClassVar[tuple[str, ...]] = ("n", "a")
+    scale_index: ClassVar[int | None] = 1
 
     def __post_init__(self) -> None:
         n_max = _checks.positive(self.n_max, "n_max", allow_zero=True)

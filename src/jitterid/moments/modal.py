@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterLaw
-from ..systems.structures import ModelStructure, PolePairGain, RationalModel
+from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from .quadrature import DEFAULT_CHUNK, DEFAULT_ORDER, NodeChunk, jitter_nodes, relative_cuts
 
@@ -281,27 +281,32 @@ def _padded(c: FloatArray, n: int) -> FloatArray:
     return np.r_[np.zeros(n - c.size), c]
 
 
+def _owner(cls: type, name: str) -> type:
+    return next(k for k in cls.__mro__ if name in k.__dict__)
+
+
+def _closed_form_applies(structure: ModelStructure) -> bool:
+    """False when a subclass redefines the parameter map (``system``) below the class that
+    wrote ``coefficient_jacobian``: that closed form belongs to another map."""
+    cls = type(structure)
+    system, closed = _owner(cls, "system"), _owner(cls, "coefficient_jacobian")
+    return system is closed or not issubclass(system, closed)
+
+
 def _coefficient_jacobian(
     structure: ModelStructure, theta: FloatArray, n: int
 ) -> tuple[FloatArray, FloatArray]:
     """d(num, den)/dtheta, shape (P, n) each (num padded to the length n of den).
 
-    In closed form for the library's structures (exact types: a subclass may map otherwise);
-    central differences of the structure's map for any other.
+    In closed form where the structure gives it
+    (:meth:`~jitterid.systems.structures.ModelStructure.coefficient_jacobian`); central
+    differences of the structure's map where it declares none.
     """
+    closed = structure.coefficient_jacobian(theta, n) if _closed_form_applies(structure) else None
+    if closed is not None:
+        return closed
     P = theta.size
     dnum, dden = np.zeros((P, n)), np.zeros((P, n))
-    if type(structure) is PolePairGain:  # k0 / (s^2 - 2 pr s + pr^2 + pi^2)
-        _, pr, pi = theta
-        dnum[0, -1] = 1.0
-        dden[1, 1:] = (-2.0, 2.0 * pr)
-        dden[2, 2] = 2.0 * pi
-        return dnum, dden
-    if type(structure) is RationalModel and n == structure.den_order + 1:  # (b) / (1, a)
-        nb = structure.num_order + 1
-        dnum[np.arange(nb), n - nb + np.arange(nb)] = 1.0
-        dden[nb + np.arange(n - 1), 1 + np.arange(n - 1)] = 1.0
-        return dnum, dden
     lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
     for i in range(P):
         h = 1e-5 * max(abs(float(theta[i])), 1e-2)

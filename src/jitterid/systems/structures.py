@@ -40,6 +40,14 @@ class ModelStructure(abc.ABC):
     @abc.abstractmethod
     def starts(self, T: float) -> list[FloatArray]: ...
 
+    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+        """d(num, den)/dtheta in closed form, shape (P, n) each (num padded to the length n
+        of the denominator), or None: this structure declares no analytic derivative, and
+        the moments' sensitivities then use central differences of :meth:`system` (the
+        declared finite-difference route of :func:`jitterid.moments.modal.modal_sensitivity`).
+        A subclass that maps its parameters otherwise must override it."""
+        return None
+
     def _check(self, params: ArrayLike) -> FloatArray:
         return parameter_vector(params, self.param_names, self.bounds)
 
@@ -69,6 +77,14 @@ class PolePairGain(ModelStructure):
     def system(self, params: ArrayLike) -> TransferFunction:
         k0, pr, pi = self._check(params)
         return TransferFunction(np.array([k0]), np.array([1.0, -2.0 * pr, pr * pr + pi * pi]))
+
+    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+        _, pr, pi = self._check(params)  # k0 / (s^2 - 2 pr s + pr^2 + pi^2)
+        dnum, dden = np.zeros((3, n)), np.zeros((3, n))
+        dnum[0, -1] = 1.0
+        dden[1, n - 2 :] = (-2.0, 2.0 * pr)
+        dden[2, n - 1] = 2.0 * pi
+        return dnum, dden
 
     def starts(self, T: float) -> list[FloatArray]:
         # Pole pairs spread over the band below Nyquist (1/(2T) Hz); k0 = |p|^2 (unit DC gain).
@@ -119,6 +135,16 @@ class RationalModel(ModelStructure):
         x = self._check(params)
         nb = self.num_order + 1
         return TransferFunction(x[:nb], np.r_[1.0, x[nb:]])
+
+    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+        x = self._check(params)  # (b_m .. b_0) / (1, a_{n-1} .. a_0): the identity
+        if n != self.den_order + 1:
+            return None
+        nb = self.num_order + 1
+        dnum, dden = np.zeros((x.size, n)), np.zeros((x.size, n))
+        dnum[np.arange(nb), n - nb + np.arange(nb)] = 1.0
+        dden[nb + np.arange(n - 1), 1 + np.arange(n - 1)] = 1.0
+        return dnum, dden
 
     def starts(self, T: float) -> list[FloatArray]:
         # Real poles spread below Nyquist, numerator giving unit DC gain.
