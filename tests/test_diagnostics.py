@@ -333,34 +333,34 @@ def test_pdf_band_against_the_transformed_quantiles(ls_fit):
     x = np.array([m, *TRUTH])
     cov = np.diag([sd**2, 0.04, 0.004, 0.003])
     res = _with_cov(ls, ("a", "k0", "pr", "pi"), x, cov, ls.system, ji.Uniform(m))
-    band = jitter_pdf_band(res, ji.UniformFamily(), [0.0, 0.3], 7, level=0.9, n_draws=8000)
+    band = jitter_pdf_band(res, [0.0, 0.3], 7, level=0.9, n_draws=8000)
     q = stats.norm.ppf(0.95)
     assert band.pdf[0] == pytest.approx(1 / (2 * m))
     assert band.lo[0] == pytest.approx(1 / (2 * (m + q * sd)), rel=0.01)
     assert band.hi[0] == pytest.approx(1 / (2 * (m - q * sd)), rel=0.01)
     assert band.fixed == ()
-    again = jitter_pdf_band(res, ji.UniformFamily(), [0.0, 0.3], 7, level=0.9, n_draws=8000)
+    again = jitter_pdf_band(res, [0.0, 0.3], 7, level=0.9, n_draws=8000)
     np.testing.assert_array_equal(band.lo, again.lo)  # explicit seed: reproducible
-    known = jitter_pdf_band(res, None, [0.0, 0.3], 7)
+    known = jitter_pdf_band(res, [0.0, 0.3], 7, family=None)
     np.testing.assert_array_equal(known.lo, known.hi)
     cov_nan = cov.copy()
     cov_nan[0, :] = cov_nan[:, 0] = np.nan
     fixed = jitter_pdf_band(
-        _with_cov(ls, ("a", "k0", "pr", "pi"), x, cov_nan, ls.system, ji.Uniform(m)),
-        ji.UniformFamily(),
-        [0.0],
-        1,
+        _with_cov(ls, ("a", "k0", "pr", "pi"), x, cov_nan, ls.system, ji.Uniform(m)), [0.0], 1
     )
     assert fixed.fixed == ("a",)
     wild = cov.copy()
     wild[0, 0] = 10.0**2  # a ~ N(0.4, 10^2) but bounded to (0, 0.5]: almost no draw fits
     res_wild = _with_cov(ls, ("a", "k0", "pr", "pi"), x, wild, ls.system, ji.Uniform(m))
     with pytest.raises(ValueError, match="too uncertain for a density band"):
-        jitter_pdf_band(res_wild, ji.UniformFamily(a_max=0.5), [0.0], 1)
+        jitter_pdf_band(res_wild, [0.0], 1, family=ji.UniformFamily(a_max=0.5))
     with pytest.raises(ValueError, match="no jitter"):
-        jitter_pdf_band(ls, None, [0.0], 1)
+        jitter_pdf_band(ls, [0.0], 1)
     with pytest.raises(TypeError, match="rng must be"):
-        jitter_pdf_band(res, ji.UniformFamily(), [0.0], None)  # type: ignore[arg-type]
+        jitter_pdf_band(res, [0.0], None)  # type: ignore[arg-type]
+    with pytest.warns(DeprecationWarning, match="the result knows its family"):
+        old = jitter_pdf_band(res, ji.UniformFamily(), [0.0, 0.3], 7, level=0.9, n_draws=8000)
+    np.testing.assert_array_equal(old.lo, band.lo)
 
 
 def test_bode_band_agrees_with_a_linearisation_of_the_magnitude_itself(ls_fit):

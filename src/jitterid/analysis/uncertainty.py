@@ -20,20 +20,38 @@ quantiles of the densities. Frequencies are in Hz; phases in degrees.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from .._checks import count, generator, real_array
-from ..estimation.result import FitResult
 from ..jitter.laws import JitterFamily
 from ..systems.structures import ModelStructure
 
 __all__ = ["BodeBand", "PdfBand", "bode_band", "jitter_pdf_band"]
 
 FloatArray = NDArray[np.float64]
+
+
+class _Fit(Protocol):
+    """What a band needs of a :class:`~jitterid.FitResult` (a protocol, so that this module
+    does not import the result, whose methods call it)."""
+
+    names: tuple[str, ...]
+    x: FloatArray
+    cov: FloatArray
+    system: Any
+    structure: Any
+    jitter_law: Any
+    jitter_model: Any
+
+
+def _is_fit(obj: object) -> bool:
+    return all(hasattr(obj, a) for a in ("names", "x", "cov", "system", "structure", "jitter_law"))
 
 
 def _level(level: float) -> float:
@@ -78,7 +96,7 @@ class BodeBand:
     level: float
 
 
-def _indices(result: FitResult, names: tuple[str, ...], what: str) -> list[int]:
+def _indices(result: _Fit, names: tuple[str, ...], what: str) -> list[int]:
     missing = [n for n in names if n not in result.names]
     if missing:
         raise ValueError(
@@ -89,7 +107,7 @@ def _indices(result: FitResult, names: tuple[str, ...], what: str) -> list[int]:
 
 
 def bode_band(
-    result: FitResult,
+    result: _Fit,
     f: ArrayLike,
     level: float = 0.95,
     *,
@@ -131,7 +149,7 @@ def bode_band(
         bounds: the normal approximation is then too poor for a band.
     """
     level = _level(level)
-    if not isinstance(result, FitResult):
+    if not _is_fit(result):
         raise TypeError(
             f"result must be a FitResult from jitterid.fit; got {type(result).__name__}"
         )
@@ -230,14 +248,17 @@ class PdfBand:
     fixed: tuple[str, ...]
 
 
+_FROM_RESULT: Any = object()
+
+
 def jitter_pdf_band(
-    result: FitResult,
-    family: JitterFamily | None,
+    result: _Fit,
     tau: ArrayLike,
     rng: np.random.Generator | int,
-    *,
+    *args: Any,
     level: float = 0.95,
     n_draws: int = 400,
+    family: JitterFamily | None = _FROM_RESULT,
 ) -> PdfBand:
     """The fitted jitter density with a pointwise band from the parameters' covariance.
 
@@ -247,8 +268,7 @@ def jitter_pdf_band(
     Parameters
     ----------
     result : FitResult
-    family : JitterFamily or None
-        The family given to :func:`jitterid.fit`; ``None`` for a known law (no band).
+        A fit; its jitter family (``result.jitter_model``) gives the band.
     tau : array_like
         Jitter values (s) at which to evaluate the density.
     rng : numpy.random.Generator or int
@@ -257,6 +277,9 @@ def jitter_pdf_band(
         Confidence level.
     n_draws : int
         Number of parameter draws.
+    family : JitterFamily or None, optional
+        Default: the result's own family (no band for a known law). ``None`` draws the
+        estimate alone, without a band.
 
     Returns
     -------
@@ -268,8 +291,23 @@ def jitter_pdf_band(
         If fewer than 10 % of the draws lie inside the bounds: the normal approximation of
         the estimate is then too poor for a band.
     """
+    if isinstance(tau, JitterFamily) or tau is None:  # the old order (result, family, tau, rng)
+        warnings.warn(
+            "jitter_pdf_band(result, family, tau, rng) is deprecated: the result knows its family; "
+            "call jitter_pdf_band(result, tau, rng) (family=None for no band)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        if not args:
+            raise TypeError("jitter_pdf_band() missing the rng argument")
+        family, tau, rng = tau, rng, args[0]
+    elif args:
+        raise TypeError(f"jitter_pdf_band() takes 3 positional arguments; got {3 + len(args)}")
+    if family is _FROM_RESULT:
+        model = getattr(result, "jitter_model", None)
+        family = model if isinstance(model, JitterFamily) else None
     level = _level(level)
-    if not isinstance(result, FitResult):
+    if not _is_fit(result):
         raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
     n_draws = count(n_draws, "n_draws", minimum=10)
     gen = generator(rng)

@@ -157,9 +157,9 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
         tau = np.linspace(-hi, hi, 601)
         label = "estimated" if family else "assumed (known)"
         try:
-            pband = jitter_pdf_band(res, family, tau, rep.seed, level=rep.level, n_draws=2000)
+            pband = jitter_pdf_band(res, tau, rep.seed, level=rep.level, n_draws=2000, family=family)
         except ValueError as exc:  # too uncertain for a band: show the estimate alone
-            pband = jitter_pdf_band(res, None, tau, rep.seed, level=rep.level)
+            pband = jitter_pdf_band(res, tau, rep.seed, level=rep.level, family=None)
             label = "estimated (no band: too uncertain)"
             names["jitter_pdf_note"] = str(exc)
         fig = Figure(figsize=(6.4, 4.0), layout="constrained")
