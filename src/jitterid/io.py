@@ -55,6 +55,7 @@ import tempfile
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
@@ -80,6 +81,8 @@ PathLike = str | Path
 
 #: Seconds per supported time unit.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0}
+_SCALE_DEC = {"s": Decimal(1), "ms": Decimal("1e-3"), "us": Decimal("1e-6"),
+              "ns": Decimal("1e-9"), "min": Decimal(60)}
 #: Largest deviation of a nominal time from the regular grid, as a fraction of T.
 GRID_TOL = 1e-3
 _NUMERIC_KEYS = ("T", "noise_std", "end")
@@ -185,6 +188,27 @@ def _check_key(path: Path | str, key: str, origin: str) -> None:
     )
 
 
+class _Number(float):
+    """A metadata number that remembers the exact decimal it was written as, so that a time
+    converts to seconds exactly as :func:`save_data` intended (see :func:`_seconds`)."""
+
+    exact: Decimal
+
+    def __new__(cls, value: float, raw: Any) -> _Number:
+        obj = super().__new__(cls, value)
+        obj.exact = Decimal(raw.strip()) if isinstance(raw, str) else Decimal(repr(value))
+        return obj
+
+    def __reduce__(self) -> Any:  # pickles (and copies) as a plain float
+        return (float, (float(self),))
+
+
+def _seconds(value: float, unit: str) -> float:
+    """``value`` (in ``unit``) in seconds, rounded once from the exact decimal product."""
+    exact = value.exact if isinstance(value, _Number) else Decimal(repr(float(value)))
+    return float(exact * _SCALE_DEC[unit])
+
+
 def _meta_value(path: Path, key: str, value: Any, origin: str) -> Any:
     _check_key(path, key, origin)
     if key in _NUMERIC_KEYS:
@@ -207,7 +231,7 @@ def _meta_value(path: Path, key: str, value: Any, origin: str) -> Any:
             raise DataFileError(
                 f"{path}: metadata {key!r} ({origin}) must be a finite number {need}; got {value!r}"
             )
-        return val
+        return _Number(val, value)
     if key in _TEXT_KEYS:
         if not isinstance(value, str):
             raise DataFileError(f"{path}: metadata {key!r} ({origin}) must be text; got {value!r}")
@@ -508,7 +532,7 @@ def _require_columns(tab: _Table, allowed: tuple[str, ...], role: str, layout: s
         )
 
 
-def _grid(tab: _Table, T_given: float | None, scale: float) -> tuple[float, float]:
+def _grid(tab: _Table, T_given: float | None, unit: str) -> tuple[float, float]:
     """Validate the nominal index/time column; return (first time, T) in seconds."""
     has_k, has_t = "k" in tab.columns, "t" in tab.columns
     if has_k and has_t:
@@ -539,7 +563,8 @@ def _grid(tab: _Table, T_given: float | None, scale: float) -> tuple[float, floa
                 "the nominal sampling interval T is not given; with an index column 'k' add a "
                 "'# T: <interval>' metadata line (or a JSON sidecar, or --T on the command line)"
             )
-        return float(k[0]) * T_given * scale, T_given * scale
+        T_s = _seconds(T_given, unit)
+        return float(k[0]) * T_s, T_s
     t = tab.columns["t"]
     _increasing(tab, "t", t)
     if n < 2:
@@ -555,7 +580,7 @@ def _grid(tab: _Table, T_given: float | None, scale: float) -> tuple[float, floa
             f"{T:.12g} from {src}; expected {t[0] + i * T:.12g}). The nominal grid must be "
             "regular: check for missing rows, or give the nominal index 'k' instead of times"
         )
-    return float(t[0]) * scale, T * scale
+    return _seconds(float(t[0]), unit), _seconds(T, unit)
 
 
 def _increasing(tab: _Table, name: str, x: FloatArray) -> None:
@@ -570,8 +595,8 @@ def _increasing(tab: _Table, name: str, x: FloatArray) -> None:
         )
 
 
-def _time_scale(tab: _Table, default: str = "s") -> float:
-    return TIME_UNITS[str(tab.meta.get("time_unit", default))]
+def _time_unit(tab: _Table, default: str = "s") -> str:
+    return str(tab.meta.get("time_unit", default))
 
 
 # ---------------------------------------------------------------------------------- inputs
@@ -579,10 +604,10 @@ def _time_scale(tab: _Table, default: str = "s") -> float:
 
 def _zoh_from_table(tab: _Table, t0: float, T: float, n: int) -> PiecewiseConstant:
     T_in = tab.meta.get("T")
-    scale = _time_scale(tab)
+    unit = _time_unit(tab)
     if T_in is None and "k" in tab.columns:
-        T_in = T / scale  # an index column counts samples of the data's grid
-    first, T_file = _grid(tab, None if T_in is None else float(T_in), scale)
+        T_in = T / TIME_UNITS[unit]  # an index column counts samples of the data's grid
+    first, T_file = _grid(tab, T_in, unit)
     if abs(T_file - T) > GRID_TOL * T:
         raise tab.fail(
             f"the input grid has T = {T_file:g} s but the data have T = {T:g} s; a zero-order-hold "
@@ -607,10 +632,11 @@ def _zoh_from_table(tab: _Table, t0: float, T: float, n: int) -> PiecewiseConsta
 def _switches_from_table(
     tab: _Table, t0: float, default_end: float, unit: str
 ) -> PiecewiseConstant:
-    scale = _time_scale(tab, unit)
+    tu = _time_unit(tab, unit)
+    scale = TIME_UNITS[tu]
     times = tab.columns["time"]
     _increasing(tab, "time", times)
-    end = default_end if "end" not in tab.meta else float(tab.meta["end"]) * scale
+    end = default_end if "end" not in tab.meta else _seconds(tab.meta["end"], tu)
     if end <= times[-1] * scale:
         raise tab.fail(
             f"the input ends at {end:g} s, not after its last switch time {times[-1] * scale:g} s; "
@@ -702,7 +728,7 @@ def load(
         if meta_T is not None and abs(meta_T - T) > 1e-9 * T:
             raise tab.fail(f"T = {T:g} was given but the metadata say T = {meta_T:g}; keep one")
     T_file = T if T is not None else meta_T
-    t0, T_s = _grid(tab, T_file, TIME_UNITS[unit])
+    t0, T_s = _grid(tab, T_file, unit)
     n = tab.nrows
     if n < 4:
         raise tab.fail(f"has {n} sample(s); at least 4 are needed")
@@ -818,20 +844,20 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
     return path
 
 
-def _to_unit(seconds: float, unit: str) -> float:
-    """``seconds`` in ``unit``, chosen so that :func:`load` (value * seconds per unit) gives
-    back exactly ``seconds``."""
-    scale = TIME_UNITS[unit]
-    v = seconds / scale
-    if v * scale == seconds or not math.isfinite(v):
+def _to_unit(seconds: float, unit: str) -> float | str:
+    """``seconds`` in ``unit``, written so that :func:`load` gives back exactly ``seconds``:
+    the float if its shortest repr does, else a decimal string with enough digits."""
+    if unit == "s":
+        return float(seconds)
+    exact = Decimal(float(seconds)) / _SCALE_DEC[unit]  # exact: a finite decimal
+    v = float(exact)
+    if float(Decimal(repr(v)) * _SCALE_DEC[unit]) == seconds:
         return v
-    for direction in (math.inf, -math.inf):
-        w = v
-        for _ in range(4):
-            w = math.nextafter(w, direction)
-            if w * scale == seconds:
-                return w
-    return v
+    for digits in range(17, 40):
+        text = format(exact, f".{digits}g")
+        if float(Decimal(text) * _SCALE_DEC[unit]) == seconds:
+            return text
+    return format(exact, "f")  # pragma: no cover - the exact decimal always works
 
 
 def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
@@ -865,6 +891,7 @@ def _write(path: Path, columns: Mapping[str, FloatArray], meta: Mapping[str, Any
     for key, value in meta.items():
         text = str(value)
         lines.append(f"# {key}: {value!r}" if isinstance(value, float) else f"# {key}: {text}")
+    # (an exact time that needs more than 17 digits is a str here, written as it is)
     names = list(columns)
     lines.append(",".join(names))
     cols = [np.asarray(columns[n], float) for n in names]
@@ -921,13 +948,14 @@ def save_data(
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
     extra = _check_meta(dict(metadata or {}))
     unit = _unit_of(extra)
-    T = _to_unit(float(data.T), unit)
+    T_text = _to_unit(float(data.T), unit)
+    T = float(T_text)
     if "T" in extra and abs(float(extra["T"]) - T) > 1e-12 * T:
         raise ValueError(
             f"metadata 'T' = {extra['T']!r} disagrees with data.T = {T!r} {unit}; "
             "T is written from data.T: remove it from metadata"
         )
-    meta: dict[str, Any] = {"T": T, "time_unit": unit}
+    meta: dict[str, Any] = {"T": T_text, "time_unit": unit}
     meta.update({k: v for k, v in extra.items() if k not in ("T", "time_unit")})
     k = np.arange(data.N, dtype=float)
     if index:
@@ -935,8 +963,7 @@ def save_data(
             raise ValueError("with index=True, t0 must be a multiple of T")
         cols = {"k": k + round(t0 / data.T)}
     else:
-        first = _to_unit(float(t0), unit)
-        cols = {"t": first + T * k}
+        cols = {"t": float(_to_unit(float(t0), unit)) + T * k}
     cols["y"] = np.asarray(data.y, float)
     return _write(Path(path), cols, meta)
 

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from .._markdown import md_code as _code
+from .._markdown import md_text
 from ..analysis.diagnostics import (
     JitterDetection,
     ResidualTest,
@@ -55,24 +57,6 @@ class FitReport:
 
 
 _ERRORS = (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError)
-
-
-def md_text(text: object) -> str:
-    """``text`` safe to place in Markdown prose or a table cell: one line, every markup
-    character backslash-escaped, ``<`` and ``>`` as entities (so no HTML, link or image)."""
-    out = []
-    for ch in " ".join(str(text).split()):
-        if ch == "<":
-            out.append("&lt;")
-        elif ch == ">":
-            out.append("&gt;")
-        elif ch == "&":
-            out.append("&amp;")
-        elif ch in "\\`*_{}[]#!|~$":
-            out.append("\\" + ch)
-        else:
-            out.append(ch)
-    return "".join(out)
 
 
 def _try(make: Callable[[], Any]) -> tuple[Any, str | None]:
@@ -285,19 +269,6 @@ def _image(alt: str, name: str | None) -> list[str]:
     return [f"![{alt}]({name})", ""] if name else []
 
 
-def _code(text: object) -> str:
-    """An inline code span holding ``text`` verbatim (one line; fenced with more backticks
-    than it contains, so it cannot close the span early)."""
-    t = " ".join(str(text).split()) or "-"
-    longest = run = 0
-    for ch in t:
-        run = run + 1 if ch == "`" else 0
-        longest = max(longest, run)
-    fence = "`" * (longest + 1)
-    pad = " " if t.startswith("`") or t.endswith("`") else ""
-    return f"{fence}{pad}{t}{pad}{fence}"
-
-
 def _detection_lines(rep: FitReport, figs: dict[str, str]) -> list[str]:
     det = rep.detection
     if det is None:
@@ -331,7 +302,7 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
     res, ds = rep.result, rep.dataset
     data = ds.data
     files = ", ".join(
-        f"{s.role} {_code(Path(s.path).name)} (sha256 `{s.sha256[:16]}…`)" for s in ds.sources
+        f"{s.role} {md_text(Path(s.path).name)} (sha256 `{s.sha256[:16]}…`)" for s in ds.sources
     )
     law = res.jitter
     lines = [
@@ -340,7 +311,7 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         f"- **Data**: {files}",
         (
             f"- **Grid**: N = {data.N} samples, T = {data.T:g} s (Nyquist {0.5 / data.T:g} Hz), "
-            f"first sample at file time {ds.t0:g} s; output unit {_code(ds.units['y'] or '-')}"
+            f"first sample at file time {ds.t0:g} s; output unit {md_text(ds.units['y'] or '-')}"
         ),
         *(f"- **Note**: {md_text(n)}" for n in ds.notes),
         f"- **Model**: {_code(rep.model_spec)}, {md_text(rep.model_label)}",
