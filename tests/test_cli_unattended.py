@@ -116,14 +116,16 @@ def test_deeply_nested_json_sidecar(lab, tmp_path):
     data.write_bytes((lab / "data.csv").read_bytes())
     (tmp_path / "d.json").write_text("[" * 100_000 + "]" * 100_000)
     msg = refused(run("detect", data, "--input", lab / "input.csv", "--model", "polepair"))
-    assert "d.json" in msg and "nested too deeply" in msg
+    assert "d.json" in msg
+    assert "nested too deeply" in msg
 
 
 def test_deeply_nested_npz_metadata_and_a_member_that_is_not_an_array(tmp_path):
     t = np.arange(8.0)
     np.savez(tmp_path / "a.npz", t=t, y=t, u=t, metadata=np.array("[" * 50_000 + "]" * 50_000))
     msg = refused(run("detect", tmp_path / "a.npz", "--model", "polepair"))
-    assert "a.npz" in msg and "nested too deeply" in msg
+    assert "a.npz" in msg
+    assert "nested too deeply" in msg
     np.savez(tmp_path / "b.npz", t=t, y=t, u=t)
     with zipfile.ZipFile(tmp_path / "b.npz", "a") as zf:
         zf.writestr("notes.txt", "hello")
@@ -151,7 +153,8 @@ def test_broken_npy_header_and_a_header_claiming_1e13_values(tmp_path):
     t0 = time.perf_counter()
     msg = refused(run("detect", huge, "--model", "polepair"))
     assert time.perf_counter() - t0 < 5
-    assert "10000000000000 values" in msg and "truncated or corrupt" in msg
+    assert "10000000000000 values" in msg
+    assert "truncated or corrupt" in msg
 
 
 def test_bias_with_an_absurd_sigma_and_runs_beyond_any_budget(tmp_path):
@@ -163,13 +166,15 @@ def test_bias_with_an_absurd_sigma_and_runs_beyond_any_budget(tmp_path):
 def test_scheduler_that_is_not_an_address(tmp_path):
     msg = refused(run("run", _tiny_toml(tmp_path / "t.toml"), "--scheduler", "not an address",
                       "--out", tmp_path / "o"))
-    assert "--scheduler" in msg and "tcp://" in msg
+    assert "--scheduler" in msg
+    assert "tcp://" in msg
     assert not (tmp_path / "o").exists()
 
 
 def test_scheduler_help_says_trusted_code_execution():
     res = run("run", "--help")
-    assert "TRUSTED CODE" in res.output and "127.0.0.1" in res.output
+    assert "TRUSTED CODE" in res.output
+    assert "127.0.0.1" in res.output
 
 
 def test_toml_not_utf8_nested_or_with_absurd_numbers(tmp_path):
@@ -236,7 +241,8 @@ def test_runs_are_drawn_lazily_so_a_huge_run_count_starts_at_once(tmp_path, monk
     t0 = time.perf_counter()
     with pytest.raises(Stop):
         run_experiment(exp, tmp_path, progress=False)
-    assert time.perf_counter() - t0 < 5 and calls == [0, 1, 2]
+    assert time.perf_counter() - t0 < 5
+    assert calls == [0, 1, 2]
 
 
 # ------------------------------------------------------------------------- C: stores
@@ -549,7 +555,8 @@ def test_experiment_titles_are_escaped_in_the_report(tmp_path):
     res = run("run", path, "--workers", "1", "--no-progress", "--out", tmp_path / "o")
     assert res.exit_code == 0, res.output
     md = (tmp_path / "o" / "tiny.md").read_text()
-    assert "<script>" not in md and "\\[a\\](b)" in md
+    assert "<script>" not in md
+    assert "\\[a\\](b)" in md
 
 
 def test_the_memory_budget_can_be_set(monkeypatch):

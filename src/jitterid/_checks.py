@@ -113,3 +113,31 @@ def allocation(elements: float, name: str, *, bytes_each: int = 8, fix: str = ""
             f"the memory budget of {budget / 1e9:.3g} GB (half the free memory; set "
             f"JITTERID_MEMORY_BUDGET to change it){'; ' + fix if fix else ''}"
         )
+
+
+def nesting_depth(text: str, *, comments: bool = False) -> int:
+    """The deepest nesting of ``[``/``{`` in JSON or TOML ``text`` (outside strings), found
+    without recursion, so that absurdly nested input is refused before a parser recurses."""
+    depth = deepest = 0
+    quote = ""
+    escaped = in_comment = False
+    for ch in text:
+        if in_comment:
+            in_comment = ch != "\n"
+        elif quote:
+            if escaped:
+                escaped = False
+            elif ch == "\\" and quote == '"':
+                escaped = True
+            elif ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "#" and comments:
+            in_comment = True
+    return deepest

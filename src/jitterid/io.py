@@ -57,11 +57,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ._checks import nesting_depth
 from .inputs import Input, PiecewiseConstant
 from .simulate import SampledData
 
@@ -92,6 +93,8 @@ _ZOH_COLUMNS = ("k", "t", "u")
 _SWITCH_COLUMNS = ("time", "level")
 _MISSING = ("", "na", "nan", "n/a", "null", "none", "-")
 _META_KEYS = (*_NUMERIC_KEYS, *_TEXT_KEYS)
+#: Deepest nesting accepted in JSON metadata (a flat object needs 1).
+_MAX_DEPTH = 32
 #: A plain decimal number: ASCII digits only, no digit separators, no inf/nan.
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
 #: Largest data file (cells) read into memory; larger files are refused up front.
@@ -194,7 +197,7 @@ class _Number(float):
 
     exact: Decimal
 
-    def __new__(cls, value: float, raw: Any) -> _Number:
+    def __new__(cls, value: float, raw: Any) -> Self:
         obj = super().__new__(cls, value)
         obj.exact = Decimal(raw.strip()) if isinstance(raw, str) else Decimal(repr(value))
         return obj
@@ -267,6 +270,8 @@ def _json_object(path: Path, raw: bytes | str, what: str) -> Any:
     """Parse JSON text, refusing invalid, non-UTF-8 or absurdly nested documents cleanly."""
     try:
         text = raw.decode("utf-8-sig") if isinstance(raw, bytes) else raw
+        if nesting_depth(text) > _MAX_DEPTH:
+            raise RecursionError
         return json.loads(text)
     except UnicodeDecodeError:
         raise DataFileError(f"{path}: {what} is not UTF-8 text; save it as UTF-8 JSON") from None

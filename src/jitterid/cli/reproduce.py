@@ -114,8 +114,12 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
         raise click.ClickException(f"cannot run {exp.name}: {exc}") from None
     try:
         store = Store(summary.store, exp, resume=True)
+    except StoreError as exc:
+        raise click.ClickException(str(exc)) from None
+    try:
         estimates = store.estimates(exp.runs)
     except StoreError as exc:
+        store.close()
         raise click.ClickException(str(exc)) from None
     rate = summary.new / summary.wall_s if summary.wall_s > 0 else 0.0
     where = f"Dask scheduler {opt.scheduler}" if opt.scheduler else f"{opt.workers} worker(s)"
@@ -196,24 +200,29 @@ def reproduce(
     _check_scheduler(scheduler)
     opt = _options(out, Path("out/reproduction"), workers, scheduler, resume, no_progress)
     todo = [*PAPER_EXPERIMENTS, *FIGURES] if target == "all" else [target]
-    for item in todo:
-        if item in PAPER_EXPERIMENTS:
-            exp = _packaged(item, runs)
-            _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
-        elif item in STUDIES:
-            exp = _packaged(item, runs)
-            with _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)) as store:
-                path = spectra_figure(opt.out, exp, store.estimates(exp.runs))
-            click.echo(f"{item} spectra -> {path}")
-        elif item == "fig5":
-            exp = _packaged("table2", runs)
-            with _table2_results(exp, opt, target) as store:
-                path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
-            click.echo(f"fig5 -> {path}")
-        else:
-            click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
-    if any(t in FIGURES for t in todo):
-        _write_figure_index(opt.out)
+    try:
+        for item in todo:
+            if item in PAPER_EXPERIMENTS:
+                exp = _packaged(item, runs)
+                _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
+            elif item in STUDIES:
+                exp = _packaged(item, runs)
+                with _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)) as store:
+                    path = spectra_figure(opt.out, exp, store.estimates(exp.runs))
+                click.echo(f"{item} spectra -> {path}")
+            elif item == "fig5":
+                exp = _packaged("table2", runs)
+                with _table2_results(exp, opt, target) as store:
+                    path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
+                click.echo(f"fig5 -> {path}")
+            else:
+                click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
+        if any(t in FIGURES for t in todo):
+            _write_figure_index(opt.out)
+    except StoreError as exc:
+        raise click.ClickException(str(exc)) from None
+    except OSError as exc:  # a figure or index that cannot be written
+        raise click.ClickException(f"cannot write into {opt.out}: {exc}") from None
 
 
 def _check_scheduler(scheduler: str | None) -> None:

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .._checks import TooLargeError, allocation
+from .._checks import TooLargeError, allocation, nesting_depth
 from ..estimation import boxjenkins
 from ..estimation import problem as criteria
 from ._schema import ExperimentError, Section, _show
@@ -77,6 +77,11 @@ def load_experiment(path: str | Path) -> Experiment:
         raise ExperimentError(
             f"{p.name}: not UTF-8 text (byte {exc.start}); save the file as UTF-8"
         ) from None
+    if nesting_depth(text, comments=True) > 32:
+        raise ExperimentError(
+            f"{p.name}: nested too deeply to be an experiment definition; start from "
+            "`jitterid reproduce table2 --print-toml`"
+        )
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

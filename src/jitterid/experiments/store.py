@@ -144,6 +144,9 @@ class Store:
                 ) from None
         try:
             self._open(resume)
+        except StoreError:
+            self.close()
+            raise
         except sqlite3.OperationalError as exc:
             self.close()
             text = str(exc)
@@ -156,13 +159,16 @@ class Store:
                 f"cannot use the results store {self.path} ({exc}); check that the --out folder "
                 "is writable and the disk has space"
             ) from None
-        except sqlite3.DatabaseError as exc:
+        except (sqlite3.DatabaseError, ValueError, TypeError) as exc:
             self.close()
             raise StoreError(
                 f"{self.path} is not a readable jitterid results store ({exc}); it may be corrupt, "
                 "truncated or from another program: move it away (or delete it) and run again "
                 "without --resume; its realizations will be computed anew"
             ) from None
+        except BaseException:
+            self.close()
+            raise
 
     def _open(self, resume: bool) -> None:
         experiment = self.experiment
