@@ -349,7 +349,9 @@ def detect(
         with _clean_errors("cannot write the plot"):
             fig = Figure(figsize=(6.4, 6.0), layout="constrained")
             plot_residuals(det, ax=fig.subplots(2, 1))
-            fig.savefig(plot_path, dpi=110)
+            atomic_write(
+                Path(plot_path), lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True
+            )
         click.echo(f"wrote {plot_path}")
 
 
@@ -572,5 +574,7 @@ def bias(
             plot_gain_factor(
                 ff, ls_gain_factor(law, ff), label=f"|φ(f)|, {law!r}", tol=tol, ax=fig.subplots()
             )
-            fig.savefig(plot_path, dpi=110)
+            atomic_write(
+                Path(plot_path), lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True
+            )
         click.echo(f"wrote {plot_path}")
