@@ -570,3 +570,70 @@ def test_load_experiment_reads_the_packaged_definitions_unchanged():
     from jitterid.experiments import packaged_path
 
     assert load_experiment(packaged_path("table2")).runs == 128
+
+
+# ------------------------------------------------------------------------- real small disks
+
+
+def _mount_tmpfs(path: Path, options: str) -> bool:
+    import subprocess
+
+    path.mkdir(parents=True, exist_ok=True)
+    try:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)],
+                              capture_output=True, timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return done.returncode == 0
+
+
+def _umount(path: Path) -> None:
+    import subprocess
+
+    subprocess.run(["umount", str(path)], capture_output=True, timeout=10, check=False)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 96 kB tmpfs (skipped where tmpfs cannot be mounted, e.g. without root)."""
+    disk = tmp_path / "disk"
+    if not _mount_tmpfs(disk, "size=96k"):
+        pytest.skip("cannot mount a tmpfs here")
+    yield disk
+    _umount(disk)
+
+
+@pytest.fixture
+def read_only_disk(tmp_path):
+    disk = tmp_path / "ro"
+    if not _mount_tmpfs(disk, "ro,size=64k"):
+        pytest.skip("cannot mount a tmpfs here")
+    yield disk
+    _umount(disk)
+
+
+def test_a_full_disk_for_simulate_fit_and_run(lab, small_disk):
+    # simulate: the data file does not fit; nothing partial is left behind
+    msg = refused(run("simulate", "--out", small_disk / "s", "--N", "20000"), "No space left")
+    assert "cannot simulate" in msg
+    left = [p for p in small_disk.rglob("*") if p.is_file()]
+    assert all(p.stat().st_size > 0 and not p.name.endswith(".tmp") for p in left), left
+    # run: the store fills the disk; what was committed is kept and --resume is suggested
+    (small_disk / "filler").write_bytes(b"\0" * 40_000)
+    res = run("run", _tiny_toml(lab.parent / "t.toml", runs="400"), "--workers", "1",
+              "--no-progress", "--out", small_disk / "o")
+    refused(res, "--resume")
+    with Store(small_disk / "o" / "tiny.sqlite", dataclasses.replace(tiny(), runs=400),
+               resume=True) as store:
+        assert store.count_done() > 0
+
+
+def test_a_read_only_disk(lab, read_only_disk):
+    refused(run("simulate", "--out", read_only_disk / "s"), "--out", "writable")
+    refused(run("run", _tiny_toml(lab.parent / "t2.toml"), "--out", read_only_disk / "o"),
+            "cannot create the results store")
+    refused(
+        run("fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
+            "--jitter", "none", "--method", "ls", "--out", read_only_disk),
+        "--out", "writable",
+    )
