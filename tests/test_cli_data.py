@@ -387,7 +387,7 @@ def test_malformed_files_fail_cleanly(lab, kind, i, command):
 
 def test_index_file_with_T_on_the_command_line(lab, tmp_path):
     ds = ji.load(lab / "data.csv", lab / "input.csv")
-    ji.save_data(tmp_path / "k.csv", ds.data, index=True, metadata={"note": "T removed below"})
+    ji.save_data(tmp_path / "k.csv", ds.data, index=True, metadata={"x-note": "T removed below"})
     text = (tmp_path / "k.csv").read_text().replace("# T: 1.0\n", "")
     (tmp_path / "k.csv").write_text(text)
     args = ["detect", tmp_path / "k.csv", "--input", lab / "input.csv", "--model", "polepair"]

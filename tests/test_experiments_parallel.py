@@ -93,7 +93,7 @@ def test_a_dask_cluster_on_loopback_gives_the_in_process_numbers(definition, ref
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=":0",
+        dashboard_address=None,
         silence_logs=logging.ERROR,
     ) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")

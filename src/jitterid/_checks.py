@@ -77,3 +77,67 @@ def parameter_vector(
             raise ValueError(f"parameter {name} = {val:g} is outside its bounds [{lo}, {hi}]")
     return x
 
+
+
+class TooLargeError(ValueError):
+    """A request whose memory would exceed the budget; the message gives the figure and the fix."""
+
+
+def memory_budget() -> int:
+    """Bytes a single allocation may take: half of the available memory (8 GiB if unknown).
+
+    ``JITTERID_MEMORY_BUDGET`` (bytes, e.g. ``2e9``) overrides it.
+    """
+    import os
+
+    env = os.environ.get("JITTERID_MEMORY_BUDGET")
+    if env:
+        try:
+            return int(float(env))
+        except ValueError:
+            pass
+    try:
+        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):  # pragma: no cover - not POSIX
+        return 8 << 30
+    return max(int(avail) // 2, 64 << 20)
+
+
+def allocation(elements: float, name: str, *, bytes_each: int = 8, fix: str = "") -> None:
+    """Refuse, before allocating, ``elements`` values (of ``bytes_each``) above the budget."""
+    need = float(elements) * bytes_each
+    budget = memory_budget()
+    if not need <= budget:  # also refuses inf/nan
+        raise TooLargeError(
+            f"{name} needs about {need / 1e9:.3g} GB ({float(elements):.3g} values), more than "
+            f"the memory budget of {budget / 1e9:.3g} GB (half the free memory; set "
+            f"JITTERID_MEMORY_BUDGET to change it){'; ' + fix if fix else ''}"
+        )
+
+
+def nesting_depth(text: str, *, comments: bool = False) -> int:
+    """The deepest nesting of ``[``/``{`` in JSON or TOML ``text`` (outside strings), found
+    without recursion, so that absurdly nested input is refused before a parser recurses."""
+    depth = deepest = 0
+    quote = ""
+    escaped = in_comment = False
+    for ch in text:
+        if in_comment:
+            in_comment = ch != "\n"
+        elif quote:
+            if escaped:
+                escaped = False
+            elif ch == "\\" and quote == '"':
+                escaped = True
+            elif ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "#" and comments:
+            in_comment = True
+    return deepest

@@ -219,6 +219,14 @@ def telegraph_input(
     lv = real_array(levels, "levels", ndim=1)
     if lv.size != 2:
         raise ValueError(f"levels must be a pair (low, high); got {levels!r}")
+    # Refuse up front what cannot fit in memory (about 4 arrays of one value per switch).
+    from ._checks import allocation
+
+    allocation(
+        4 * (duration / mean_hold + 10),
+        f"a telegraph input of duration {duration:g} s with mean hold {mean_hold:g} s",
+        fix="use a longer mean_hold or a shorter duration",
+    )
     # Draw holding times in batches until the switches pass the end.
     expected = int(duration / mean_hold) + 1
     holds = gen.exponential(mean_hold, size=expected + 5 * int(np.sqrt(expected)) + 10)

@@ -9,7 +9,8 @@ A **data file** has one row per sample, taken on a regular *nominal* grid, and t
 ``t``       nominal sample time (regular grid, within 0.1 % of ``T``)
 ``y``       the measured output samples
 ``u``       optional: the input as a zero-order hold on the same grid (u[k] held on
-            [t_k, t_k + T), as a DAC does)
+            [t_k, t_k + T), as a DAC does; the last value is held on after the last
+            sample, so that jittered instants past the grid see it)
 ==========  ===============================================================================
 
 An **input file** (when the data file has no ``u`` column) has either the columns ``k`` or
@@ -24,7 +25,14 @@ first time, and the input is zero there.
 (``s``, ``ms``, ``us``, ``ns`` or ``min``; default ``s``, or the data file's unit for an
 input file), ``y_unit``, ``u_unit`` (free text), ``noise_std`` (measurement-noise std in
 y units, if known) and, for a switch-time input file, ``end`` (when the input stops;
-default: one interval after the last nominal sample). Other keys are kept as notes.
+default: one interval after the last nominal sample). Any other key must start with ``x-``
+(``# x-operator: ...``) and is kept as a note; an unknown key without it is refused with the
+closest known key, so that a typo such as ``time_units`` cannot silently leave the times in
+seconds.
+
+Cells are plain ASCII decimal numbers (``0.25``, ``-1e-3``): digit separators (``1_000``),
+non-ASCII digits and ``inf`` are refused. Sizes stated in a ``.npz`` member's header are checked
+against the member before any memory is allocated.
 
 Times are converted to seconds, so every frequency downstream is in Hz. The library's time
 origin is the first nominal sample: :attr:`Dataset.t0` records the file time it came from.
@@ -35,30 +43,47 @@ the file, the line (CSV) or index (``.npz``) and the column, and says how to fix
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import difflib
 import hashlib
 import json
 import math
+import os
+import re
+import tempfile
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from decimal import Decimal
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ._checks import nesting_depth
 from .inputs import Input, PiecewiseConstant
 from .simulate import SampledData
 
-__all__ = ["DataFileError", "Dataset", "Source", "load", "save_data", "save_input"]
+__all__ = [
+    "DataFileError",
+    "Dataset",
+    "Source",
+    "atomic_write",
+    "load",
+    "parse_time",
+    "save_data",
+    "save_input",
+]
 
 FloatArray = NDArray[np.float64]
 PathLike = str | Path
 
 #: Seconds per supported time unit.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0}
+_SCALE_DEC = {"s": Decimal(1), "ms": Decimal("1e-3"), "us": Decimal("1e-6"),
+              "ns": Decimal("1e-9"), "min": Decimal(60)}
 #: Largest deviation of a nominal time from the regular grid, as a fraction of T.
 GRID_TOL = 1e-3
 _NUMERIC_KEYS = ("T", "noise_std", "end")
@@ -67,6 +92,16 @@ _DATA_COLUMNS = ("k", "t", "y", "u")
 _ZOH_COLUMNS = ("k", "t", "u")
 _SWITCH_COLUMNS = ("time", "level")
 _MISSING = ("", "na", "nan", "n/a", "null", "none", "-")
+_META_KEYS = (*_NUMERIC_KEYS, *_TEXT_KEYS)
+#: Deepest nesting accepted in JSON metadata (a flat object needs 1).
+_MAX_DEPTH = 32
+#: A plain decimal number: ASCII digits only, no digit separators, no inf/nan.
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
+#: Largest data file (cells) read into memory; larger files are refused up front.
+MAX_CELLS = 200_000_000
+#: Extra time (in sampling intervals, at least) a 'u' column's last value is held after the
+#: last sample, so that a jittered last instant still sees a defined input.
+_U_TAIL = 64
 
 
 class DataFileError(ValueError):
@@ -98,6 +133,8 @@ class Dataset:
         All metadata keys read from the data file (after merging its sidecar).
     sources : tuple of Source
         The files read, with their checksums (data first).
+    notes : tuple of str
+        What loading assumed beyond the file (e.g. a 'u' column's last value held on).
     """
 
     data: SampledData
@@ -105,6 +142,7 @@ class Dataset:
     units: dict[str, str]
     metadata: dict[str, Any] = field(repr=False)
     sources: tuple[Source, ...]
+    notes: tuple[str, ...] = ()
 
     @property
     def sha256(self) -> str:
@@ -140,11 +178,51 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _check_key(path: Path | str, key: str, origin: str) -> None:
+    """Refuse an unknown metadata key (a typo would silently change the units)."""
+    if key in _META_KEYS or key.startswith("x-"):
+        return
+    lower = {k.lower(): k for k in _META_KEYS}
+    close = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.5)
+    hint = f" Did you mean {lower[close[0]]!r}?" if close else ""
+    raise DataFileError(
+        f"{path}: metadata key {key!r} ({origin}) is not known.{hint} Known keys: "
+        f"{', '.join(_META_KEYS)}; to keep a note, prefix its key with 'x-' (e.g. 'x-{key}')"
+    )
+
+
+class _Number(float):
+    """A metadata number that remembers the exact decimal it was written as, so that a time
+    converts to seconds exactly as :func:`save_data` intended (see :func:`_seconds`)."""
+
+    exact: Decimal
+
+    def __new__(cls, value: float, raw: Any) -> Self:
+        obj = super().__new__(cls, value)
+        obj.exact = Decimal(raw.strip()) if isinstance(raw, str) else Decimal(repr(value))
+        return obj
+
+    def __reduce__(self) -> Any:  # pickles (and copies) as a plain float
+        return (float, (float(self),))
+
+
+def _seconds(value: float, unit: str) -> float:
+    """``value`` (in ``unit``) in seconds, rounded once from the exact decimal product."""
+    exact = value.exact if isinstance(value, _Number) else Decimal(repr(float(value)))
+    return float(exact * _SCALE_DEC[unit])
+
+
 def _meta_value(path: Path, key: str, value: Any, origin: str) -> Any:
+    _check_key(path, key, origin)
     if key in _NUMERIC_KEYS:
         try:
-            val = float(value)
-        except (TypeError, ValueError):
+            if isinstance(value, str):
+                val = _decimal(value)
+            elif isinstance(value, (int, float)):
+                val = float(value)
+            else:
+                val = math.nan
+        except (TypeError, ValueError, OverflowError):
             val = math.nan
         if (
             isinstance(value, bool)
@@ -156,7 +234,7 @@ def _meta_value(path: Path, key: str, value: Any, origin: str) -> Any:
             raise DataFileError(
                 f"{path}: metadata {key!r} ({origin}) must be a finite number {need}; got {value!r}"
             )
-        return val
+        return _Number(val, value)
     if key in _TEXT_KEYS:
         if not isinstance(value, str):
             raise DataFileError(f"{path}: metadata {key!r} ({origin}) must be text; got {value!r}")
@@ -173,10 +251,7 @@ def _merge_sidecar(path: Path, meta: dict[str, Any]) -> dict[str, Any]:
     side = path.with_suffix(".json")
     if side == path or not side.is_file():
         return meta
-    try:
-        extra = json.loads(side.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataFileError(f"{side}: the metadata sidecar is not valid JSON ({exc})") from None
+    extra = _json_object(side, side.read_bytes(), "the metadata sidecar")
     if not isinstance(extra, dict):
         raise DataFileError(f"{side}: the metadata sidecar must hold a JSON object {{...}}")
     out = dict(meta)
@@ -191,7 +266,38 @@ def _merge_sidecar(path: Path, meta: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _json_object(path: Path, raw: bytes | str, what: str) -> Any:
+    """Parse JSON text, refusing invalid, non-UTF-8 or absurdly nested documents cleanly."""
+    try:
+        text = raw.decode("utf-8-sig") if isinstance(raw, bytes) else raw
+        if nesting_depth(text) > _MAX_DEPTH:
+            raise RecursionError
+        return json.loads(text)
+    except UnicodeDecodeError:
+        raise DataFileError(f"{path}: {what} is not UTF-8 text; save it as UTF-8 JSON") from None
+    except json.JSONDecodeError as exc:
+        raise DataFileError(f"{path}: {what} must hold a JSON object but is not valid JSON ({exc}); fix the syntax") from None
+    except RecursionError:
+        raise DataFileError(
+            f"{path}: {what} is nested too deeply to be metadata; write a flat JSON object "
+            'such as {"T": 0.5, "time_unit": "s"}'
+        ) from None
+
+
+def _decimal(text: str) -> float:
+    """A plain ASCII decimal number (ValueError otherwise; inf if it overflows)."""
+    s = text.strip()
+    if not _DECIMAL.fullmatch(s):
+        raise ValueError(text)
+    return float(s)
+
+
 def _read_csv(path: Path) -> _Table:
+    if path.stat().st_size > 40 * MAX_CELLS:
+        raise DataFileError(
+            f"{path}: the file is {path.stat().st_size / 1e9:.1f} GB, more than jitterid reads "
+            "into memory; split it or thin it to fewer samples"
+        )
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
@@ -210,6 +316,8 @@ def _read_csv(path: Path) -> _Table:
             if header is None and ":" in line:
                 key, _, value = line[1:].partition(":")
                 key = key.strip()
+                if not key:
+                    continue
                 if key in meta:
                     raise DataFileError(f"{path}: line {lineno}: metadata {key!r} is given twice")
                 meta[key] = _meta_value(path, key, value.strip(), f"line {lineno}")
@@ -262,12 +370,15 @@ def _number(path: Path, cell: str, lineno: int, column: str) -> float:
             "a number (remove the row only if that keeps the nominal grid regular)"
         )
     try:
-        val = float(s)
+        val = _decimal(s)
     except ValueError:
-        raise DataFileError(
-            f"{path}: line {lineno}, column {column!r}: {cell!r} is not a number; use plain decimal "
-            "numbers such as 0.25 or 1e-3"
-        ) from None
+        if s.lower().lstrip("+-") in ("inf", "infinity"):
+            val = math.inf
+        else:
+            raise DataFileError(
+                f"{path}: line {lineno}, column {column!r}: {cell!r} is not a number; use "
+                "plain ASCII decimal numbers without digit separators, such as 0.25, -1000 or 1e-3"
+            ) from None
     if not math.isfinite(val):
         raise DataFileError(
             f"{path}: line {lineno}, column {column!r}: {cell!r} is not finite (NaN/inf are treated "
@@ -288,11 +399,65 @@ def _check_header(path: Path, header: list[str], line: int) -> None:
         seen.add(name)
 
 
+def _check_npz_members(path: Path) -> None:
+    """Read every member's .npy header and refuse what cannot be data, before allocating."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            total = 0
+            for info in infos:
+                name = info.filename
+                if info.is_dir():
+                    continue
+                if not name.endswith(".npy"):
+                    raise DataFileError(
+                        f"{path}: member {name!r} is not a NumPy array (.npy); a data archive holds "
+                        "only arrays: write it with numpy.savez(path, t=..., y=...)"
+                    )
+                with zf.open(info) as fh:
+                    try:
+                        version = np.lib.format.read_magic(fh)
+                        if version == (1, 0):
+                            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+                        elif version == (2, 0):
+                            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+                        else:
+                            raise ValueError(f"unsupported .npy version {version}")
+                    except DataFileError:
+                        raise
+                    except Exception as exc:  # noqa: BLE001 - any error of a broken header
+                        raise DataFileError(
+                            f"{path}: member {name!r} has a broken .npy header "
+                            f"({type(exc).__name__}: {exc}); write it again with numpy.savez"
+                        ) from None
+                    header_len = fh.tell()
+                count = math.prod(shape)
+                nbytes = count * dtype.itemsize
+                if nbytes > max(info.file_size - header_len, 0):
+                    raise DataFileError(
+                        f"{path}: member {name!r} says it holds {count} values of shape {shape} "
+                        f"({nbytes} bytes) but has only {info.file_size - header_len} bytes of "
+                        "data; the archive is truncated or corrupt: write it again"
+                    )
+                total += count
+            if total > MAX_CELLS:
+                raise DataFileError(
+                    f"{path}: the arrays hold {total} values, more than jitterid reads into "
+                    f"memory ({MAX_CELLS}); thin the data to fewer samples"
+                )
+    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError) as exc:
+        raise DataFileError(
+            f"{path}: cannot read it as a NumPy .npz archive ({type(exc).__name__}: {exc}); "
+            "write it with numpy.savez(path, t=..., y=...)"
+        ) from None
+
+
 def _read_npz(path: Path) -> _Table:
+    _check_npz_members(path)
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {name: npz[name] for name in npz.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         raise DataFileError(
             f"{path}: cannot read it as a NumPy .npz archive ({type(exc).__name__}: {exc}); "
             "write it with numpy.savez(path, t=..., y=...)"
@@ -300,10 +465,11 @@ def _read_npz(path: Path) -> _Table:
     meta: dict[str, Any] = {}
     if "metadata" in arrays:
         raw = arrays.pop("metadata")
-        try:
-            meta_obj = json.loads(str(raw[()])) if raw.ndim == 0 and raw.dtype.kind == "U" else None
-        except json.JSONDecodeError:
-            meta_obj = None
+        meta_obj = (
+            _json_object(path, str(raw[()]), "array 'metadata'")
+            if raw.ndim == 0 and raw.dtype.kind == "U"
+            else None
+        )
         if not isinstance(meta_obj, dict):
             raise DataFileError(
                 f"{path}: array 'metadata' must be a 0-d string holding a JSON object, e.g. "
@@ -342,10 +508,13 @@ def _read(path: PathLike, role: str) -> _Table:
     p = Path(path)
     if not p.is_file():
         raise DataFileError(f"{p}: no such file (the {role} file)")
-    if p.suffix.lower() == ".npz":
-        return _read_npz(p)
-    if p.suffix.lower() == ".csv":
-        return _read_csv(p)
+    try:
+        if p.suffix.lower() == ".npz":
+            return _read_npz(p)
+        if p.suffix.lower() == ".csv":
+            return _read_csv(p)
+    except OSError as exc:
+        raise DataFileError(f"{p}: cannot read the {role} file ({exc.strerror or exc})") from None
     raise DataFileError(
         f"{p}: unknown file type {p.suffix!r}; the {role} file must be .csv or .npz"
     )
@@ -368,7 +537,7 @@ def _require_columns(tab: _Table, allowed: tuple[str, ...], role: str, layout: s
         )
 
 
-def _grid(tab: _Table, T_given: float | None, scale: float) -> tuple[float, float]:
+def _grid(tab: _Table, T_given: float | None, unit: str) -> tuple[float, float]:
     """Validate the nominal index/time column; return (first time, T) in seconds."""
     has_k, has_t = "k" in tab.columns, "t" in tab.columns
     if has_k and has_t:
@@ -399,7 +568,8 @@ def _grid(tab: _Table, T_given: float | None, scale: float) -> tuple[float, floa
                 "the nominal sampling interval T is not given; with an index column 'k' add a "
                 "'# T: <interval>' metadata line (or a JSON sidecar, or --T on the command line)"
             )
-        return float(k[0]) * T_given * scale, T_given * scale
+        T_s = _seconds(T_given, unit)
+        return float(k[0]) * T_s, T_s
     t = tab.columns["t"]
     _increasing(tab, "t", t)
     if n < 2:
@@ -415,7 +585,7 @@ def _grid(tab: _Table, T_given: float | None, scale: float) -> tuple[float, floa
             f"{T:.12g} from {src}; expected {t[0] + i * T:.12g}). The nominal grid must be "
             "regular: check for missing rows, or give the nominal index 'k' instead of times"
         )
-    return float(t[0]) * scale, T * scale
+    return _seconds(float(t[0]), unit), _seconds(T, unit)
 
 
 def _increasing(tab: _Table, name: str, x: FloatArray) -> None:
@@ -430,8 +600,8 @@ def _increasing(tab: _Table, name: str, x: FloatArray) -> None:
         )
 
 
-def _time_scale(tab: _Table, default: str = "s") -> float:
-    return TIME_UNITS[str(tab.meta.get("time_unit", default))]
+def _time_unit(tab: _Table, default: str = "s") -> str:
+    return str(tab.meta.get("time_unit", default))
 
 
 # ---------------------------------------------------------------------------------- inputs
@@ -439,10 +609,10 @@ def _time_scale(tab: _Table, default: str = "s") -> float:
 
 def _zoh_from_table(tab: _Table, t0: float, T: float, n: int) -> PiecewiseConstant:
     T_in = tab.meta.get("T")
-    scale = _time_scale(tab)
+    unit = _time_unit(tab)
     if T_in is None and "k" in tab.columns:
-        T_in = T / scale  # an index column counts samples of the data's grid
-    first, T_file = _grid(tab, None if T_in is None else float(T_in), scale)
+        T_in = T / TIME_UNITS[unit]  # an index column counts samples of the data's grid
+    first, T_file = _grid(tab, T_in, unit)
     if abs(T_file - T) > GRID_TOL * T:
         raise tab.fail(
             f"the input grid has T = {T_file:g} s but the data have T = {T:g} s; a zero-order-hold "
@@ -467,10 +637,11 @@ def _zoh_from_table(tab: _Table, t0: float, T: float, n: int) -> PiecewiseConsta
 def _switches_from_table(
     tab: _Table, t0: float, default_end: float, unit: str
 ) -> PiecewiseConstant:
-    scale = _time_scale(tab, unit)
+    tu = _time_unit(tab, unit)
+    scale = TIME_UNITS[tu]
     times = tab.columns["time"]
     _increasing(tab, "time", times)
-    end = default_end if "end" not in tab.meta else float(tab.meta["end"]) * scale
+    end = default_end if "end" not in tab.meta else _seconds(tab.meta["end"], tu)
     if end <= times[-1] * scale:
         raise tab.fail(
             f"the input ends at {end:g} s, not after its last switch time {times[-1] * scale:g} s; "
@@ -523,8 +694,9 @@ def load(
         The data file (``.csv`` or ``.npz``), see the module notes for the format.
     input : str or Path, optional
         The input file, unless the data file has a ``u`` column.
-    T : float, optional
-        Nominal sampling interval in the file's time unit; needed with an index column ``k``
+    T : float or str, optional
+        Nominal sampling interval in the file's time unit, or a string with its own unit
+        (``"0.5s"``, ``"500ms"``, see :func:`parse_time`); needed with an index column ``k``
         when the metadata do not give it. Must agree with the metadata if both are given.
     noise_std : float, optional
         Measurement-noise std (y units), overriding the metadata's ``noise_std``.
@@ -545,29 +717,45 @@ def load(
             f"no output column 'y' (found {list(tab.columns)}); name the output column 'y'"
         )
     meta_T = tab.meta.get("T")
+    unit = str(tab.meta.get("time_unit", "s"))
     if T is not None:
+        if isinstance(T, str):
+            try:
+                T = parse_time(T, unit, "T") / TIME_UNITS[unit]
+            except ValueError as exc:
+                raise DataFileError(str(exc)) from None
         try:
             T = float(T)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise DataFileError(f"T must be a number; got {T!r}") from None
         if not (math.isfinite(T) and T > 0):
             raise DataFileError(f"T must be finite and > 0; got {T!r}")
         if meta_T is not None and abs(meta_T - T) > 1e-9 * T:
             raise tab.fail(f"T = {T:g} was given but the metadata say T = {meta_T:g}; keep one")
     T_file = T if T is not None else meta_T
-    unit = str(tab.meta.get("time_unit", "s"))
-    t0, T_s = _grid(tab, T_file, TIME_UNITS[unit])
+    t0, T_s = _grid(tab, T_file, unit)
     n = tab.nrows
     if n < 4:
         raise tab.fail(f"has {n} sample(s); at least 4 are needed")
     sources = [Source("data", str(tab.path), _sha256(tab.path))]
+    notes: list[str] = []
     if "u" in tab.columns:
         if input is not None:
             raise DataFileError(
                 f"{tab.path} has an input column 'u' and an input file {input} was also given; "
                 "keep one of them"
             )
-        u: Input = PiecewiseConstant(T_s * np.arange(n + 1.0), tab.columns["u"])
+        # u[k] is held on [t_k, t_k + T); the last value is held on for the jitter's tail
+        # (a jittered last instant lies past the grid), which the report states.
+        tail = max(n, _U_TAIL)
+        times = T_s * np.arange(n + 1.0)
+        times[-1] = T_s * (n - 1 + tail)
+        u: Input = PiecewiseConstant(times, tab.columns["u"])
+        notes.append(
+            f"the input column 'u' is a zero-order hold; its last value u = "
+            f"{tab.columns['u'][-1]:g} is assumed to hold after the last sample (for "
+            f"{tail} intervals), where the jittered last instants may fall"
+        )
         u_unit = str(tab.meta.get("u_unit", ""))
     elif input is None:
         raise tab.fail(
@@ -579,8 +767,13 @@ def load(
         sources.append(Source("input", str(itab.path), _sha256(itab.path)))
         u_unit = str(itab.meta.get("u_unit", tab.meta.get("u_unit", "")))
     noise = noise_std if noise_std is not None else tab.meta.get("noise_std")
-    if noise is not None and not (math.isfinite(float(noise)) and float(noise) >= 0):
-        raise DataFileError(f"noise_std must be finite and >= 0; got {noise!r}")
+    if noise is not None:
+        try:
+            ok = not isinstance(noise, bool) and math.isfinite(float(noise)) and float(noise) >= 0
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
+            raise DataFileError(f"noise_std must be finite and >= 0; got {noise!r}")
     try:
         data = SampledData(
             y=tab.columns["y"], T=T_s, u=u, noise_std=None if noise is None else float(noise)
@@ -593,38 +786,134 @@ def load(
         "y": str(tab.meta.get("y_unit", "")),
         "u": u_unit,
     }
-    return Dataset(data=data, t0=t0, units=units, metadata=dict(tab.meta), sources=tuple(sources))
+    return Dataset(
+        data=data,
+        t0=t0,
+        units=units,
+        metadata=dict(tab.meta),
+        sources=tuple(sources),
+        notes=tuple(notes),
+    )
 
 
 # ---------------------------------------------------------------------------------- save
 
 
+def parse_time(text: str | float, default_unit: str = "s", name: str = "time") -> float:
+    """A duration in seconds from ``"80ms"``, ``"0.5 s"``, ``"2us"`` or a bare number.
+
+    A bare number is in ``default_unit`` (the data file's ``time_unit`` on the command line).
+    Units: s, ms, us (or µs), ns, min. Raises ValueError naming ``name`` otherwise.
+    """
+    if default_unit not in TIME_UNITS:
+        raise ValueError(f"default_unit must be one of {sorted(TIME_UNITS)}; got {default_unit!r}")
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        val, unit = float(text), default_unit
+    elif isinstance(text, str):
+        body, unit = text.strip(), default_unit
+        for suffix in ("min", "ms", "us", "µs", "μs", "ns", "s"):
+            if body.endswith(suffix) and not body.endswith("e" + suffix):
+                body, unit = body[: -len(suffix)].strip(), suffix.replace("µ", "u").replace("μ", "u")
+                break
+        try:
+            val = _decimal(body)
+        except ValueError:
+            raise ValueError(
+                f"{name}: {text!r} is not a time; write a plain decimal number with an optional "
+                f"unit ({', '.join(TIME_UNITS)}), e.g. 0.08 or 80ms (a bare number is in "
+                f"{default_unit})"
+            ) from None
+    else:
+        raise TypeError(f"{name} must be a number or a string such as '80ms'; got {text!r}")
+    seconds = val * TIME_UNITS[unit]
+    if not math.isfinite(seconds):
+        raise ValueError(f"{name}: {text!r} is not a finite time")
+    return seconds
+
+
+def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = False) -> Path:
+    """Write ``path`` all at once: ``write(fh)`` fills a temporary file in the same folder,
+    which then replaces ``path`` (no partial or 0-byte file is ever left behind)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8", "newline": ""})) as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def _to_unit(seconds: float, unit: str) -> float | str:
+    """``seconds`` in ``unit``, written so that :func:`load` gives back exactly ``seconds``:
+    the float if its shortest repr does, else a decimal string with enough digits."""
+    if unit == "s":
+        return float(seconds)
+    exact = Decimal(float(seconds)) / _SCALE_DEC[unit]  # exact: a finite decimal
+    v = float(exact)
+    if float(Decimal(repr(v)) * _SCALE_DEC[unit]) == seconds:
+        return v
+    for digits in range(17, 40):
+        text = format(exact, f".{digits}g")
+        if float(Decimal(text) * _SCALE_DEC[unit]) == seconds:
+            return text
+    return format(exact, "f")  # pragma: no cover - the exact decimal always works
+
+
+def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
+    """Validate metadata to be written the way :func:`load` will read it."""
+    out: dict[str, Any] = {}
+    for key, value in meta.items():
+        if not isinstance(key, str):
+            raise TypeError(f"metadata keys must be strings; got {key!r}")
+        try:
+            _meta_value(Path("metadata"), key, value, "argument")
+        except DataFileError as exc:
+            raise ValueError(str(exc).removeprefix("metadata: ")) from None
+        if isinstance(value, (dict, list, tuple)) or value is None:
+            raise ValueError(f"metadata {key!r} must be a number or one line of text; got {value!r}")
+        text = str(value)
+        if "\n" in text or "\r" in text:
+            raise ValueError(f"metadata {key!r} must fit on one line")
+        out[key] = value
+    return out
+
+
 def _write(path: Path, columns: Mapping[str, FloatArray], meta: Mapping[str, Any]) -> Path:
+    if path.suffix.lower() not in (".csv", ".npz"):
+        raise ValueError(f"path must end in .csv or .npz; got {path.name!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".npz":
         arrays: dict[str, Any] = {k: np.asarray(v, float) for k, v in columns.items()}
         arrays["metadata"] = np.array(json.dumps(dict(meta)))
-        np.savez(path, **arrays)
-        return path
-    if path.suffix.lower() != ".csv":
-        raise ValueError(f"path must end in .csv or .npz; got {path.name!r}")
+        return atomic_write(path, lambda fh: np.savez(fh, **arrays), binary=True)
     lines = ["# jitterid data format 1"]
     for key, value in meta.items():
         text = str(value)
-        if "\n" in text:
-            raise ValueError(f"metadata {key!r} must fit on one line")
         lines.append(f"# {key}: {value!r}" if isinstance(value, float) else f"# {key}: {text}")
+    # (an exact time that needs more than 17 digits is a str here, written as it is)
     names = list(columns)
     lines.append(",".join(names))
     cols = [np.asarray(columns[n], float) for n in names]
     for row in zip(*cols, strict=True):
         lines.append(",".join(_fmt(v) for v in row))
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    return atomic_write(path, lambda fh: fh.write("\n".join(lines) + "\n"))
 
 
 def _fmt(v: float) -> str:
     return str(int(v)) if float(v).is_integer() and abs(v) < 2**53 else repr(float(v))
+
+
+def _unit_of(meta: Mapping[str, Any]) -> str:
+    unit = meta.get("time_unit", "s")
+    if unit not in TIME_UNITS:
+        raise ValueError(f"metadata 'time_unit' must be one of {sorted(TIME_UNITS)}; got {unit!r}")
+    return str(unit)
 
 
 def save_data(
@@ -640,15 +929,19 @@ def save_data(
     Parameters
     ----------
     path : str or Path
-        Target file; parent directories are created.
+        Target file; parent directories are created. Written atomically (a temporary file
+        renamed into place), so an interrupted write leaves no partial file.
     data : SampledData
-        The samples; ``data.T`` is written as metadata ``T`` (seconds).
+        The samples; ``data.T`` is written as metadata ``T`` (in the written time unit).
     t0 : float
         File time of the first sample (s).
     index : bool
         Write the nominal index ``k`` (True) or the nominal time ``t`` (False, default).
     metadata : mapping, optional
-        Extra metadata (e.g. ``y_unit``); ``T`` and ``time_unit`` are always written.
+        Extra metadata (e.g. ``y_unit``), checked as :func:`load` checks it (unknown keys
+        need an ``x-`` prefix). ``time_unit`` (default ``s``) is the unit the times and
+        ``T`` are written in: they are converted, so :func:`load` gives back ``data.T``
+        exactly. ``T`` comes from ``data`` (a different ``T`` here is refused).
         ``noise_std`` is written only if given here, since real data rarely know it.
 
     Returns
@@ -658,12 +951,24 @@ def save_data(
     """
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
-    meta: dict[str, Any] = {"T": float(data.T), "time_unit": "s"}
-    meta.update(dict(metadata or {}))
+    extra = _check_meta(dict(metadata or {}))
+    unit = _unit_of(extra)
+    T_text = _to_unit(float(data.T), unit)
+    T = float(T_text)
+    if "T" in extra and abs(float(extra["T"]) - T) > 1e-12 * T:
+        raise ValueError(
+            f"metadata 'T' = {extra['T']!r} disagrees with data.T = {T!r} {unit}; "
+            "T is written from data.T: remove it from metadata"
+        )
+    meta: dict[str, Any] = {"T": T_text, "time_unit": unit}
+    meta.update({k: v for k, v in extra.items() if k not in ("T", "time_unit")})
     k = np.arange(data.N, dtype=float)
-    cols = {"k": k + round(t0 / data.T)} if index else {"t": t0 + data.T * k}
-    if index and abs(t0 - round(t0 / data.T) * data.T) > 1e-12 * max(1.0, abs(t0)):
-        raise ValueError("with index=True, t0 must be a multiple of T")
+    if index:
+        if abs(t0 - round(t0 / data.T) * data.T) > 1e-12 * max(1.0, abs(t0)):
+            raise ValueError("with index=True, t0 must be a multiple of T")
+        cols = {"k": k + round(t0 / data.T)}
+    else:
+        cols = {"t": float(_to_unit(float(t0), unit)) + T * k}
     cols["y"] = np.asarray(data.y, float)
     return _write(Path(path), cols, meta)
 
@@ -681,7 +986,7 @@ def save_input(
     Parameters
     ----------
     path : str or Path
-        Target file.
+        Target file (written atomically).
     u : PiecewiseConstant
         The input (library time, origin at the first sample).
     t0 : float
@@ -691,7 +996,8 @@ def save_input(
         :func:`jitterid.zoh_input`) and is written as columns ``t,u``; otherwise as switch
         times ``time,level`` with metadata ``end``.
     metadata : mapping, optional
-        Extra metadata such as ``u_unit``.
+        Extra metadata such as ``u_unit``; ``time_unit`` (default ``s``) is the unit the
+        times are written in (they are converted).
 
     Returns
     -------
@@ -702,14 +1008,21 @@ def save_input(
             f"only piecewise-constant inputs can be saved; got {type(u).__name__}. "
             "Sample a multisine on a grid and save it as a zero-order hold"
         )
-    meta: dict[str, Any] = {"time_unit": "s"}
+    extra = _check_meta(dict(metadata or {}))
+    unit = _unit_of(extra)
+    scale = TIME_UNITS[unit]
+    for key in ("T", "end"):
+        if key in extra:
+            raise ValueError(f"metadata {key!r} is written from the input; remove it")
+    meta: dict[str, Any] = {"time_unit": unit}
     if T is None:
-        meta["end"] = float(u.end + t0)
-        meta.update(dict(metadata or {}))
-        return _write(Path(path), {"time": u.times[:-1] + t0, "level": u.levels}, meta)
+        meta["end"] = _to_unit(float(u.end + t0), unit)
+        meta.update({k: v for k, v in extra.items() if k != "time_unit"})
+        times = (u.times[:-1] + t0) / scale
+        return _write(Path(path), {"time": times, "level": u.levels}, meta)
     steps = np.diff(u.times)
     if np.max(np.abs(steps - T)) > 1e-9 * T or abs(u.times[0] / T - round(u.times[0] / T)) > 1e-9:
         raise ValueError("u is not a zero-order hold on the grid k T; omit T to save switch times")
-    meta["T"] = float(T)
-    meta.update(dict(metadata or {}))
-    return _write(Path(path), {"t": u.times[:-1] + t0, "u": u.levels}, meta)
+    meta["T"] = _to_unit(float(T), unit)
+    meta.update({k: v for k, v in extra.items() if k != "time_unit"})
+    return _write(Path(path), {"t": (u.times[:-1] + t0) / scale, "u": u.levels}, meta)

@@ -1,15 +1,25 @@
-"""What ``jitterid fit`` writes: result.json, a Markdown report and its figures."""
+"""What ``jitterid fit`` writes: result.json, a Markdown report and its figures.
+
+Every file is written atomically (a temporary file renamed into place). Text from the data
+files (units, paths) and the command line is escaped before it goes into the Markdown
+report, so it cannot inject markup, links or HTML. A part that cannot be computed (a
+diagnostic, the standard errors, a figure) is reported as skipped with its reason; the fit
+itself is always written.
+"""
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .._markdown import md_code as _code
+from .._markdown import md_text
 from ..analysis.diagnostics import (
     JitterDetection,
     ResidualTest,
@@ -18,7 +28,7 @@ from ..analysis.diagnostics import (
 )
 from ..analysis.uncertainty import bode_band, jitter_pdf_band
 from ..estimation.result import FitResult
-from ..io import Dataset
+from ..io import Dataset, atomic_write
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
@@ -38,12 +48,22 @@ class FitReport:
     jitter: JitterLaw | JitterFamily
     result: FitResult
     ordinary: FitResult
-    detection: JitterDetection
+    detection: JitterDetection | None
     checks: tuple[ResidualTest, ...]
     level: float
     seed: int
     version: str
+    skipped: tuple[tuple[str, str], ...] = ()
 
+
+_ERRORS = (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError)
+
+
+def _try(make: Callable[[], Any]) -> tuple[Any, str | None]:
+    try:
+        return make(), None
+    except _ERRORS as exc:
+        return None, " ".join(str(exc).split()) or type(exc).__name__
 
 def _clean(x: Any) -> Any:
     """JSON-safe: NaN/inf -> None, numpy -> Python."""
@@ -78,6 +98,26 @@ def result_json(rep: FitReport) -> dict[str, Any]:
     """The content of result.json."""
     res, ds = rep.result, rep.dataset
     det = rep.detection
+    stderr, why = _try(lambda: res.stderr)
+    ci, why_ci = _try(lambda: res.conf_int(rep.level))
+    cov, _ = _try(lambda: res.cov)
+    ls_se, _ = _try(lambda: rep.ordinary.stderr)
+    skipped = dict(rep.skipped)
+    if why or why_ci:
+        skipped["standard errors"] = why or why_ci or ""
+    diagnostics: dict[str, Any] = {}
+    if det is not None:
+        diagnostics["jitter_detection"] = {
+            "statistic": det.statistic,
+            "pvalue": det.pvalue,
+            "implied_jitter_std_s": det.jitter_std,
+            "implied_jitter_std_ci_s": det.jitter_std_ci,
+            "level": det.level,
+        }
+    for c in rep.checks:
+        diagnostics[c.name] = {"statistic": c.statistic, "dof": c.dof, "pvalue": c.pvalue}
+    if skipped:
+        diagnostics["skipped"] = skipped
     return _clean(
         {
             "jitterid_version": rep.version,
@@ -94,6 +134,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
                 "T_s": ds.data.T,
                 "t0_s": ds.t0,
                 "units": ds.units,
+                "notes": list(ds.notes),
             },
             "model": {
                 "spec": rep.model_spec,
@@ -107,37 +148,40 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             },
             "noise_std": res.noise_std,
             "parameters": res.params,
-            "stderr": res.stderr,
-            f"conf_int_{round(100 * rep.level)}": res.conf_int(rep.level),
-            "covariance": {"names": list(res.names), "matrix": res.cov},
+            "stderr": stderr,
+            f"conf_int_{round(100 * rep.level)}": ci,
+            "covariance": {"names": list(res.names), "matrix": cov},
             "system": _system_dict(res.system),
             "ordinary_ls": {
                 "parameters": rep.ordinary.params,
-                "stderr": rep.ordinary.stderr,
+                "stderr": ls_se,
                 "system": _system_dict(rep.ordinary.system),
             },
-            "diagnostics": {
-                "jitter_detection": {
-                    "statistic": det.statistic,
-                    "pvalue": det.pvalue,
-                    "implied_jitter_std_s": det.jitter_std,
-                    "implied_jitter_std_ci_s": det.jitter_std_ci,
-                    "level": det.level,
-                },
-                **{
-                    c.name: {"statistic": c.statistic, "dof": c.dof, "pvalue": c.pvalue}
-                    for c in rep.checks
-                },
-            },
+            "diagnostics": diagnostics,
             "seed": rep.seed,
         }
     )
 
 
+def _save(fig: Any, path: Path) -> None:
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True)
+
+
 def _figures(rep: FitReport, out: Path) -> dict[str, str]:
+    """The figures that can be drawn; a figure that cannot is noted under ``<name>_skipped``."""
+    names: dict[str, str] = {}
+    for name, draw in (("bode", _bode_fig), ("jitter_pdf", _pdf_fig), ("residuals", _resid_fig)):
+        try:
+            names.update(draw(rep, out))
+        except _ERRORS as exc:
+            names[f"{name}_skipped"] = " ".join(str(exc).split()) or type(exc).__name__
+    return names
+
+
+def _bode_fig(rep: FitReport, out: Path) -> dict[str, str]:
     from matplotlib.figure import Figure
 
-    from ..plots import plot_bode, plot_jitter_pdf, plot_residuals
+    from ..plots import plot_bode
 
     res, data = rep.result, rep.dataset.data
     names: dict[str, str] = {}
@@ -148,9 +192,18 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
     refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": rep.ordinary.system}
     plot_bode(band, refs, label=f"{res.method} estimate", ax=axes)
     axes[0].set_title(f"Bode plot, {100 * rep.level:g}% delta-method band", fontsize="medium")
-    fig.savefig(out / "bode.png", dpi=110)
+    _save(fig, out / "bode.png")
     names["bode"] = "bode.png"
+    return names
 
+
+def _pdf_fig(rep: FitReport, out: Path) -> dict[str, str]:
+    from matplotlib.figure import Figure
+
+    from ..plots import plot_jitter_pdf
+
+    res = rep.result
+    names: dict[str, str] = {}
     if res.jitter_law.std > 0:
         hi = 1.5 * min(res.jitter_law.support[1], 4 * res.jitter_law.std)
         family = rep.jitter if isinstance(rep.jitter, JitterFamily) else None
@@ -165,14 +218,24 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
         fig = Figure(figsize=(6.4, 4.0), layout="constrained")
         ax = fig.subplots()
         plot_jitter_pdf(pband, label=label, ax=ax)
-        fig.savefig(out / "jitter_pdf.png", dpi=110)
+        _save(fig, out / "jitter_pdf.png")
         names["jitter_pdf"] = "jitter_pdf.png"
+    return names
 
+
+def _resid_fig(rep: FitReport, out: Path) -> dict[str, str]:
+    from matplotlib.figure import Figure
+
+    from ..plots import plot_residuals
+
+    names: dict[str, str] = {}
+    if rep.detection is None:
+        return names
     fig = Figure(figsize=(6.4, 6.0), layout="constrained")
     axes = fig.subplots(2, 1)
     plot_residuals(rep.detection, ax=axes)
     axes[0].set_title("residuals of the ordinary LS fit", fontsize="medium")
-    fig.savefig(out / "residuals.png", dpi=110)
+    _save(fig, out / "residuals.png")
     names["residuals"] = "residuals.png"
     return names
 
@@ -180,18 +243,25 @@ def _figures(rep: FitReport, out: Path) -> dict[str, str]:
 def _table(rep: FitReport) -> list[str]:
     res, ls = rep.result, rep.ordinary
     pct = f"{100 * rep.level:g}%"
-    ci = res.conf_int(rep.level)
+    se, why = _try(lambda: res.stderr)
+    ci, why_ci = _try(lambda: res.conf_int(rep.level))
+    ls_se, _ = _try(lambda: ls.stderr)
+    ls_se = ls_se or {}
     lines = [
-        f"| parameter | {res.method} estimate | std err | {pct} interval | ordinary LS | LS std err |",
+        (
+            f"| parameter | {md_text(res.method)} estimate | std err | {pct} interval "
+            "| ordinary LS | LS std err |"
+        ),
         "|---|---:|---:|---|---:|---:|",
     ]
     for n, v in res.params.items():
         lsv = f"{ls.params[n]:.5g}" if n in ls.params else "-"
-        lse = f"{ls.stderr[n]:.3g}" if n in ls.stderr else "-"
-        lines.append(
-            f"| {n} | {v:.5g} | {res.stderr[n]:.3g} | [{ci[n][0]:.5g}, {ci[n][1]:.5g}] "
-            f"| {lsv} | {lse} |"
-        )
+        lse = f"{ls_se[n]:.3g}" if n in ls_se else "-"
+        sev = f"{se[n]:.3g}" if se is not None else "-"
+        civ = f"[{ci[n][0]:.5g}, {ci[n][1]:.5g}]" if ci is not None else "-"
+        lines.append(f"| {md_text(n)} | {v:.5g} | {sev} | {civ} | {lsv} | {lse} |")
+    if why or why_ci:
+        lines += ["", f"No standard errors: {md_text(why or why_ci)}."]
     return lines
 
 
@@ -199,31 +269,14 @@ def _image(alt: str, name: str | None) -> list[str]:
     return [f"![{alt}]({name})", ""] if name else []
 
 
-def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
-    """The Markdown report."""
-    res, ds, det = rep.result, rep.dataset, rep.detection
-    data = ds.data
-    files = ", ".join(
-        f"{s.role} `{Path(s.path).name}` (sha256 `{s.sha256[:16]}…`)" for s in ds.sources
-    )
+def _detection_lines(rep: FitReport, figs: dict[str, str]) -> list[str]:
+    det = rep.detection
+    if det is None:
+        why = dict(rep.skipped).get("jitter detection", "it could not be computed")
+        return [f"Skipped: the jitter test could not run ({md_text(why)}).", ""]
     lo, hi = det.jitter_std_ci
     pct = f"{100 * rep.level:g}%"
-    law = res.jitter_law
-    lines = [
-        "# jitterid fit report",
-        "",
-        f"- **Data**: {files}",
-        (
-            f"- **Grid**: N = {data.N} samples, T = {data.T:g} s (Nyquist {0.5 / data.T:g} Hz), "
-            f"first sample at file time {ds.t0:g} s; output unit `{ds.units['y'] or '-'}`"
-        ),
-        f"- **Model**: `{rep.model_spec}`, {rep.model_label}",
-        f"- **Jitter**: `{rep.jitter_spec}`; **method**: `{res.method}`",
-        f"- **Status**: {res.status.value} ({res.nfev} evaluations)",
-        f"- jitterid {rep.version}; full numbers in `result.json`",
-        "",
-        "## 1. Is there jitter?",
-        "",
+    return [
         (
             "An ordinary fit that ignores jitter leaves residuals whose variance grows with the "
             "squared slope of the output when the sampling instants jitter. Regressing squared "
@@ -241,11 +294,42 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         ),
         "",
         *_image("residuals of the ordinary fit", figs.get("residuals")),
+    ]
+
+
+def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
+    """The Markdown report (user text escaped, see :func:`md_text`)."""
+    res, ds = rep.result, rep.dataset
+    data = ds.data
+    files = ", ".join(
+        f"{s.role} {md_text(Path(s.path).name)} (sha256 `{s.sha256[:16]}…`)" for s in ds.sources
+    )
+    law = res.jitter_law
+    lines = [
+        "# jitterid fit report",
+        "",
+        f"- **Data**: {files}",
+        (
+            f"- **Grid**: N = {data.N} samples, T = {data.T:g} s (Nyquist {0.5 / data.T:g} Hz), "
+            f"first sample at file time {ds.t0:g} s; output unit {md_text(ds.units['y'] or '-')}"
+        ),
+        *(f"- **Note**: {md_text(n)}" for n in ds.notes),
+        f"- **Model**: {_code(rep.model_spec)}, {md_text(rep.model_label)}",
+        f"- **Jitter**: {_code(rep.jitter_spec)}; **method**: `{res.method}`",
+        f"- **Status**: {res.status.value} ({res.nfev} evaluations)",
+        f"- jitterid {rep.version}; full numbers in `result.json`",
+        "",
+        "## 1. Is there jitter?",
+        "",
+        *_detection_lines(rep, figs),
         "## 2. Estimate",
         "",
         *_table(rep),
         "",
-        f"- jitter law: {law} ({'estimated' if isinstance(rep.jitter, JitterFamily) else 'assumed'})",
+        (
+            f"- jitter law: {md_text(law)} "
+            f"({'estimated' if isinstance(rep.jitter, JitterFamily) else 'assumed'})"
+        ),
         (
             "- noise std: not used"
             if res.noise_std is None
@@ -267,22 +351,27 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         *_image("Bode plot", figs.get("bode")),
     ]
     if law.std > 0:
-        fb = bias_frequency(law, 0.01)
-        ny = 0.5 / data.T
-        lines += [
-            (
-                f"Under the {'fitted' if isinstance(rep.jitter, JitterFamily) else 'assumed'} jitter "
-                f"law an ordinary fit sees the gain scaled by |φ(f)|: {ls_gain_factor(law, ny):.3f} at "
-                f"Nyquist ({ny:g} Hz); the gain bias reaches 1% at {fb:.3g} Hz."
-            ),
-            "",
-        ]
+        gain, _ = _try(lambda: (bias_frequency(law, 0.01), ls_gain_factor(law, 0.5 / data.T)))
+        if gain is not None:
+            fb, g_ny = gain
+            ny = 0.5 / data.T
+            lines += [
+                (
+                    f"Under the {'fitted' if isinstance(rep.jitter, JitterFamily) else 'assumed'} "
+                    f"jitter law an ordinary fit sees the gain scaled by |φ(f)|: {float(g_ny):.3f} "
+                    f"at Nyquist ({ny:g} Hz); the gain bias reaches 1% at {fb:.3g} Hz."
+                ),
+                "",
+            ]
     if "jitter_pdf" in figs:
         lines += ["## 4. Jitter density", "", f"![jitter pdf]({figs['jitter_pdf']})", ""]
         if "jitter_pdf_note" in figs:
-            lines += [f"No band is drawn: {figs['jitter_pdf_note']}.", ""]
+            lines += [f"No band is drawn: {md_text(figs['jitter_pdf_note'])}.", ""]
     lines += ["## 5. Residual checks (after fitting)", ""]
-    lines += [f"- {c.summary()}" for c in rep.checks]
+    lines += [f"- {md_text(c.summary())}" for c in rep.checks]
+    skipped = [*rep.skipped, *((k[: -len("_skipped")] + " figure", v) for k, v in figs.items()
+                               if k.endswith("_skipped"))]
+    lines += [f"- skipped {md_text(name)}: {md_text(why)}" for name, why in skipped]
     lines += [
         "",
         "Standardised residuals (y_k - E y_k) / sd(y_k) under the fitted model and jitter law.",
@@ -300,13 +389,13 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
 
 
 def write_outputs(rep: FitReport, out: Path, *, plots: bool = True) -> list[Path]:
-    """Write result.json, report.md and (with ``plots``) the figures into ``out``."""
+    """Write result.json, report.md and (with ``plots``) the figures into ``out``, each
+    atomically; result.json first, so the fit is saved whatever happens after."""
     out.mkdir(parents=True, exist_ok=True)
-    written = [out / "result.json"]
-    (out / "result.json").write_text(
-        json.dumps(result_json(rep), indent=2) + "\n", encoding="utf-8"
-    )
+    text = json.dumps(result_json(rep), indent=2) + "\n"
+    atomic_write(out / "result.json", lambda fh: fh.write(text))
     figs = _figures(rep, out) if plots else {}
-    (out / "report.md").write_text(report_markdown(rep, figs), encoding="utf-8")
+    md = report_markdown(rep, figs)
+    atomic_write(out / "report.md", lambda fh: fh.write(md))
     pngs = [out / v for k, v in figs.items() if v.endswith(".png")]
-    return [*written, out / "report.md", *pngs]
+    return [out / "result.json", out / "report.md", *pngs]

@@ -10,12 +10,17 @@ Jitter: ``none``; a known law ``known:uniform:a=0.5``, ``known:gaussian:sigma=0.
 ``sum-of-uniforms``, optionally bounded (``uniform:a_max=0.5``,
 ``sum-of-uniforms:n_max=10,a_max=0.5``, ``gaussian:sigma_max=0.3``). Where only a law makes
 sense (``simulate``, ``bias``) the ``known:`` prefix may be left out.
+
+Times (``a``, ``sigma`` and their bounds) take a unit, ``sigma=80ms``; a bare number is in
+the data file's ``time_unit`` (seconds where there is no file). ``n`` has no unit.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
+from ..io import parse_time
 from ..jitter.laws import (
     Gaussian,
     GaussianFamily,
@@ -41,10 +46,15 @@ _FAMILIES: dict[str, tuple[type[JitterFamily], tuple[str, ...]]] = {
     "gaussian": (GaussianFamily, ("sigma_max", "sigma_min")),
     "sum-of-uniforms": (SumOfUniformsFamily, ("n_max", "a_max", "a_min")),
 }
+#: Parameters without a time unit (all others are times).
+_UNITLESS = ("n", "n_max")
+#: Largest time accepted in a jitter specification (s): far beyond any sampling problem.
+MAX_TIME_S = 1e9
 JITTER_HELP = (
     "none | known:uniform:a=A | known:gaussian:sigma=S | known:sum-of-uniforms:n=N,a=A "
     "(a known law) | uniform | gaussian | sum-of-uniforms (a family to estimate, optionally "
-    "bounded, e.g. uniform:a_max=0.5)"
+    "bounded, e.g. uniform:a_max=0.5). Times take a unit (sigma=80ms); a bare number is in "
+    "the data file's time_unit (seconds by default)"
 )
 
 
@@ -95,7 +105,10 @@ def parse_floats(text: str, name: str) -> list[float]:
     out = []
     for part in text.split(","):
         try:
-            out.append(float(part))
+            val = float(part)
+            if not math.isfinite(val):
+                raise ValueError(part)
+            out.append(val)
         except ValueError:
             raise ValueError(
                 f"{name}: {part.strip()!r} is not a number; give comma-separated numbers, "
@@ -104,7 +117,9 @@ def parse_floats(text: str, name: str) -> list[float]:
     return out
 
 
-def _kwargs(body: str, allowed: tuple[str, ...], what: str, spec: str) -> dict[str, float]:
+def _kwargs(
+    body: str, allowed: tuple[str, ...], what: str, spec: str, unit: str = "s"
+) -> dict[str, float]:
     out: dict[str, float] = {}
     if not body:
         return out
@@ -118,20 +133,43 @@ def _kwargs(body: str, allowed: tuple[str, ...], what: str, spec: str) -> dict[s
             )
         if key in out:
             raise ValueError(f"jitter {spec!r}: {key} is given twice")
-        try:
-            out[key] = float(value)
-        except ValueError:
-            raise ValueError(f"jitter {spec!r}: {key}={value.strip()!r} is not a number") from None
+        if key in _UNITLESS:
+            try:
+                val = float(value)
+            except ValueError:
+                raise ValueError(
+                    f"jitter {spec!r}: {key}={value.strip()!r} is not a number"
+                ) from None
+            if not math.isfinite(val) or abs(val) > 1e6:
+                raise ValueError(f"jitter {spec!r}: {key}={value.strip()!r} must be a number <= 1e6")
+        else:
+            try:
+                val = parse_time(value, unit, f"jitter {spec!r}: {key}")
+            except ValueError as exc:
+                raise ValueError(str(exc)) from None
+            if abs(val) > MAX_TIME_S:
+                raise ValueError(
+                    f"jitter {spec!r}: {key}={value.strip()} is {val:.3g} s, longer than any "
+                    f"sampling problem (at most {MAX_TIME_S:g} s); check the value and its unit"
+                )
+        out[key] = val
     return out
 
 
-def _law(name: str, body: str, spec: str) -> JitterLaw:
+def _build(cls: Any, kw: dict[str, float], spec: str) -> Any:
+    try:
+        return cls(**kw)
+    except (ValueError, TypeError, ArithmeticError) as exc:
+        raise ValueError(f"jitter {spec!r}: {exc}") from None
+
+
+def _law(name: str, body: str, spec: str, unit: str = "s") -> JitterLaw:
     if name not in _LAWS:
         raise ValueError(
             f"jitter {spec!r}: unknown law {name!r}; use one of {sorted(_LAWS)}. {JITTER_HELP}"
         )
     cls, keys = _LAWS[name]
-    kw = _kwargs(body, keys, f"the {name} law", spec)
+    kw = _kwargs(body, keys, f"the {name} law", spec, unit)
     missing = [k for k in keys if k not in kw]
     if missing:
         raise ValueError(
@@ -139,23 +177,28 @@ def _law(name: str, body: str, spec: str) -> JitterLaw:
             + ",".join(f"{k}=VALUE" for k in keys)
             + f" (missing {', '.join(missing)})"
         )
-    law: Any = cls(**kw)
+    law: Any = _build(cls, kw, spec)
     return law
 
 
-def parse_jitter(spec: str, *, law_only: bool = False) -> JitterLaw | JitterFamily:
-    """Parse a jitter specification (see the module notes); ValueError with the fix."""
+def parse_jitter(
+    spec: str, *, law_only: bool = False, time_unit: str = "s"
+) -> JitterLaw | JitterFamily:
+    """Parse a jitter specification (see the module notes); ValueError with the fix.
+
+    Bare times are in ``time_unit`` (the data file's); the law is returned in seconds.
+    """
     s = spec.strip()
     low = s.lower()
     if low == "none":
         return NoJitter()
     if low.startswith("known:"):
         name, _, body = s[6:].partition(":")
-        return _law(name.strip().lower(), body.strip(), spec)
+        return _law(name.strip().lower(), body.strip(), spec, time_unit)
     name, _, body = s.partition(":")
     name = name.strip().lower()
     if law_only:
-        return _law(name, body.strip(), spec)
+        return _law(name, body.strip(), spec, time_unit)
     if name not in _FAMILIES:
         raise ValueError(f"jitter {spec!r} is not recognised; use {JITTER_HELP}")
     cls, keys = _FAMILIES[name]
@@ -164,5 +207,5 @@ def parse_jitter(spec: str, *, law_only: bool = False) -> JitterLaw | JitterFami
             f"jitter {spec!r}: to fix the law write known:{s}; to estimate it write {name} "
             f"(optionally bounded: {name}:{keys[0]}=VALUE)"
         )
-    family: Any = cls(**_kwargs(body.strip(), keys, f"the {name} family", spec))
+    family: Any = _build(cls, _kwargs(body.strip(), keys, f"the {name} family", spec, time_unit), spec)
     return family

@@ -5,20 +5,27 @@ in the format :func:`jitterid.load` reads; ``jitterid detect`` tests a data set 
 ``jitterid fit`` estimates a model and writes result.json, report.md and figures;
 ``jitterid bias`` predicts the gain bias of an ordinary fit under a jitter law.
 Every error ends in a one-line message and a non-zero exit (2 for bad usage, 1 for
-unusable data, 3 for a fit that did not converge), never a traceback.
+unusable data, 3 for a fit that did not converge), never a traceback. A finished fit is
+always written: a diagnostic or figure that cannot be computed is reported as skipped.
+Files are written atomically (a temporary file renamed into place).
+
+Times on the command line take a unit (``--T 0.5s``, ``sigma=80ms``); a bare number is in
+the data file's ``time_unit`` (``fit``, ``detect``) or in seconds (``simulate``, ``bias``).
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import click
 import numpy as np
 
+from .._checks import allocation
 from ..analysis.diagnostics import (
     bias_frequency,
     detect_jitter,
@@ -30,7 +37,7 @@ from ..analysis.diagnostics import (
 from ..estimation.fit import fit as fit_model
 from ..estimation.problem import METHODS
 from ..inputs import telegraph_input, zoh_input
-from ..io import Dataset, load, save_data, save_input
+from ..io import TIME_UNITS, Dataset, atomic_write, load, parse_time, save_data, save_input
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..simulate import simulate as simulate_data
 from . import main
@@ -51,7 +58,47 @@ def _clean_errors(what: str) -> Iterator[None]:
     except click.ClickException:
         raise
     except (ValueError, TypeError, OSError, ImportError) as exc:
-        raise click.ClickException(f"{what}: {exc}") from None
+        raise click.ClickException(f"{what}: {_one_line(exc)}") from None
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise click.ClickException(
+            f"{what}: the numbers are out of range ({type(exc).__name__}: {_one_line(exc)}); "
+            "check the values and their units"
+        ) from None
+    except MemoryError:
+        raise click.ClickException(
+            f"{what}: out of memory; use fewer samples or a smaller model"
+        ) from None
+
+
+def _one_line(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f"{exc.filename}: " if exc.filename else ""
+        return f"{where}{exc.strerror}"
+    return " ".join(str(exc).split())
+
+
+class _Time(click.ParamType):
+    """A time with an optional unit (``0.5``, ``0.5s``, ``500ms``).
+
+    With ``seconds=True`` the value is converted to seconds (a bare number is seconds);
+    otherwise the text is kept, for :func:`jitterid.load` to read in the file's time unit.
+    """
+
+    name = "time"
+
+    def __init__(self, seconds: bool) -> None:
+        self.seconds = seconds
+
+    def convert(self, value: object, param: click.Parameter | None, ctx: click.Context | None) -> object:
+        if isinstance(value, float) and self.seconds:
+            return value
+        try:
+            sec = parse_time(str(value), "s", "value")
+        except ValueError as exc:
+            self.fail(str(exc).removeprefix("value: "), param, ctx)
+        if not sec > 0:
+            self.fail(f"must be > 0; got {value!r}", param, ctx)
+        return sec if self.seconds else str(value)
 
 
 @contextmanager
@@ -100,15 +147,34 @@ _model_opt = click.option("--model", "model_spec", required=True, help=MODEL_HEL
 _T_opt = click.option(
     "--T",
     "T",
-    type=float,
-    callback=_positive,
-    help="Nominal sampling interval, if DATA has an index column k and no T metadata.",
+    type=_Time(seconds=False),
+    help="Nominal sampling interval, if DATA has an index column k and no T metadata. "
+    "Takes a unit (0.5s, 500ms); a bare number is in DATA's time_unit.",
 )
 
 
-def _load(data_path: str, input_path: str | None, T: float | None, noise: float | None) -> Dataset:
+def _load(data_path: str, input_path: str | None, T: str | None, noise: float | None) -> Dataset:
     with _clean_errors("cannot use the data"):
         return load(data_path, input_path, T=T, noise_std=noise)
+
+
+def _file_unit(ds: Dataset) -> str:
+    unit = str(ds.metadata.get("time_unit", "s"))
+    return unit if unit in TIME_UNITS else "s"
+
+
+def _check_out_dir(out: Path, option: str = "'--out'") -> None:
+    """Refuse an output folder that cannot be written, before any work."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".jitterid-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise click.BadParameter(
+            f"cannot write into {str(out)!r} ({exc.strerror or exc}); choose a writable folder",
+            param_hint=option,
+        ) from None
 
 
 # ------------------------------------------------------------------------------ simulate
@@ -130,10 +196,18 @@ def _load(data_path: str, input_path: str | None, T: float | None, noise: float 
     "jitter_spec",
     default="uniform:a=0.5",
     show_default=True,
-    help="True jitter law: none | uniform:a=A | gaussian:sigma=S | sum-of-uniforms:n=N,a=A.",
+    help="True jitter law: none | uniform:a=A | gaussian:sigma=S | sum-of-uniforms:n=N,a=A. "
+    "Times take a unit (sigma=80ms), seconds if bare.",
 )
 @click.option("--N", "n_samples", type=click.IntRange(min=4), default=200, show_default=True)
-@click.option("--T", "T", type=float, default=1.0, show_default=True, callback=_positive)
+@click.option(
+    "--T",
+    "T",
+    type=_Time(seconds=True),
+    default=1.0,
+    show_default=True,
+    help="Nominal sampling interval; takes a unit (0.5s, 500ms), seconds if bare.",
+)
 @click.option("--noise-std", type=float, default=0.01, show_default=True, callback=_nonneg)
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option(
@@ -145,7 +219,11 @@ def _load(data_path: str, input_path: str | None, T: float | None, noise: float 
     "zoh: the same sampled on the grid and held (a DAC), saved as t,u.",
 )
 @click.option(
-    "--hold", type=float, default=1.0, show_default=True, callback=_positive, help="Mean hold (s)."
+    "--hold",
+    type=_Time(seconds=True),
+    default=1.0,
+    show_default=True,
+    help="Mean hold of the telegraph input; takes a unit (200ms), seconds if bare.",
 )
 @click.option("--amplitude", type=float, default=0.5, show_default=True, callback=_positive)
 @click.option(
@@ -176,9 +254,21 @@ def simulate(
     with _param("'--params'"):
         theta = parse_floats(params, "--params")
         system = structure.system(theta)
+    with _param("'--N'"):
+        allocation(
+            8.0 * n_samples, f"--N {n_samples}", fix="simulate fewer samples (a smaller --N)"
+        )
+    reach = (n_samples - 1) * T + max(law.support[1], 0.0)
+    with _param("'--hold'"):
+        allocation(
+            4 * (reach / hold + 10),
+            f"--hold {hold:g} s over {reach:g} s",
+            fix="use a longer --hold (mean hold of the input) or a smaller --N",
+        )
+    out_dir = Path(out)
+    _check_out_dir(out_dir)
     with _clean_errors("cannot simulate"):
         rng = np.random.default_rng(seed)
-        reach = (n_samples - 1) * T + max(law.support[1], 0.0)
         if input_kind == "telegraph":
             u = telegraph_input(reach + T, rng, levels=(-amplitude, amplitude), mean_hold=hold)
         else:
@@ -186,7 +276,6 @@ def simulate(
             tele = telegraph_input(m * T, rng, levels=(-amplitude, amplitude), mean_hold=hold)
             u = zoh_input(tele(T * np.arange(m)), T)
         data = simulate_data(system, u, law, T, n_samples, noise_std, rng)
-        out_dir = Path(out)
         data_file = save_data(out_dir / f"data.{fmt}", data)
         input_file = save_input(out_dir / f"input.{fmt}", u, T=T if input_kind == "zoh" else None)
         truth = {
@@ -206,7 +295,8 @@ def simulate(
             "seed": seed,
             "input_kind": input_kind,
         }
-        (out_dir / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
+        text = json.dumps(truth, indent=2) + "\n"
+        atomic_write(out_dir / "truth.json", lambda fh: fh.write(text))
     click.echo(f"wrote {data_file}, {input_file} and {out_dir / 'truth.json'}")
     click.echo(f"  {n_samples} samples, T = {T:g} s, jitter {law}, noise std {noise_std:g}")
 
@@ -234,18 +324,22 @@ def detect(
     """Test DATA for sampling jitter before fitting.
 
     Fits the model ignoring jitter, regresses the squared residuals on the squared model
-    slope and prints the one-sided p-value and the implied jitter std.
+    slope and prints the one-sided p-value and the implied jitter std. --T takes a unit
+    (0.5s); a bare number is in DATA's time_unit.
     """
     with _param("'--model'"):
         structure = parse_model(model_spec)
+    if plot_path:
+        _check_out_dir(Path(plot_path).parent or Path("."), "'--plot'")
     ds = _load(data_path, input_path, T, None)
     with _clean_errors("the ordinary fit failed"):
         ls = fit_model(ds.data, structure, NoJitter(), "ls")
-        det = detect_jitter(ds.data, ls, level=level)
     click.echo(f"ordinary LS fit (jitter ignored): {ls.status.value}")
-    click.echo(
-        "  " + ", ".join(f"{k} = {v:.5g} ± {ls.stderr[k]:.2g}" for k, v in ls.params.items())
-    )
+    click.echo("  " + _params_line(ls))
+    with _clean_errors(
+        f"the jitter test cannot run on this fit ({ls.status.value}); try another --model"
+    ):
+        det = detect_jitter(ds.data, ls, level=level)
     click.echo(det.summary())
     if plot_path:
         from matplotlib.figure import Figure
@@ -255,8 +349,21 @@ def detect(
         with _clean_errors("cannot write the plot"):
             fig = Figure(figsize=(6.4, 6.0), layout="constrained")
             plot_residuals(det, ax=fig.subplots(2, 1))
-            fig.savefig(plot_path, dpi=110)
+            atomic_write(
+                Path(plot_path), lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True
+            )
         click.echo(f"wrote {plot_path}")
+
+
+def _params_line(res: object) -> str:
+    """``k0 = 6.2 ± 0.1, ...``; the ± is left out (with the reason) if it cannot be computed."""
+    params = res.params  # type: ignore[attr-defined]
+    try:
+        se = res.stderr  # type: ignore[attr-defined]
+        return ", ".join(f"{k} = {v:.5g} ± {se[k]:.2g}" for k, v in params.items())
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        vals = ", ".join(f"{k} = {v:.5g}" for k, v in params.items())
+        return f"{vals} (no standard errors: {_one_line(exc)})"
 
 
 # ------------------------------------------------------------------------------ fit
@@ -302,28 +409,47 @@ def fit(
     Prints a summary and writes OUT/result.json (parameters, standard errors, covariance,
     jitter law, method, data checksum, library version), OUT/report.md and its figures.
     Exits with status 3 if the search did not converge (the outputs are still written).
+    A diagnostic that cannot run is reported as skipped; the fit is written regardless.
+
+    Times in --jitter and --T take a unit (sigma=80ms, --T 0.5s); a bare number is in
+    DATA's time_unit (seconds unless the file says otherwise).
     """
     from .. import __version__
 
     with _param("'--model'"):
         structure = parse_model(model_spec)
     with _param("'--jitter'"):
-        jitter = parse_jitter(jitter_spec)
-    if method == "ls" and isinstance(jitter, JitterFamily):
+        j0 = parse_jitter(jitter_spec)  # the syntax, before any work; units once DATA is read
+    if method == "ls" and isinstance(j0, JitterFamily):
         raise click.UsageError(
             "--method ls ignores jitter, so it cannot estimate a jitter family; use another "
             "method, or --jitter none / a known law"
         )
+    out_dir = Path(out)
+    _check_out_dir(out_dir)
     ds = _load(data_path, input_path, T, noise_std)
+    with _param("'--jitter'"):
+        jitter = parse_jitter(jitter_spec, time_unit=_file_unit(ds))
     with _clean_errors("the fit failed"):
         ls = fit_model(ds.data, structure, NoJitter(), "ls")
         res = ls if method == "ls" else fit_model(ds.data, structure, jitter, method)
-        det = detect_jitter(ds.data, ls, level=level)
-        z = standardized_residuals(ds.data, res)
-        checks = (
-            ljung_box(z),
-            input_correlation_test(z, ds.data.u(ds.data.t_nominal)),
-        )
+    # The fit is done: from here on nothing may throw it away. A diagnostic that cannot
+    # run is reported as skipped, with its reason, and the results are written regardless.
+    skipped: list[tuple[str, str]] = []
+    det = _diagnostic(skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level))
+    checks: list[Any] = []
+    z = _diagnostic(skipped, "residual checks", lambda: standardized_residuals(ds.data, res))
+    if z is not None:
+        for name, make in (
+            ("Ljung-Box test", lambda: ljung_box(z)),
+            (
+                "input correlation test",
+                lambda: input_correlation_test(z, ds.data.u(ds.data.t_nominal)),
+            ),
+        ):
+            c = _diagnostic(skipped, name, make)
+            if c is not None:
+                checks.append(c)
     rep = FitReport(
         dataset=ds,
         structure=structure,
@@ -334,21 +460,50 @@ def fit(
         result=res,
         ordinary=ls,
         detection=det,
-        checks=checks,
+        checks=tuple(checks),
         level=level,
         seed=seed,
         version=__version__,
+        skipped=tuple(skipped),
     )
-    with _clean_errors("cannot write the results"):
-        written = write_outputs(rep, Path(out), plots=plots)
-    click.echo(res.summary())
-    click.echo(det.summary())
+    try:
+        written = write_outputs(rep, out_dir, plots=plots)
+    except OSError as exc:
+        click.echo(_safe_summary(res))
+        raise click.ClickException(
+            f"cannot write the results into {str(out_dir)!r} ({_one_line(exc)}); the fit above "
+            "was not saved: free some space or choose another --out and run again"
+        ) from None
+    click.echo(_safe_summary(res))
+    if det is not None:
+        click.echo(det.summary())
     for c in checks:
         click.echo(c.summary())
+    for name, why in skipped:
+        click.echo(f"skipped {name}: {why}")
     click.echo("wrote " + ", ".join(str(p) for p in written))
     if not res.success:
         click.echo(f"error: the fit did not converge: {res.status.value}", err=True)
         raise click.exceptions.Exit(3)
+
+
+def _diagnostic(skipped: list[tuple[str, str]], name: str, make: Callable[[], Any]) -> Any:
+    """``make()``, or None with ``(name, reason)`` added to ``skipped`` if it cannot run."""
+    try:
+        return make()
+    except (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError, MemoryError) as exc:
+        skipped.append((name, _one_line(exc) or type(exc).__name__))
+        return None
+
+
+def _safe_summary(res: Any) -> str:
+    try:
+        return str(res.summary())
+    except (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return (
+            f"{res.method} fit: {res.status.value}; {_params_line(res)} (no full summary: "
+            f"{_one_line(exc)})"
+        )
 
 
 # ------------------------------------------------------------------------------ bias
@@ -359,16 +514,16 @@ def fit(
     "--jitter",
     "jitter_spec",
     required=True,
-    help="Jitter law: uniform:a=A | gaussian:sigma=S | sum-of-uniforms:n=N,a=A (known: optional).",
+    help="Jitter law: uniform:a=A | gaussian:sigma=S | sum-of-uniforms:n=N,a=A (known: optional). "
+    "Times take a unit (sigma=80ms), seconds if bare.",
 )
 @click.option(
     "--T",
     "T",
-    type=float,
+    type=_Time(seconds=True),
     default=1.0,
     show_default=True,
-    callback=_positive,
-    help="Sets Nyquist 1/(2T).",
+    help="Sets Nyquist 1/(2T); takes a unit (500ms), seconds if bare.",
 )
 @click.option(
     "--fmax", type=float, callback=_positive, help="Highest frequency (Hz); default Nyquist."
@@ -390,7 +545,11 @@ def bias(
     law = _law(jitter_spec)
     top = fmax if fmax is not None else 0.5 / T
     f = np.linspace(0.0, top, points)
-    g = ls_gain_factor(law, f)
+    with _clean_errors(f"cannot evaluate the gain factor of {law}"), np.errstate(
+        all="raise", under="ignore"
+    ):
+        g = ls_gain_factor(law, f)
+        fb = bias_frequency(law, tol)
     click.echo(f"LS gain factor |phi(f)| for {law}")
     click.echo(f"  {'f (Hz)':>10} {'f / Nyquist':>11} {'|phi(f)|':>10} {'gain bias':>10} {'dB':>8}")
     for fi, gi in zip(f, g, strict=True):
@@ -398,7 +557,6 @@ def bias(
         click.echo(
             f"  {fi:>10.4g} {fi * 2 * T:>11.3f} {gi:>10.4f} {100 * (gi - 1):>9.2f}% {db:>8.3f}"
         )
-    fb = bias_frequency(law, tol)
     where = (
         "never (no jitter)"
         if math.isinf(fb)
@@ -416,5 +574,7 @@ def bias(
             plot_gain_factor(
                 ff, ls_gain_factor(law, ff), label=f"|φ(f)|, {law!r}", tol=tol, ax=fig.subplots()
             )
-            fig.savefig(plot_path, dpi=110)
+            atomic_write(
+                Path(plot_path), lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True
+            )
         click.echo(f"wrote {plot_path}")

@@ -19,9 +19,11 @@ from ..experiments import (
     packaged_path,
 )
 from ..experiments.bj import spectra_figure
+from ..experiments.loader import MAX_RUNS
 from ..experiments.report import markdown_report
 from ..experiments.runner import run_experiment, store_path
 from ..experiments.store import Store, StoreError
+from ..io import atomic_write
 from . import main
 
 __all__ = ["reproduce", "run"]
@@ -43,7 +45,7 @@ def _common(f: Callable[..., Any]) -> Callable[..., Any]:
     opts = [
         click.option(
             "--runs",
-            type=click.IntRange(min=1),
+            type=click.IntRange(min=1, max=MAX_RUNS),
             default=None,
             help="Realizations per case (default: the definition's; the paper's 128).",
         ),
@@ -59,7 +61,10 @@ def _common(f: Callable[..., Any]) -> Callable[..., Any]:
             metavar="ADDRESS",
             default=None,
             help="Send realizations to a running Dask scheduler, e.g. "
-            "tcp://10.0.0.5:8786 (its workers need jitterid installed).",
+            "tcp://10.0.0.5:8786 (its workers need jitterid installed). TRUSTED CODE "
+            "EXECUTION: the cluster runs code for you and jitterid unpickles the results "
+            "it sends back, so connect only to a cluster you trust as much as this machine. "
+            "Local workers (--workers) listen on 127.0.0.1 only, with no dashboard.",
         ),
         click.option(
             "--out",
@@ -102,11 +107,20 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
             progress=opt.progress,
         )
     except StoreError as exc:
-        raise click.ClickException(str(exc)) from exc
-    except OSError as exc:  # e.g. an unreachable --scheduler
-        raise click.ClickException(f"cannot run {exp.name}: {exc}") from exc
-    store = Store(summary.store, exp, resume=True)
-    estimates = store.estimates(exp.runs)
+        raise click.ClickException(str(exc)) from None
+    except ValueError as exc:  # e.g. a --scheduler that is no address, a size refused
+        raise click.ClickException(f"cannot run {exp.name}: {exc}") from None
+    except OSError as exc:  # e.g. an unreachable --scheduler, a full disk
+        raise click.ClickException(f"cannot run {exp.name}: {exc}") from None
+    try:
+        store = Store(summary.store, exp, resume=True)
+    except StoreError as exc:
+        raise click.ClickException(str(exc)) from None
+    try:
+        estimates = store.estimates(exp.runs)
+    except StoreError as exc:
+        store.close()
+        raise click.ClickException(str(exc)) from None
     rate = summary.new / summary.wall_s if summary.wall_s > 0 else 0.0
     where = f"Dask scheduler {opt.scheduler}" if opt.scheduler else f"{opt.workers} worker(s)"
     note = (
@@ -114,8 +128,16 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
         f"{summary.already_done} were already stored"
     )
     report = opt.out / f"{exp.name}.md"
-    report.write_text(markdown_report(exp, estimates, command, note), encoding="utf-8")
-    csv_path = store.export_csv(opt.out / f"{exp.name}.csv", exp.runs)
+    try:
+        text = markdown_report(exp, estimates, command, note)
+        atomic_write(report, lambda fh: fh.write(text))
+        csv_path = store.export_csv(opt.out / f"{exp.name}.csv", exp.runs)
+    except (OSError, StoreError) as exc:
+        store.close()
+        raise click.ClickException(
+            f"{exp.name}: the {summary.total} realizations are stored in {summary.store}, but "
+            f"the report could not be written ({exc}); fix the cause and run again with --resume"
+        ) from None
     click.echo(
         f"{exp.name}: {summary.total} realizations ({summary.already_done} already stored, "
         f"{summary.new} new, {rate:.2f}/s) -> {summary.store}, {report}, {csv_path}"
@@ -175,26 +197,42 @@ def reproduce(
             raise click.UsageError("--print-toml needs a table target (table1, table2, table3, bj)")
         click.echo(packaged_path(target).read_text(encoding="utf-8"), nl=False)
         return
+    _check_scheduler(scheduler)
     opt = _options(out, Path("out/reproduction"), workers, scheduler, resume, no_progress)
     todo = [*PAPER_EXPERIMENTS, *FIGURES] if target == "all" else [target]
-    for item in todo:
-        if item in PAPER_EXPERIMENTS:
-            exp = _packaged(item, runs)
-            _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
-        elif item in STUDIES:
-            exp = _packaged(item, runs)
-            with _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)) as store:
-                path = spectra_figure(opt.out, exp, store.estimates(exp.runs))
-            click.echo(f"{item} spectra -> {path}")
-        elif item == "fig5":
-            exp = _packaged("table2", runs)
-            with _table2_results(exp, opt, target) as store:
-                path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
-            click.echo(f"fig5 -> {path}")
-        else:
-            click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
-    if any(t in FIGURES for t in todo):
-        _write_figure_index(opt.out)
+    try:
+        for item in todo:
+            if item in PAPER_EXPERIMENTS:
+                exp = _packaged(item, runs)
+                _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
+            elif item in STUDIES:
+                exp = _packaged(item, runs)
+                with _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)) as store:
+                    path = spectra_figure(opt.out, exp, store.estimates(exp.runs))
+                click.echo(f"{item} spectra -> {path}")
+            elif item == "fig5":
+                exp = _packaged("table2", runs)
+                with _table2_results(exp, opt, target) as store:
+                    path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
+                click.echo(f"fig5 -> {path}")
+            else:
+                click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
+        if any(t in FIGURES for t in todo):
+            _write_figure_index(opt.out)
+    except StoreError as exc:
+        raise click.ClickException(str(exc)) from None
+    except OSError as exc:  # a figure or index that cannot be written
+        raise click.ClickException(f"cannot write into {opt.out}: {exc}") from None
+
+
+def _check_scheduler(scheduler: str | None) -> None:
+    from ..experiments.runner import _check_address
+
+    if scheduler is not None:
+        try:
+            _check_address(scheduler)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--scheduler'") from None
 
 
 def _packaged(name: str, runs: int | None) -> Experiment:
@@ -205,11 +243,14 @@ def _packaged(name: str, runs: int | None) -> Experiment:
 def _table2_results(exp: Experiment, opt: _Options, target: str) -> Store:
     """The Table 2 store in OUT, running or finishing Table 2 first if needed."""
     path = store_path(exp, opt.out)
-    if path.exists():
-        with Store(path, exp, resume=True) as store:
-            done = store.done()
-        if all((c.name, r) in done for c in exp.cases for r in range(exp.runs)):
-            return Store(path, exp, resume=True)
+    if path.is_file():
+        try:
+            with Store(path, exp, resume=True) as store:
+                done = store.done()
+            if all((c.name, r) in done for c in exp.cases for r in range(exp.runs)):
+                return Store(path, exp, resume=True)
+        except StoreError as exc:
+            raise click.ClickException(str(exc)) from None
     return _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out))
 
 
@@ -218,7 +259,8 @@ def _write_figure_index(out: Path) -> None:
     for name in FIGURES:
         if (out / f"{name}.png").exists():
             lines += [f"![{name}]({name}.png)", "", figures.CAPTIONS[name], ""]
-    (out / "figures.md").write_text("\n".join(lines), encoding="utf-8")
+    text = "\n".join(lines)
+    atomic_write(out / "figures.md", lambda fh: fh.write(text))
 
 
 @main.command()
@@ -244,5 +286,6 @@ def run(
         raise click.ClickException(str(exc)) from exc
     if runs is not None:
         exp = dataclasses.replace(exp, runs=runs)
+    _check_scheduler(scheduler)
     opt = _options(out, Path("out") / exp.name, workers, scheduler, resume, no_progress)
     _study(exp, opt, _command(["run", str(experiment)], exp.runs, opt.out)).close()

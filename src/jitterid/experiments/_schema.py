@@ -9,12 +9,23 @@ from __future__ import annotations
 
 import difflib
 import math
+import reprlib
 from collections.abc import Iterable
 from typing import Any
 
 __all__ = ["ExperimentError", "Section"]
 
 _MISSING: Any = object()
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 3, 80, 80, 40
+
+
+def _show(value: Any) -> str:
+    """A short repr for messages (bounded for huge or deeply nested values)."""
+    try:
+        return _REPR.repr(value)
+    except (ValueError, RecursionError):
+        return f"<{type(value).__name__}>"
 
 
 class ExperimentError(ValueError):
@@ -39,7 +50,7 @@ class Section:
     def __init__(self, data: Any, path: str, source: str, keys: Iterable[str]) -> None:
         self.path, self.source = path, source
         if not isinstance(data, dict):
-            raise ExperimentError(f"{source}: {path or 'the file'} must be a table; got {data!r}")
+            raise ExperimentError(f"{source}: {path or 'the file'} must be a table; got {_show(data)}")
         self.data: dict[str, Any] = data
         allowed = list(keys)
         for k in data:
@@ -72,7 +83,7 @@ class Section:
     def integer(self, k: str, *, minimum: int, default: Any = _MISSING) -> int:
         v = self.raw(k, default)
         if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-            raise self.fail(k, f"must be an integer >= {minimum}; got {v!r}")
+            raise self.fail(k, f"must be an integer >= {minimum}; got {_show(v)}")
         return v
 
     def number(
@@ -84,46 +95,54 @@ class Section:
         default: Any = _MISSING,
     ) -> float:
         v = self.raw(k, default)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise self.fail(k, f"must be a finite number; got {v!r}")
+        try:
+            finite = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+        except OverflowError:  # an integer beyond float
+            finite = False
+        if not finite:
+            raise self.fail(k, f"must be a finite number; got {_show(v)}")
         if above is not None and not v > above:
-            raise self.fail(k, f"must be > {above:g}; got {v!r}")
+            raise self.fail(k, f"must be > {above:g}; got {_show(v)}")
         if at_least is not None and not v >= at_least:
-            raise self.fail(k, f"must be >= {at_least:g}; got {v!r}")
+            raise self.fail(k, f"must be >= {at_least:g}; got {_show(v)}")
         return float(v)
 
     def text(self, k: str, *, choices: Iterable[str] | None = None, default: Any = _MISSING) -> str:
         v = self.raw(k, default)
         if not isinstance(v, str) or not v.strip():
-            raise self.fail(k, f"must be a non-empty string; got {v!r}")
+            raise self.fail(k, f"must be a non-empty string; got {_show(v)}")
         if choices is not None and v not in (opts := list(choices)):
             close = difflib.get_close_matches(v, opts, n=1, cutoff=0.5)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise self.fail(k, f"must be one of {', '.join(opts)}; got {v!r}{hint}")
+            raise self.fail(k, f"must be one of {', '.join(opts)}; got {_show(v)}{hint}")
         return v
 
     def flag(self, k: str, *, default: Any = _MISSING) -> bool:
         v = self.raw(k, default)
         if not isinstance(v, bool):
-            raise self.fail(k, f"must be true or false; got {v!r}")
+            raise self.fail(k, f"must be true or false; got {_show(v)}")
         return v
 
     def numbers(
         self, k: str, *, length: int | None = None, default: Any = _MISSING
     ) -> tuple[float, ...]:
         v = self.raw(k, default)
-        ok = isinstance(v, (list, tuple)) and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v
-        )
+        try:
+            ok = isinstance(v, (list, tuple)) and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in v
+            )
+        except OverflowError:  # an integer beyond float
+            ok = False
         if not ok or not v or (length is not None and len(v) != length):
             size = f"{length} " if length is not None else "a non-empty list of "
-            raise self.fail(k, f"must be {size}finite numbers; got {v!r}")
+            raise self.fail(k, f"must be {size}finite numbers; got {_show(v)}")
         return tuple(float(x) for x in v)
 
     def texts(self, k: str, *, default: Any = _MISSING) -> tuple[str, ...]:
         v = self.raw(k, default)
         if not isinstance(v, list) or not v or not all(isinstance(x, str) for x in v):
-            raise self.fail(k, f"must be a non-empty list of strings; got {v!r}")
+            raise self.fail(k, f"must be a non-empty list of strings; got {_show(v)}")
         return tuple(v)
 
     def table(self, k: str, keys: Iterable[str], *, default: Any = _MISSING) -> Section:

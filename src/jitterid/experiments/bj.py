@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..io import atomic_write
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..noise.covariance import jittered_autocovariance
 from ..noise.models import NoiseModel
@@ -144,5 +145,5 @@ def spectra_figure(out: str | Path, exp: Experiment, estimates: Sequence[Estimat
     path = Path(out) / f"{exp.name}_spectra.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=120, format="png"), binary=True)
     return path

@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..inputs import telegraph_input
+from ..io import atomic_write
 from ..jitter.laws import Gaussian, NoJitter, SumOfUniforms, Uniform
 from ..moments.reference import dirichlet, expected_dft_lines
 from ..simulate import simulate
@@ -44,7 +45,7 @@ def _save(fig: Figure, out: str | Path, name: str) -> Path:
     path = Path(out) / f"{name}.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=120, format="png"), binary=True)
     return path
 
 

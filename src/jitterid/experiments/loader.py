@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import TooLargeError, allocation, nesting_depth
 from ..estimation import boxjenkins
 from ..estimation import problem as criteria
-from ._schema import ExperimentError, Section
+from ._schema import ExperimentError, Section, _show
 from .config import (
     BJ_PREFIXES,
     FAMILIES,
@@ -37,6 +38,10 @@ from .config import (
 __all__ = ["load_experiment", "parse_experiment"]
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+#: Most realizations per case a definition (or --runs) may ask for.
+MAX_RUNS = 10**9
+#: Longest time (s) any time value of a definition may have: far beyond any sampling problem.
+MAX_TIME_S = 1e9
 
 
 def load_experiment(path: str | Path) -> Experiment:
@@ -61,9 +66,33 @@ def load_experiment(path: str | Path) -> Experiment:
     if not p.is_file():
         raise ExperimentError(f"experiment file {str(p)!r} does not exist; check the path")
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise ExperimentError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
+    if len(raw) > 10_000_000:
+        raise ExperimentError(f"{p.name}: {len(raw)} bytes is too large for a definition")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ExperimentError(
+            f"{p.name}: not UTF-8 text (byte {exc.start}); save the file as UTF-8"
+        ) from None
+    if nesting_depth(text, comments=True) > 32:
+        raise ExperimentError(
+            f"{p.name}: nested too deeply to be an experiment definition; start from "
+            "`jitterid reproduce table2 --print-toml`"
+        )
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ExperimentError(f"{p.name}: not valid TOML: {exc}") from exc
+    except ValueError as exc:  # e.g. an integer of thousands of digits
+        raise ExperimentError(f"{p.name}: not a usable TOML file: {exc}") from None
+    except RecursionError:
+        raise ExperimentError(
+            f"{p.name}: nested too deeply to be an experiment definition; start from "
+            "`jitterid reproduce table2 --print-toml`"
+        ) from None
     return parse_experiment(data, source=p.name)
 
 
@@ -83,6 +112,9 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         )
     sa = top.table("sampling", ("T", "N", "noise_std", "noise_known"))
     T, N = sa.number("T", above=0), sa.integer("N", minimum=4)
+    if T > MAX_TIME_S:
+        raise sa.fail("T", f"= {T:g} s is beyond any sampling problem (at most {MAX_TIME_S:g} s)")
+    _fits(sa, "N", 16.0 * N, f"N = {N}", "use fewer samples")
     system = _system(
         top.table("system", ("structure", "truth", "num", "den", "num_order", "den_order"))
     )
@@ -111,11 +143,14 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
             "set sampling.noise_known = true and noise_std > 0, or crb = false",
         )
     paper_table, labels = _paper(top, methods)
+    runs = ex.integer("runs", minimum=1)
+    if runs > MAX_RUNS:
+        raise ex.fail("runs", f"must be at most {MAX_RUNS:g} realizations per case; got {runs}")
     exp = Experiment(
         name=name,
         title=ex.text("title", default=name),
         description=_description(ex),
-        runs=ex.integer("runs", minimum=1),
+        runs=runs,
         seed=ex.integer("seed", minimum=0),
         T=T,
         N=N,
@@ -148,13 +183,30 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         noise=noise,
     )
     _check_coverage(exp, top)
+    if exp.input.kind == "telegraph":
+        _fits(
+            top.table("input", ("kind", "margin", "levels", "mean_hold", "freqs", "amplitudes",
+                                "phases", "steady_state")),
+            "mean_hold",
+            4 * (exp.duration / exp.input.mean_hold + 10),
+            f"a telegraph input of {exp.duration:g} s with mean_hold = {exp.input.mean_hold:g} s",
+            "use a longer mean_hold (fewer switches) or fewer samples",
+        )
     return exp
+
+
+def _fits(sec: Section, key: str, elements: float, what: str, fix: str) -> None:
+    """Refuse at load time what one realization could not hold in memory."""
+    try:
+        allocation(elements, what, fix=fix)
+    except TooLargeError as exc:
+        raise sec.fail(key, f"is too large: {exc}") from None
 
 
 def _description(sec: Section) -> str:
     text = sec.raw("description", "")
     if not isinstance(text, str):
-        raise sec.fail("description", f"must be a string; got {text!r}")
+        raise sec.fail("description", f"must be a string; got {_show(text)}")
     return text
 
 
@@ -209,6 +261,9 @@ def _case(sec: Section) -> Case:
     ).text("kind", choices=LAWS)
     law_sec = Section(raw, sec.key("law"), sec.source, ("kind", *LAWS[kind][1]))
     spec = LawSpec(kind, tuple((p, law_sec.number(p, at_least=0)) for p in LAWS[kind][1]))
+    for p, v in spec.params:
+        if v > MAX_TIME_S:
+            raise law_sec.fail(p, f"= {v:g} is beyond any sampling problem (at most {MAX_TIME_S:g})")
     _built(law_sec, "kind", spec.build)
     paper = sec.integer("paper_case", minimum=1) if sec.has("paper_case") else None
     return Case(name, spec, paper)
@@ -293,6 +348,8 @@ def _paper(
 def _input(sec: Section) -> InputSpec:
     kind = sec.text("kind", choices=("telegraph", "multisine"))
     margin = sec.number("margin", above=0, default=2.0)
+    if margin > MAX_TIME_S:
+        raise sec.fail("margin", f"= {margin:g} s is beyond any sampling problem")
     if kind == "telegraph":
         levels = sec.numbers("levels", length=2, default=[-0.5, 0.5])
         return InputSpec(
@@ -329,5 +386,5 @@ def _built(sec: Section, key: str, make: Any) -> Any:
     """Build a library object, turning its own error into one that names ``key``."""
     try:
         return make()
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, ArithmeticError) as exc:
         raise sec.fail(key, f"gives an invalid model: {exc}") from exc

@@ -1,11 +1,17 @@
 """The Monte Carlo engine: realizations in-process, on local worker processes or on a Dask cluster.
 
 Realization ``r`` of case ``c`` draws its input, jitter and noise from
-``SeedSequence(seed).spawn(n_cases)[c].spawn(runs)[r]`` (the stream depends on neither the
-number of realizations nor the worker that runs it), and every fit runs single-threaded, so
-the results are the same bit for bit with 1 worker, many workers or a remote cluster.
-The parent process is the only writer of the store and commits each realization as soon as
-it arrives.
+``SeedSequence(seed).spawn(n_cases)[c].spawn(runs)[r]``, that is
+``SeedSequence(seed, spawn_key=(c, r))`` (the stream depends on neither the number of
+realizations nor the worker that runs it, and is made only when the realization runs, so
+``--runs`` costs no memory up front), and every fit runs single-threaded, so the results are
+the same bit for bit with 1 worker, many workers or a remote cluster. The parent process is
+the only writer of the store and commits each realization as soon as it arrives; at most a
+few realizations per worker are in flight at once.
+
+A local cluster (``workers > 1``) listens on the loopback interface only (127.0.0.1) and
+serves no dashboard. Connecting to a ``scheduler`` runs code on that cluster and unpickles
+what it sends back: use only a cluster you trust as you trust your own machine.
 
 Within a realization the BCLS search runs once and is shared by every method that starts
 from it (``fit(..., start=bcls_result)``, identical numbers to separate calls); the stored
@@ -19,9 +25,10 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +47,7 @@ from ..systems.tf import TransferFunction
 from .config import Experiment, split_method
 from .store import Estimate, Store
 
-__all__ = ["RunSummary", "realize", "run_experiment", "seed_streams", "store_path"]
+__all__ = ["RunSummary", "realize", "run_experiment", "seed_stream", "seed_streams", "store_path"]
 
 Task = tuple[int, int, np.random.SeedSequence]  # (case index, realization, its stream)
 
@@ -64,6 +71,12 @@ def store_path(exp: Experiment, out: str | Path) -> Path:
 def seed_streams(seed: int, n_cases: int, runs: int) -> list[list[np.random.SeedSequence]]:
     """One independent stream per (case, realization), by ``SeedSequence.spawn``."""
     return [case.spawn(runs) for case in np.random.SeedSequence(seed).spawn(n_cases)]
+
+
+def seed_stream(seed: int, case_index: int, realization: int) -> np.random.SeedSequence:
+    """The stream of one (case, realization): ``seed_streams(seed, ...)[case][realization]``,
+    made on its own (no list of every stream)."""
+    return np.random.SeedSequence(seed, spawn_key=(case_index, realization))
 
 
 def realize(
@@ -294,67 +307,105 @@ def run_experiment(
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
-    if scheduler is not None and not scheduler.strip():
-        raise ValueError("scheduler must be a Dask scheduler address such as tcp://host:8786")
+    if scheduler is not None:
+        _check_address(scheduler)
     t0 = time.perf_counter()
-    streams = seed_streams(exp.seed, len(exp.cases), exp.runs)
     with Store(store_path(exp, out), exp, resume=resume) as store:
         done = store.done()
+        names = {case.name for case in exp.cases}
+        already = sum(1 for c, r in done if c in names and r < exp.runs)
+        total = exp.runs * len(exp.cases)
+        todo = total - already
         # Realization-major order: a run stopped early leaves every case with (nearly) the
-        # same number of realizations, so an interim report compares like with like.
-        tasks = [
-            (ci, r, streams[ci][r])
+        # same number of realizations, so an interim report compares like with like. The
+        # tasks and their streams are made one at a time, as they are sent.
+        tasks = (
+            (ci, r, seed_stream(exp.seed, ci, r))
             for r in range(exp.runs)
             for ci, case in enumerate(exp.cases)
             if (case.name, r) not in done
-        ]
-        total = exp.runs * len(exp.cases)
+        )
         bar = tqdm(
             total=total,
-            initial=total - len(tasks),
+            initial=already,
             desc=exp.name,
             unit="realization",
             disable=not progress,
             dynamic_ncols=True,
         )
         with bar:
-            for rows, elapsed in _execute(exp, tasks, workers, scheduler):
+            for rows, elapsed in _execute(exp, tasks, todo, workers, scheduler):
                 store.add_realization(rows, elapsed)
                 bar.update(1)
-    return RunSummary(
-        store_path(exp, out), total, total - len(tasks), len(tasks), time.perf_counter() - t0
+    return RunSummary(store_path(exp, out), total, already, todo, time.perf_counter() - t0)
+
+
+def _check_address(scheduler: str) -> None:
+    """Refuse what cannot be a Dask scheduler address before trying to connect."""
+    from urllib.parse import urlsplit
+
+    text = scheduler.strip() if isinstance(scheduler, str) else ""
+    try:
+        parts = urlsplit(text if "://" in text else f"tcp://{text}")
+        ok = bool(parts.hostname) and parts.port is not None and " " not in text
+    except ValueError:
+        ok = False
+    if not ok:
+        raise ValueError(
+            f"scheduler {scheduler!r} is not a Dask scheduler address; give one such as "
+            "tcp://10.0.0.5:8786 (host and port)"
+        )
+
+
+def local_cluster(workers: int) -> object:
+    """A local Dask cluster of ``workers`` single-threaded processes, listening on loopback
+    only (127.0.0.1), with no dashboard."""
+    from dask.distributed import LocalCluster
+
+    return LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
     )
 
 
 def _execute(
-    exp: Experiment, tasks: Sequence[Task], workers: int, scheduler: str | None
+    exp: Experiment, tasks: Iterable[Task], count: int, workers: int, scheduler: str | None
 ) -> Iterator[tuple[list[Estimate], float]]:
-    """Results of ``tasks`` in completion order."""
-    if not tasks:
+    """Results of the ``count`` ``tasks`` in completion order (a few per worker in flight)."""
+    if count <= 0:
         return
     if scheduler is None and workers == 1:
         for ci, r, stream in tasks:
             yield realize(exp, ci, r, stream)
         return
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import Client, as_completed
 
     with ExitStack() as stack:
         if scheduler is not None:
-            client = stack.enter_context(Client(scheduler))
+            try:
+                client = stack.enter_context(Client(scheduler, timeout="20s"))
+            except (OSError, ValueError, TimeoutError) as exc:
+                raise OSError(
+                    f"cannot connect to the Dask scheduler {scheduler!r} ({exc}); check that it "
+                    "runs and the address is right"
+                ) from None
+            n = max(len(client.scheduler_info().get("workers", {})), 1)
         else:
-            cluster = stack.enter_context(
-                LocalCluster(
-                    n_workers=min(workers, len(tasks)),
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0",  # a free port: never clash with another cluster
-                    silence_logs=logging.ERROR,
-                )
-            )
+            n = min(workers, count)
+            cluster = stack.enter_context(local_cluster(n))
             client = stack.enter_context(Client(cluster))
-        futures = [
-            client.submit(realize, exp, ci, r, stream, pure=False) for ci, r, stream in tasks
-        ]
-        for fut in as_completed(futures):
-            yield fut.result()
+        it = iter(tasks)
+        pending = as_completed()
+        for ci, r, stream in islice(it, 2 * n + 2):
+            pending.add(client.submit(realize, exp, ci, r, stream, pure=False))
+        for fut in pending:
+            result = fut.result()
             fut.release()
+            nxt = next(it, None)
+            if nxt is not None:
+                pending.add(client.submit(realize, exp, *nxt, pure=False))
+            yield result

@@ -5,11 +5,20 @@ marked done in the same transaction, so a kill at any moment leaves either the w
 realization or none of it; ``--resume`` then runs exactly the realizations not marked done.
 Primary keys make a duplicate impossible. The file remembers the fingerprint of the
 experiment definition and refuses to mix results of a different one.
+
+One writer at a time: an open store holds an exclusive lock on its file, so a second
+process writing to the same ``--out`` is refused at once with a message (not a SQLite
+error half way). A file that is not a jitterid store (corrupt, truncated, another schema,
+a folder) is refused with the fix, and every SQLite error while working (a full disk, a
+read-only folder) becomes a :class:`StoreError` that says what was kept. Exports are
+written atomically.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
 import math
 import sqlite3
@@ -19,6 +28,7 @@ from pathlib import Path
 from typing import Self
 
 from .. import __version__
+from ..io import atomic_write
 from .config import Experiment
 
 __all__ = ["Estimate", "Store", "StoreError"]
@@ -37,8 +47,25 @@ CREATE TABLE IF NOT EXISTS estimates (
 """
 
 
+try:  # an advisory lock on the store file (POSIX); elsewhere SQLite's own locking only
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None  # type: ignore[assignment]
+
+#: The columns of each table, to recognise a store written by another program or version.
+_COLUMNS = {
+    "meta": ["key", "value"],
+    "realizations": ["case_name", "realization", "elapsed_s"],
+    "estimates": [
+        "experiment", "case_name", "realization", "method", "params", "stderr", "jitter_std",
+        "noise_std", "cost", "success", "status", "message", "nfev", "elapsed_s",
+    ],
+}
+
+
 class StoreError(RuntimeError):
-    """The store cannot be used as asked (exists without --resume, or another definition)."""
+    """The store cannot be used as asked (exists without --resume, another definition, another
+    writer, a corrupt file, a failed write); the message says how to go on."""
 
 
 @dataclass(frozen=True)
@@ -91,12 +118,73 @@ class Store:
     def __init__(self, path: str | Path, experiment: Experiment, *, resume: bool = False) -> None:
         self.path = Path(path)
         self.experiment = experiment
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(self.path)
-        self._db.execute("PRAGMA synchronous = FULL")
-        with self._db:
-            self._db.executescript(_SCHEMA)
-        meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall())
+        self._lock: io.BufferedRandom | None = None
+        self._db: sqlite3.Connection | None = None
+        if self.path.is_dir():
+            raise StoreError(
+                f"{self.path} is a folder, not a results store; remove or rename it, or use "
+                "another --out folder"
+            )
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._lock = open(self.path, "a+b")  # noqa: SIM115 - held open while the store is
+        except OSError as exc:
+            raise StoreError(
+                f"cannot create the results store {self.path} ({exc.strerror or exc}); choose a "
+                "writable --out folder"
+            ) from None
+        if fcntl is not None:
+            try:
+                fcntl.flock(self._lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                self.close()
+                raise StoreError(
+                    f"{self.path} is in use by another jitterid process; wait for it to finish "
+                    "(then --resume), or use another --out folder"
+                ) from None
+        try:
+            self._open(resume)
+        except StoreError:
+            self.close()
+            raise
+        except sqlite3.OperationalError as exc:
+            self.close()
+            text = str(exc)
+            if not any(w in text for w in ("unable to open", "readonly", "disk", "full", "locked")):
+                raise StoreError(
+                    f"{self.path} is not a readable jitterid results store ({exc}); move it away "
+                    "(or delete it) and run again without --resume"
+                ) from None
+            raise StoreError(
+                f"cannot use the results store {self.path} ({exc}); check that the --out folder "
+                "is writable and the disk has space"
+            ) from None
+        except (sqlite3.DatabaseError, ValueError, TypeError) as exc:
+            self.close()
+            raise StoreError(
+                f"{self.path} is not a readable jitterid results store ({exc}); it may be corrupt, "
+                "truncated or from another program: move it away (or delete it) and run again "
+                "without --resume; its realizations will be computed anew"
+            ) from None
+        except BaseException:
+            self.close()
+            raise
+
+    def _open(self, resume: bool) -> None:
+        experiment = self.experiment
+        db = self._db = sqlite3.connect(self.path)
+        db.execute("PRAGMA synchronous = FULL")
+        with db:
+            db.executescript(_SCHEMA)
+        for table, columns in _COLUMNS.items():
+            have = [r[1] for r in db.execute(f"PRAGMA table_info({table})")]
+            if have != columns:
+                raise sqlite3.DatabaseError(
+                    f"table {table!r} has the columns {have}, not those of this jitterid version"
+                )
+        if db.execute("PRAGMA quick_check").fetchone()[0] != "ok":
+            raise sqlite3.DatabaseError("the SQLite integrity check fails")
+        meta = dict(db.execute("SELECT key, value FROM meta").fetchall())
         done = self.count_done()
         fp = experiment.fingerprint()
         if meta and meta.get("fingerprint") != fp:
@@ -112,18 +200,30 @@ class Store:
                 f"{self.path} already holds {done} finished realizations; pass --resume to "
                 "continue (or reuse) them, or use another --out folder"
             )
-        with self._db:
+        with db:
             for k, v in (("experiment", experiment.name), ("fingerprint", fp)):
-                self._db.execute("INSERT OR IGNORE INTO meta VALUES (?, ?)", (k, v))
-            self._db.execute("INSERT OR REPLACE INTO meta VALUES ('jitterid_version', ?)",
+                db.execute("INSERT OR IGNORE INTO meta VALUES (?, ?)", (k, v))
+            db.execute("INSERT OR REPLACE INTO meta VALUES ('jitterid_version', ?)",
                              (__version__,))
-            self._db.execute(
+            db.execute(
                 "INSERT OR REPLACE INTO meta VALUES ('definition', ?)",
                 (json.dumps(_definition(experiment), sort_keys=True),),
             )
 
     def close(self) -> None:
-        self._db.close()
+        if self._db is not None:
+            self._db.close()
+            self._db = None
+        if self._lock is not None:
+            with contextlib.suppress(OSError):
+                self._lock.close()  # releases the lock
+            self._lock = None
+
+    @property
+    def db(self) -> sqlite3.Connection:
+        if self._db is None:
+            raise StoreError(f"{self.path} is closed")
+        return self._db
 
     def __enter__(self) -> Self:
         return self
@@ -132,24 +232,52 @@ class Store:
         self.close()
 
     def count_done(self) -> int:
-        return int(self._db.execute("SELECT COUNT(*) FROM realizations").fetchone()[0])
+        return int(self.db.execute("SELECT COUNT(*) FROM realizations").fetchone()[0])
 
     def done(self) -> set[tuple[str, int]]:
         """The finished (case name, realization index) pairs."""
-        rows = self._db.execute("SELECT case_name, realization FROM realizations")
-        return {(c, int(r)) for c, r in rows}
+        with self._errors("read"):
+            rows = self.db.execute("SELECT case_name, realization FROM realizations").fetchall()
+        return {(str(c), int(r)) for c, r in rows}
+
+    @contextlib.contextmanager
+    def _errors(self, what: str):  # type: ignore[no-untyped-def]
+        """SQLite errors while working -> StoreError saying what is kept and how to go on."""
+        try:
+            yield
+        except sqlite3.IntegrityError as exc:
+            raise StoreError(
+                f"cannot {what} in {self.path}: {exc} (another process wrote the same "
+                "realization?); run one writer per --out folder, then --resume"
+            ) from None
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(
+                f"cannot {what} in {self.path}: {exc}; the realizations committed before are "
+                "kept: fix the cause (disk space, permissions) and run again with --resume"
+            ) from None
+        except (TypeError, ValueError) as exc:
+            raise StoreError(
+                f"cannot {what} in {self.path}: a stored row is malformed ({exc}); move the "
+                "file away and run again without --resume"
+            ) from None
 
     def add_realization(self, rows: Sequence[Estimate], elapsed_s: float) -> None:
         """Commit all estimates of one realization, and mark it done, in one transaction."""
         if not rows or len({(e.case_name, e.realization) for e in rows}) != 1:
             raise ValueError("rows must be the estimates of exactly one realization")
         first = rows[0]
-        with self._db:
-            self._db.execute(
+        db = self.db
+        with self._errors(f"store realization {first.realization} of case {first.case_name!r}"), db:
+            # Rows of a realization not marked done are leftovers (a damaged store): replace.
+            db.execute(
+                "DELETE FROM estimates WHERE case_name = ? AND realization = ?",
+                (first.case_name, first.realization),
+            )
+            db.execute(
                 "INSERT INTO realizations VALUES (?, ?, ?)",
                 (first.case_name, first.realization, elapsed_s),
             )
-            self._db.executemany(
+            db.executemany(
                 "INSERT INTO estimates VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                 [
                     (
@@ -174,11 +302,16 @@ class Store:
 
     def estimates(self, runs: int | None = None) -> list[Estimate]:
         """Stored estimates of realizations ``0..runs-1`` (all if None), in a stable order."""
-        limit = -1 if runs is None else runs
-        cur = self._db.execute(
-            "SELECT case_name, realization, method, params, stderr, jitter_std, noise_std, cost, "
-            "success, status, message, nfev, elapsed_s FROM estimates "
-            "WHERE ? < 0 OR realization < ? ORDER BY case_name, realization, method",
+        limit = -1 if runs is None else min(runs, 2**62)
+        with self._errors("read the estimates"):
+            return self._estimates(limit)
+
+    def _estimates(self, limit: int) -> list[Estimate]:
+        cur = self.db.execute(
+            "SELECT e.case_name, e.realization, method, params, stderr, jitter_std, noise_std, "
+            "cost, success, status, message, nfev, e.elapsed_s FROM estimates e JOIN "
+            "realizations r ON e.case_name = r.case_name AND e.realization = r.realization "
+            "WHERE ? < 0 OR e.realization < ? ORDER BY e.case_name, e.realization, method",
             (limit, limit),
         )
         return [
@@ -186,8 +319,8 @@ class Store:
                 c,
                 int(r),
                 m,
-                json.loads(p),
-                json.loads(s),
+                _json_dict(p),
+                _json_dict(s),
                 _f(j),
                 _f(n),
                 _f(cost),
@@ -227,7 +360,8 @@ class Store:
             "message",
         ]
         out = Path(path)
-        with out.open("w", newline="", encoding="utf-8") as fh:
+
+        def write(fh: io.TextIOBase) -> None:
             w = csv.writer(fh)
             w.writerow(head)
             for e in rows:
@@ -249,7 +383,15 @@ class Store:
                         e.message,
                     ]
                 )
-        return out
+
+        return atomic_write(out, write)
+
+
+def _json_dict(text: str) -> dict[str, float]:
+    value = json.loads(text)
+    if not isinstance(value, dict):
+        raise TypeError(f"expected a JSON object, got {text[:40]!r}")
+    return value
 
 
 def _f(x: float | None) -> float:

@@ -78,11 +78,16 @@ _SCALE_FLOOR = 1e-12
 
 
 def _size(size: int | Sequence[int]) -> tuple[int, ...]:
-    """Validate a numpy-style ``size`` (int or tuple of ints >= 0)."""
+    """Validate a numpy-style ``size`` (int or tuple of ints >= 0) against the memory budget."""
     if isinstance(size, (int, np.integer)) and not isinstance(size, bool):
-        return (_checks.count(size, "size", minimum=0),)
-    if isinstance(size, (tuple, list)):
-        return tuple(_checks.count(s, "size", minimum=0) for s in size)
+        shape = (_checks.count(size, "size", minimum=0),)
+    elif isinstance(size, (tuple, list)):
+        shape = tuple(_checks.count(s, "size", minimum=0) for s in size)
+    else:
+        shape = None
+    if shape is not None:
+        _checks.allocation(math.prod(shape), f"size {size!r}", fix="draw fewer values at a time")
+        return shape
     raise TypeError(f"size must be an int or a tuple of ints (numpy style); got {size!r}")
 
 
