@@ -119,7 +119,7 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
         dz = np.zeros(idx.size)
         dz[i] = hz[i]
         G[i] = (problem.grad_y(embed(z0 + dz)) - problem.grad_y(embed(z0 - dz))) / (2 * hz[i])
-    if problem.method in ("ls", "bcls", "wbcls"):
+    if problem.estimator.least_squares:
         J = problem.jacobian(x)[:, idx]  # analytic (jitterid.estimation.jacobians)
         H = 2 * J.T @ J
     else:

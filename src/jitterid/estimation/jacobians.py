@@ -1,4 +1,4 @@
-"""Parameter derivatives of every criterion of :mod:`jitterid.estimation.problem`, in O(N) per evaluation.
+"""The moments m_k, w_k and their parameter derivatives in one O(N) pass, for every criterion.
 
 Each criterion depends on the parameters only through the per-sample moments (notes 1-2)
 
@@ -21,20 +21,9 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
   (the step of scipy's "2-point" rule, which these replace), one extra evaluation each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
 
-From dm, dw with dmu = F dm, dR = sum_k dw_k e^{-i 2 pi (f - psi) kT} (F the DTFT (3) on the
-frequency set):
-
-- ls (8), bcls (14): residual r = Y - mu, Jacobian -[Re; Im] dmu.
-- wbcls (20): residual z = L^{-1} r with R = L L^H; dz = -L^{-1} dmu - Phi(L^{-1} dR L^{-H}) z,
-  Phi = strictly lower triangle plus half the diagonal (the derivative of a Cholesky factor);
-  with R frozen (``Problem.weights_at``, the default of ``fit``) just dz = -L^{-1} dmu.
-- asml (22): dV = -2 Re(dmu^H a) - a^H dR a + tr(R^{-1} dR), a = R^{-1} r.
-- asml-diag (23): with rho = sum_k w_k, dV = -2 Re(r^H dmu) / rho + (F - |r|^2 / rho) drho / rho.
-- gaussian (notes 3): dV = sum_k -2 e_k dm_k / w_k + (1 - e_k^2 / w_k) dw_k / w_k, e = y - m.
-
-Each is also paired with its expected (Fisher/Gauss-Newton) Hessian, used by the Newton search
-of :func:`jitterid.estimation.fit._run`: 2 dm^T W^{-1} dm + dw^T W^{-2} dw for ``gaussian``, and the
-frequency-domain analogues for ``asml``/``asml-diag``.
+The criteria turn dm, dw into their own derivatives (one module each in
+:mod:`jitterid.estimation.estimators`), with dmu = F dm and dR = sum_k dw_k
+e^{-i 2 pi (f - psi) kT} from :meth:`Problem.dmu` and :meth:`Problem.dR`.
 """
 
 from __future__ import annotations
@@ -43,7 +32,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cho_solve, solve_triangular
 
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterLaw
@@ -55,7 +43,6 @@ from ..moments.modal import (
     modal_sensitivity,
     tables,
 )
-from ..moments.reference import dtft
 from ..moments.sample import SampleMoments, sample_moments
 from ..systems.tf import TransferFunction
 
@@ -183,73 +170,3 @@ def moment_derivatives(
     problem._cache.clear()
     problem._cache[key] = mom
     return out
-
-
-# ---------------------------------------------------------------------------- criteria
-def _dmu(problem: Problem, dm: FloatArray) -> ComplexArray:
-    return dtft(dm, problem.data.T, problem.freqs)  # (P, F)
-
-
-def _dR(problem: Problem, dw: FloatArray) -> ComplexArray:
-    """dR_i(f, psi) = sum_k dw_ik e^{-i 2 pi (f - psi) kT} over the frequency set, (P, F, F)."""
-    uniq, inverse = problem.difference_grid()
-    F = problem.freqs.size
-    return dtft(dw, problem.data.T, uniq)[:, inverse].reshape(dw.shape[0], F, F)
-
-
-def residual_jacobian(problem: Problem, x: FloatArray) -> FloatArray:
-    """d(residuals)/dx, shape (2F, P), for ``ls``, ``bcls`` and ``wbcls`` (module doc)."""
-    _, _, dm, dw = moment_derivatives(problem, x)
-    dmu = _dmu(problem, dm)  # (P, F)
-    if problem.method == "wbcls":
-        r, chol = problem._weighted(x)
-        assert chol is not None
-        L = chol[0]
-        z = solve_triangular(L, r, lower=True)
-        dz = -solve_triangular(L, dmu.T, lower=True)  # (F, P)
-        if problem.frozen_weights:  # R does not depend on x
-            return np.vstack([dz.real, dz.imag])
-        for i, dRi in enumerate(_dR(problem, dw)):
-            B = solve_triangular(L, dRi, lower=True)
-            A = solve_triangular(L, B.conj().T, lower=True)  # L^{-1} dR L^{-H}
-            phi = np.tril(A, -1) + 0.5 * np.diag(np.diag(A))
-            dz[:, i] -= phi @ z
-        return np.vstack([dz.real, dz.imag])
-    return -np.vstack([dmu.real.T, dmu.imag.T])
-
-
-def objective_gradient(problem: Problem, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-    """(V, dV/dx, expected Hessian) for ``gaussian``, ``asml`` and ``asml-diag`` (module doc)."""
-    mom, w, dm, dw = moment_derivatives(problem, x)
-    m = problem.method
-    if m == "gaussian":
-        e = problem.data.y - mom.mean
-        value = float(np.sum(e * e / w + np.log(w)))
-        grad = dm @ (-2 * e / w) + dw @ ((1 - e * e / w) / w)
-        info = 2 * (dm / w) @ dm.T + (dw / w**2) @ dw.T
-        return value, grad, info
-    dmu = _dmu(problem, dm)
-    r, chol = problem._weighted(x)
-    if m == "asml-diag":
-        rho = float(np.sum(w))
-        drho = dw.sum(axis=1)
-        F, rr = r.size, float(np.sum(np.abs(r) ** 2))
-        value = rr / rho + F * np.log(rho)
-        grad = -2 * (dmu @ r.conj()).real / rho + (F - rr / rho) * drho / rho
-        info = 2 * (dmu.conj() @ dmu.T).real / rho + F * np.outer(drho, drho) / rho**2
-        return float(value), grad, info
-    assert m == "asml"
-    assert chol is not None
-    L = chol[0]
-    z = solve_triangular(L, r, lower=True)
-    value = float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(L).real)))
-    a = cho_solve(chol, r)
-    Rinv = cho_solve(chol, np.eye(r.size))
-    dR = _dR(problem, dw)
-    grad = -2 * (dmu @ a.conj()).real
-    RdR = Rinv[None] @ dR  # R^{-1} dR_i, as BLAS products (einsum would loop in C, ~10x slower)
-    grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
-    # tr(R^{-1} dR_i R^{-1} dR_j) = sum_kl (R^{-1} dR_i)_kl (R^{-1} dR_j)_lk
-    flat = RdR.reshape(RdR.shape[0], -1)
-    info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T).real
-    return value, grad, info

@@ -1,36 +1,18 @@
-"""The estimation criteria of the paper, as functions of one parameter vector.
+"""The white-noise estimation problem: data, a model structure, a jitter law or family, a
+frequency set and an estimator, as functions of one parameter vector.
 
-A :class:`Problem` binds data, a model structure, a jitter law (known) or family (free),
-a frequency set and a method, and exposes what an optimiser needs:
+A :class:`Problem` gives each criterion (one module each in :mod:`jitterid.estimation
+.estimators`) what it reads: the sample moments m_k, Var_k and their parameter derivatives
+from one O(N) pass (:mod:`jitterid.estimation.jacobians`, :mod:`jitterid.moments.modal`),
+the DTFT residual Y - mu_Y (Lemma 1 in the time domain), the frequency covariance R_Y
+(17)-(19) and its Cholesky factor where the criterion needs it (frozen at ``weights_at``
+for WBCLS, see :mod:`.estimators.wbcls`), and the adjoint DTFT for dV/dy. Its
+:meth:`Problem.objective`, :meth:`~Problem.residuals`, :meth:`~Problem.jacobian`,
+:meth:`~Problem.objective_gradient` and :meth:`~Problem.grad_y` delegate to the estimator.
 
-=============  ====================================================================  =========
-method         criterion                                                             paper
-=============  ====================================================================  =========
-``ls``         sum_f |Y(f) - S_d(f)|^2, jitter ignored                               (8)
-``bcls``       sum_f |Y(f) - mu_Y(f)|^2                                              (14)
-``wbcls``      (Y - mu)^H R^{-1} (Y - mu), R = R_Y(theta_w) frozen (see below)      (20)
-``asml``       (Y - mu)^H R^{-1} (Y - mu) + ln det R                                 (22)
-``asml-diag``  sum_f |Y - mu|^2 / R(f, f) + ln R(f, f)                               (23)
-``gaussian``   sum_k (y_k - m_k)^2 / w_k + ln w_k: the exact real Gaussian criterion  notes 3
-``ml``         -2 sum_k ln p(y_k | theta): the exact likelihood (:mod:`.likelihood`)   notes 4
-=============  ====================================================================  =========
-
-WBCLS weights. Written literally, (20) takes R = R_Y(theta) at the searched theta; with no
-ln det R term that criterion is minimised partly by inflating R, and the estimate is biased
-(Table 2, 32 realizations: k0 7.12, pr -1.29, pi 2.26 against 6.25, -1.5, 2; 6-14 standard
-errors). ``wbcls`` therefore freezes R at ``weights_at`` (the feasible generalised least
-squares of Kailath et al., which the paper cites for (20)); :func:`jitterid.fit` sets it to
-the BCLS estimate and re-freezes once at the first WBCLS estimate. ``weights_at=None``
-keeps the literal theta-dependent form, for comparison.
-
-The parameter vector is ordered: jitter-family parameters (if the law is free), then the
-system's parameters, then ``noise_std`` when it is estimated (Table 3's order: n, a, k0,
-pr, pi). Every criterion V(theta, y) also provides dV/dy, from which
-:func:`jitterid.estimation.covariance.covariance` builds the delta-method covariance of the estimate, and its
-parameter derivatives: :meth:`Problem.jacobian` (residuals of ls, bcls, wbcls) and
-:meth:`Problem.objective_gradient` (V, dV/dtheta and the expected Hessian of gaussian, asml,
-asml-diag), from one O(N) pass over the moments and their derivatives
-(:mod:`jitterid.estimation.jacobians`, :mod:`jitterid.moments.modal`).
+The parameter vector follows :class:`jitterid.params.ParamLayout`: jitter-family
+parameters (if the law is free), then the system's, then ``noise_std`` when it is estimated
+(Table 3's order: n, a, k0, pr, pi).
 """
 
 from __future__ import annotations
@@ -39,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
+from scipy.linalg import cho_factor
 
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
@@ -50,7 +32,7 @@ from ..params import ParamLayout
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
-from .estimators import as_estimator, method_names
+from .estimators import Estimator, as_estimator, method_names
 from .likelihood import ExactLikelihood
 
 __all__ = ["METHODS", "Problem", "default_frequencies"]
@@ -157,7 +139,7 @@ class Problem:
 
     def _split_new(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
         lay = self.layout
-        if self.method == "ls":
+        if self.estimator.ignores_jitter:
             law: JitterLaw = NoJitter()
         elif isinstance(self.jitter, JitterFamily):
             law = self.jitter.law(lay.block(x, "jitter").tolist())
@@ -196,23 +178,28 @@ class Problem:
         w = self.moments(x).var + noise**2
         return np.maximum(w, 1e-300 + 1e-12 * float(np.max(w, initial=0.0)))
 
-    # ------------------------------------------------------------------ criteria
-    def _weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
-        """Residual Y - mu and, for the full-covariance methods, the Cholesky factor of R."""
+    # ------------------------------------------------------------------ for the criteria
+    @property
+    def estimator(self) -> Estimator:
+        """The estimator whose criterion this problem evaluates."""
+        return as_estimator(self.method)
+
+    def weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
+        """Residual Y - mu and, for the full-covariance criteria, the Cholesky factor of R."""
         d = self.data
         r = self.Y - dtft(self.moments(x).mean, d.T, self.freqs)
         if self.frozen_weights:
             if self._frozen is None:
                 self._frozen = self._cholesky(np.asarray(self.weights_at, float))
             return r, self._frozen
-        if self.method in ("wbcls", "asml"):
+        if self.estimator.full_covariance:
             return r, self._cholesky(x)
         return r, None
 
     @property
     def frozen_weights(self) -> bool:
-        """True for ``wbcls`` with R frozen at ``weights_at`` (module doc)."""
-        return self.method == "wbcls" and self.weights_at is not None
+        """True for ``wbcls`` with R frozen at ``weights_at`` (:mod:`.estimators.wbcls`)."""
+        return self.estimator.full_covariance and self.weights_at is not None
 
     def _cholesky(self, x: FloatArray) -> tuple[FloatArray, bool]:
         uniq, inverse = self.difference_grid()
@@ -220,53 +207,41 @@ class Problem:
         R = dtft(self.variances(x), self.data.T, uniq)[inverse].reshape(F, F)  # (17)-(19)
         return cho_factor(R, lower=True)
 
+    def derivatives(self, x: FloatArray) -> _Derivatives:
+        """(moments, w, dm/dx, dw/dx) at ``x`` from one O(N) pass (:mod:`.jacobians`)."""
+        return _jacobians.moment_derivatives(self, np.asarray(x, float))
+
+    def dmu(self, dm: FloatArray) -> ComplexArray:
+        """d mu_Y(f) / dx over the frequency set, (P, F): the DTFT of dm_k (Lemma 1)."""
+        return dtft(dm, self.data.T, self.freqs)
+
+    def dR(self, dw: FloatArray) -> ComplexArray:
+        """dR_i(f, psi) = sum_k dw_ik e^{-i 2 pi (f - psi) kT} over the frequency set, (P, F, F)."""
+        uniq, inverse = self.difference_grid()
+        F = self.freqs.size
+        return dtft(dw, self.data.T, uniq)[:, inverse].reshape(dw.shape[0], F, F)
+
+    def adjoint(self, z: ComplexArray) -> FloatArray:
+        """Re F^H z: the time-domain image of a frequency-domain weight (for dV/dy)."""
+        return adjoint_dtft(z, self.data.T, self.freqs, self.data.N).real
+
+    # ------------------------------------------------------------------ the criterion
     def residuals(self, x: FloatArray) -> FloatArray:
-        """Real residual vector whose squared norm is the criterion (ls, bcls, wbcls)."""
-        r, chol = self._weighted(x)
-        if chol is not None:
-            r = solve_triangular(chol[0], r, lower=True)
-        return np.concatenate([r.real, r.imag])
+        """Real residual vector whose squared norm is the criterion (least-squares methods)."""
+        return self.estimator.residuals(self, np.asarray(x, float))
 
     def jacobian(self, x: FloatArray) -> FloatArray:
-        """d :meth:`residuals` / dx, shape (2F, P), for ``ls``, ``bcls``, ``wbcls``."""
-        return _jacobians.residual_jacobian(self, np.asarray(x, float))
+        """d :meth:`residuals` / dx, analytic (least-squares methods)."""
+        return self.estimator.jacobian(self, np.asarray(x, float))
 
     def objective_gradient(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-        """(V, dV/dx, expected Hessian of V) for ``gaussian``, ``asml``, ``asml-diag``."""
-        return _jacobians.objective_gradient(self, np.asarray(x, float))
+        """(V, dV/dx, expected Hessian of V) (Newton-searched methods)."""
+        return self.estimator.objective_gradient(self, np.asarray(x, float))
 
     def objective(self, x: FloatArray) -> float:
         """The criterion value V(theta) of the chosen method."""
-        m = self.method
-        if m in ("ls", "bcls", "wbcls"):
-            return float(np.sum(self.residuals(x) ** 2))
-        if m == "gaussian":
-            w = self.variances(x)
-            e = self.data.y - self.moments(x).mean
-            return float(np.sum(e * e / w + np.log(w)))
-        if m == "ml":
-            assert self.likelihood is not None
-            return -2 * self.likelihood.loglik(x, self.data.y)
-        r, chol = self._weighted(x)
-        if m == "asml":
-            assert chol is not None
-            z = solve_triangular(chol[0], r, lower=True)
-            return float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(chol[0]).real)))
-        # asml-diag (23): R(f, f) = sum_k w_k is the same at every frequency (notes 2).
-        rho = float(np.sum(self.variances(x)))
-        return float(np.sum(np.abs(r) ** 2) / rho + r.size * np.log(rho))
+        return self.estimator.objective(self, np.asarray(x, float))
 
     def grad_y(self, x: FloatArray) -> FloatArray:
         """dV/dy at the data: the input to the delta-method covariance."""
-        d, m = self.data, self.method
-        if m == "gaussian":
-            return 2 * (d.y - self.moments(x).mean) / self.variances(x)
-        if m == "ml":
-            assert self.likelihood is not None
-            return -2 * self.likelihood.dlogpdf_dy(x, d.y)
-        r, chol = self._weighted(x)
-        if chol is not None:
-            r = cho_solve(chol, r)
-        elif m == "asml-diag":
-            r = r / float(np.sum(self.variances(x)))
-        return 2 * adjoint_dtft(r, d.T, self.freqs, d.N).real
+        return np.asarray(self.estimator.grad_y(self, np.asarray(x, float)), dtype=float)

@@ -1,4 +1,4 @@
-"""The estimators as objects: what each one is, which options it carries, how it is searched.
+"""The estimator protocol and registry (the estimators are one module each beside this one).
 
 Every estimator of the paper (and the two exact ones) is a small frozen class that states
 its criterion's equation, how it is searched (least squares on residuals with a Jacobian,
@@ -26,21 +26,35 @@ subclass here with :func:`register`, and its criterion in the problem.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar, Protocol
 
-__all__ = [
-    "BCLS",
-    "LS",
-    "ML",
-    "WBCLS",
-    "AsML",
-    "AsMLDiag",
-    "Estimator",
-    "GaussianCriterion",
-    "as_estimator",
-    "method_names",
-    "register",
-]
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+Chol = tuple[FloatArray, bool]
+
+
+class CriterionContext(Protocol):
+    """What a criterion reads of its problem (:class:`jitterid.estimation.problem.Problem`):
+    the data, the moments and their derivatives, the DTFT residual, the weights."""
+
+    data: Any
+    freqs: FloatArray
+    likelihood: Any
+
+    def moments(self, x: FloatArray) -> Any: ...
+    def variances(self, x: FloatArray) -> FloatArray: ...
+    def weighted(self, x: FloatArray) -> tuple[ComplexArray, Chol | None]: ...
+    def derivatives(self, x: FloatArray) -> tuple[Any, FloatArray, FloatArray, FloatArray]: ...
+    def dmu(self, dm: FloatArray) -> ComplexArray: ...
+    def dR(self, dw: FloatArray) -> ComplexArray: ...
+    def adjoint(self, z: ComplexArray) -> FloatArray: ...
+    @property
+    def frozen_weights(self) -> bool: ...
+
+__all__ = ["CriterionContext", "Estimator", "as_estimator", "method_names", "register"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +76,15 @@ class Estimator:
         The criterion can estimate the noise std (a ln det term makes it identifiable).
     cov_types : tuple of str
         The covariance forms that apply (the first is the default).
+    ignores_jitter : bool
+        The criterion's model has no jitter (LS (8)).
+    full_covariance : bool
+        The criterion weights by the full frequency covariance R_Y (its Cholesky factor is
+        formed by the problem).
+
+    A least-squares estimator implements :meth:`residuals` and :meth:`jacobian`; any other
+    :meth:`objective_gradient`; every one :meth:`objective` and :meth:`grad_y` (dV/dy, for
+    the delta-method covariance).
     """
 
     name: ClassVar[str]
@@ -70,6 +93,34 @@ class Estimator:
     needs_noise: ClassVar[bool] = True
     estimates_noise: ClassVar[bool] = True
     cov_types: ClassVar[tuple[str, ...]] = ("sandwich", "robust", "none")
+    ignores_jitter: ClassVar[bool] = False
+    full_covariance: ClassVar[bool] = False
+    rank: ClassVar[int] = 100  # position in listings (the paper's order first)
+
+    # ------------------------------------------------------------------ the criterion
+    def objective(self, problem: CriterionContext, x: FloatArray) -> float:
+        """The criterion value V(theta)."""
+        if self.least_squares:
+            return float(np.sum(self.residuals(problem, x) ** 2))
+        raise NotImplementedError
+
+    def residuals(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
+        """Real residuals whose squared norm is V (least-squares estimators)."""
+        raise NotImplementedError(f"{self.name} is not a least-squares criterion")
+
+    def jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
+        """d residuals / dx, shape (n_residuals, P) (least-squares estimators)."""
+        raise NotImplementedError(f"{self.name} is not a least-squares criterion")
+
+    def objective_gradient(
+        self, problem: CriterionContext, x: FloatArray
+    ) -> tuple[float, FloatArray, FloatArray]:
+        """(V, dV/dx, expected Hessian of V) (Newton-searched estimators)."""
+        raise NotImplementedError(f"{self.name} has no analytic gradient")
+
+    def grad_y(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
+        """dV/dy at the data."""
+        raise NotImplementedError
 
     @property
     def default_cov_type(self) -> str:
@@ -100,8 +151,8 @@ def register(cls: type[Estimator]) -> type[Estimator]:
 
 
 def method_names() -> tuple[str, ...]:
-    """The registered estimator names."""
-    return tuple(_REGISTRY)
+    """The registered estimator names, the paper's order first."""
+    return tuple(sorted(_REGISTRY, key=lambda n: (_REGISTRY[n].rank, n)))
 
 
 def as_estimator(method: str | Estimator) -> Estimator:
@@ -111,84 +162,3 @@ def as_estimator(method: str | Estimator) -> Estimator:
     if isinstance(method, str) and method in _REGISTRY:
         return _REGISTRY[method]()
     raise ValueError(f"method must be one of {method_names()} or an Estimator; got {method!r}")
-
-
-@register
-@dataclass(frozen=True)
-class LS(Estimator):
-    """Ordinary least squares (8): ignores the jitter (biased at high frequencies)."""
-
-    name = "ls"
-    equation = "(8)"
-    least_squares = True
-    needs_noise = False
-    estimates_noise = False
-    cov_types = ("robust", "sandwich", "none")
-
-
-@register
-@dataclass(frozen=True)
-class BCLS(Estimator):
-    """Bias-compensated least squares (14): the residual to the jittered mean mu_Y."""
-
-    name = "bcls"
-    equation = "(14)"
-    least_squares = True
-    needs_noise = False
-    estimates_noise = False
-
-
-@register
-@dataclass(frozen=True)
-class WBCLS(Estimator):
-    """Weighted BCLS (20), with R_Y frozen at the BCLS estimate and re-frozen ``refreeze``
-    times at the new estimate (iterated feasible GLS; the literal (20) is biased, see
-    :mod:`jitterid.estimation.problem`)."""
-
-    name = "wbcls"
-    equation = "(20)"
-    least_squares = True
-    estimates_noise = False
-    refreeze: int = 1
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.refreeze, int) or self.refreeze < 0:
-            raise ValueError(f"refreeze must be a whole number >= 0; got {self.refreeze!r}")
-
-
-@register
-@dataclass(frozen=True)
-class AsML(Estimator):
-    """Asymptotic ML (22) with the full frequency covariance R_Y."""
-
-    name = "asml"
-    equation = "(22)"
-
-
-@register
-@dataclass(frozen=True)
-class AsMLDiag(Estimator):
-    """Reduced asymptotic ML (23): the diagonal of R_Y."""
-
-    name = "asml-diag"
-    equation = "(23)"
-
-
-@register
-@dataclass(frozen=True)
-class GaussianCriterion(Estimator):
-    """The exact real-valued Gaussian criterion of the sample means and variances (notes 3)."""
-
-    name = "gaussian"
-    equation = "notes 3"
-    cov_types = ("sandwich", "robust", "oim", "none")
-
-
-@register
-@dataclass(frozen=True)
-class ML(Estimator):
-    """The exact likelihood (notes 4), at the Cramer-Rao bound."""
-
-    name = "ml"
-    equation = "notes 4"
-    cov_types = ("oim", "robust", "none")

@@ -1,0 +1,55 @@
+"""Least squares on the DFT: LS (8), which ignores the jitter, and BCLS (14), which compares
+with the jittered mean mu_Y(f) = DTFT of m_k (Lemma 1 in the time domain, notes 1)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .base import CriterionContext, Estimator, FloatArray, register
+
+__all__ = ["BCLS", "LS"]
+
+
+@dataclass(frozen=True)
+class _DFTResidual(Estimator):
+    """sum_f |Y(f) - mu(f)|^2 as least squares on the stacked real and imaginary parts."""
+
+    least_squares = True
+    needs_noise = False
+    estimates_noise = False
+
+    def residuals(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
+        r, _ = problem.weighted(x)
+        return np.concatenate([r.real, r.imag])
+
+    def jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
+        dmu = problem.dmu(problem.derivatives(x)[2])  # (P, F)
+        return -np.vstack([dmu.real.T, dmu.imag.T])
+
+    def grad_y(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
+        r, _ = problem.weighted(x)
+        return 2 * problem.adjoint(r)
+
+
+@register
+@dataclass(frozen=True)
+class LS(_DFTResidual):
+    """Ordinary least squares (8): ignores the jitter (biased at high frequencies)."""
+
+    name = "ls"
+    rank = 0
+    equation = "(8)"
+    ignores_jitter = True
+    cov_types = ("robust", "sandwich", "none")
+
+
+@register
+@dataclass(frozen=True)
+class BCLS(_DFTResidual):
+    """Bias-compensated least squares (14): the residual to the jittered mean mu_Y."""
+
+    name = "bcls"
+    rank = 1
+    equation = "(14)"
