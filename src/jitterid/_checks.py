@@ -68,10 +68,12 @@ def generator(rng: np.random.Generator | int | None, name: str = "rng") -> np.ra
 def parameter_vector(
     params: ArrayLike, names: Sequence[str], bounds: Sequence[tuple[float, float]]
 ) -> NDArray[np.float64]:
-    """``params`` as a float vector with one value per name, each inside its bounds."""
-    x = np.atleast_1d(real_array(params, "params"))
-    if x.size != len(names):
-        raise ValueError(f"params must have {len(names)} values {tuple(names)}; got {x.size}")
+    """``params`` (a vector in ``names`` order, a dict by name, or a fitted result whose
+    entries are taken by name) as a float vector, each value inside its bounds."""
+    from .params import ParamLayout
+
+    layout = ParamLayout(system=tuple(names), bounds=tuple((float(a), float(b)) for a, b in bounds))
+    x = layout.vector(params, "params")
     for val, name, (lo, hi) in zip(x, names, bounds, strict=True):
         if not lo <= val <= hi:
             raise ValueError(f"parameter {name} = {val:g} is outside its bounds [{lo}, {hi}]")
