@@ -195,7 +195,7 @@ def test_layout_blocks_and_conversions():
         lay.vector({**lay.to_dict(x), "K0": 1.0})
     with pytest.raises(ValueError, match="missing value"):
         lay.vector({"n": 1})
-    with pytest.raises(ValueError, match="must hold 8 values"):
+    with pytest.raises(ValueError, match="must have 8 values"):
         lay.vector([1, 2])
     with pytest.raises(ValueError, match="block must be one of"):
         lay.block(x, "plant")

@@ -186,7 +186,7 @@ class ParamLayout:
                 ) from None
             if out.size != self.size:
                 raise ValueError(
-                    f"{name} must hold {self.size} values in the order {self.names}; got "
+                    f"{name} must have {self.size} values in the order {self.names}; got "
                     f"{out.size} (or pass a dict by name)"
                 )
         if not np.all(np.isfinite(out)):
