@@ -33,19 +33,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
+from scipy.linalg import cho_factor, cho_solve, matmul_toeplitz, solve_triangular
 from threadpoolctl import threadpool_limits
 
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.reference import dtft
-from ..moments.sample import SampleMoments, sample_moments
-from ..noise.covariance import JitteredAutocovariance, SampleCovariance, jittered_autocovariance
+from ..moments.sample import SampleMoments
+from ..noise.covariance import (
+    JitteredAutocovariance,
+    SampleCovariance,
+    jittered_autocovariance,
+    toeplitz_dft,
+    toeplitz_dft_diagonal,
+)
 from ..noise.models import NoiseModel, NoiseStructure
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
+from . import finite_diff
 from .covariance import _hessian, _steps
-from .problem import adjoint_dtft
+from .jacobians import moment_derivatives
+from .problem import Problem, adjoint_dtft
 
 __all__ = ["BJ_METHODS", "BJProblem", "bj_covariance"]
 
@@ -57,6 +65,7 @@ BJ_METHODS = ("bcls", "wbcls", "asml", "asml-diag", "gaussian")
 JOINT = ("asml", "asml-diag", "gaussian")
 LEAST_SQUARES = ("bcls", "wbcls")
 WHITE_FLOOR = 1e-12  # lower bound of an estimated white-noise std
+PROBES = 32  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
 
 
 @dataclass(eq=False)
@@ -81,6 +90,11 @@ class BJProblem:
     _moments: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
     _autocov: dict[bytes, JitteredAutocovariance] = field(init=False, default_factory=dict)
     _cov: dict[bytes, SampleCovariance] = field(init=False, default_factory=dict)
+    # the OE problem whose moments (and their derivatives, jacobians.moment_derivatives) are
+    # the system/jitter block; the autocovariance's parameter derivatives; probe vectors
+    _oe: Problem = field(init=False)
+    _dgamma: tuple[bytes, dict[int, tuple[FloatArray, FloatArray]]] | None = field(init=False, default=None)
+    _probes: FloatArray | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         jn: tuple[str, ...] = ()
@@ -103,6 +117,7 @@ class BJProblem:
         self.names = jn + self.structure.param_names + nn
         self.bounds = jb + tuple(self.structure.bounds) + nb
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
+        self._oe = Problem(self.data, self.structure, self.jitter, "bcls", self.freqs, None)
 
     @property
     def n_jitter(self) -> int:
@@ -131,15 +146,10 @@ class BJProblem:
 
     def moments(self, x: FloatArray) -> SampleMoments:
         """Lemma 1-2 moments of the signal; depend on the jitter and system parameters only
-        (``x`` may stop after them)."""
+        (``x`` may stop after them). The OE problem's O(N) path (modal for piecewise-constant
+        inputs), cached for the last point."""
         nj, ns = self.n_jitter, self.n_system
-        key = np.asarray(x[: nj + ns], float).tobytes()
-        if key not in self._moments:
-            law, tf = self._law(x), self.structure.system(x[nj : nj + ns])
-            d = self.data
-            self._moments.clear()
-            self._moments[key] = sample_moments(tf.response(d.u), law, d.T, d.N)
-        return self._moments[key]
+        return self._oe.moments(np.asarray(x[: nj + ns], float))
 
     def autocovariance(self, x: FloatArray) -> JitteredAutocovariance:
         """gamma of (C1)/(C3); depends on the jitter and noise parameters only."""
@@ -159,6 +169,145 @@ class BJProblem:
             self._cov.clear()
             self._cov[key] = SampleCovariance(self.moments(x).var + white**2, self.autocovariance(x))
         return self._cov[key]
+
+    def autocovariance_derivatives(self, x: FloatArray) -> dict[int, tuple[FloatArray, FloatArray]]:
+        """d gamma(0..N-1) and d(ar) for each jitter and noise parameter (index into ``x``),
+        by :func:`jitterid.estimation.finite_diff.derivative` of (C1)-(C3): the near lags
+        are quadratures over the law, with no closed-form derivative."""
+        nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
+        key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()
+        if self._dgamma is not None and self._dgamma[0] == key:
+            return self._dgamma[1]
+        N, T = self.data.N, self.data.T
+        jb = tuple(self.jitter.bounds) if isinstance(self.jitter, JitterFamily) else ()
+        natural = jb + tuple(self.structure.bounds) + tuple(self.noise.bounds)
+        g0 = self.autocovariance(x)
+        base = np.r_[g0.sequence(N), g0.ar]
+
+        def flat(xx: FloatArray) -> FloatArray:
+            g = jittered_autocovariance(self.noise.model(xx[nj + ns : nj + ns + nn]), self._law(xx), T)
+            return np.r_[g.sequence(N), g.ar]
+
+        out: dict[int, tuple[FloatArray, FloatArray]] = {}
+        for i in [*range(nj), *range(nj + ns, nj + ns + nn)]:
+            dv = finite_diff.derivative(flat, np.asarray(x, float), i, natural[i], f0=base)
+            out[i] = (dv[:N], dv[N:])
+        self._dgamma = (key, out)
+        return out
+
+    def _derivatives(self, x: FloatArray) -> tuple[SampleMoments, FloatArray, FloatArray, dict[int, tuple[FloatArray, FloatArray]]]:
+        """(moments, dm, dd, {p: (dgamma, dar)}): the derivatives of m and of Sigma_y =
+        diag(d) + Toeplitz(gamma) (AR coefficients ar) for every parameter, shapes (P, N).
+
+        System and jitter block from the OE pass (:func:`jitterid.estimation.jacobians.
+        moment_derivatives`); sigma_w enters d as 2 sigma_w; the noise (and jitter)
+        parameters enter gamma and ar (:meth:`autocovariance_derivatives`)."""
+        x = np.asarray(x, float)
+        nj, ns = self.n_jitter, self.n_system
+        N, P = self.data.N, x.size
+        dm, dd = np.zeros((P, N)), np.zeros((P, N))
+        if nj + ns:
+            mom, _, dmi, dwi = moment_derivatives(self._oe, x[: nj + ns])
+            dm[: nj + ns], dd[: nj + ns] = dmi, dwi
+        else:
+            mom = self.moments(x)
+        if self.white_std is None:
+            dd[-1] = 2 * x[-1]
+        dg = self.autocovariance_derivatives(x) if nj + self.n_noise else {}
+        return mom, dm, dd, dg
+
+    def objective_gradient(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+        """(V, dV/dx, expected Hessian M of V) for ``gaussian``, ``asml``, ``asml-diag``: the
+        input of :func:`jitterid.estimation.search.newton_search`. O(N) for ``gaussian``
+        (:meth:`_gaussian`), O(F^3) for ``asml`` as the criterion itself."""
+        if self.method == "gaussian":
+            return self._gaussian(x)
+        if self.method in ("asml", "asml-diag"):
+            return self._frequency(x)
+        raise ValueError(f"objective_gradient: method {self.method!r} is a least-squares criterion")
+
+    def _gaussian(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+        """V = e^T S^{-1} e + ln det S, S = Sigma_y, e = y - m, through the banded B = L S L^T
+        of (C4): with u = L e, z = B^{-1} u,
+
+            V = u^T z + ln det B,
+            dV = 2 (dL e - L dm)^T z - z^T dB z + tr(B^{-1} dB),
+
+        dB banded (:meth:`SampleCovariance.derivative_band`) and tr(B^{-1} dB) from B^{-1}
+        on the band only (:attr:`SampleCovariance.band_inverse`): O(N w^2) in all.
+
+        Expected Hessian (2 x Fisher information) M = 2 dm^T S^{-1} dm + tr(S^{-1} dS_i
+        S^{-1} dS_j). The first term is exact (whitened columns C^{-1} L dm). The trace term
+        has no banded form (it needs all of S^{-1}); it is estimated with ``PROBES`` fixed
+        probe vectors zeta = L^T C^{-T} xi, xi ~ N(0, I) (so E zeta zeta^T = S^{-1}):
+        tr(S^{-1} dS_i S^{-1} dS_j) = E[(dS_i zeta)^T S^{-1} (dS_j zeta)], a Gram matrix of
+        whitened vectors, hence positive semi-definite, and smooth in x (the same xi at
+        every point). M only steers the Newton steps; the gradient and value are exact.
+        """
+        x = np.asarray(x, float)
+        mom, dm, dd, dg = self._derivatives(x)
+        cov = self.covariance(x)
+        N, P = self.data.N, x.size
+        e = self.data.y - mom.mean
+        u = cov.filter(e)
+        z = cov.band_solve(u)
+        value = float(u @ z + cov.logdet)
+        Lm = cov.filter(dm.T)  # (N, P)
+        grad = -2 * (Lm.T @ z)
+        dB = cov.derivative_band(dd, None, None)  # (P, w + 1, N)
+        for p, (dgam, dar) in dg.items():
+            dB[p] += cov.derivative_band(np.zeros(N), dgam, dar)
+            grad[p] += 2 * (cov.dfilter(dar, e) @ z)
+        w = cov.width
+        twice = np.where(np.arange(w + 1) > 0, 2.0, 1.0)[:, None]
+        zz = np.zeros((w + 1, N))
+        for b in range(w + 1):
+            zz[b, : N - b] = z[b:] * z[: N - b]
+        grad += np.einsum("pbj,bj->p", dB, twice * (cov.band_inverse - zz))
+        Wm = cov._triangular(Lm, "N")
+        info = 2 * (Wm.T @ Wm)
+        if self._probes is None:
+            self._probes = np.random.default_rng(20240607).standard_normal((N, PROBES))
+        zeta = cov.colour(self._probes)  # (N, K)
+        K = zeta.shape[1]
+        V = dd.T[:, :, None] * zeta[:, None, :]  # (N, P, K): diag(dd_p) zeta
+        for p, (dgam, _) in dg.items():
+            V[:, p] += matmul_toeplitz((dgam, dgam), zeta)
+        X = cov.whiten(V.reshape(N, P * K)).reshape(N, P, K)
+        info += np.einsum("npk,nqk->pq", X, X) / K
+        return value, grad, info
+
+    def _frequency(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+        """``asml-diag`` (23) and ``asml`` (22) with coloured noise: the OE formulas of
+        :mod:`jitterid.estimation.jacobians` with R = E Sigma_y E^H and dR = E dSigma_y E^H
+        (linear in d, gamma: :func:`toeplitz_dft`, :func:`toeplitz_dft_diagonal`)."""
+        x = np.asarray(x, float)
+        _, dm, dd, dg = self._derivatives(x)
+        d, f = self.data, self.freqs
+        P = x.size
+        dmu = dtft(dm, d.T, f)  # (P, F)
+        r, chol = self._weighted(x)
+        if self.method == "asml-diag":
+            rho = self.covariance(x).dft_diagonal(d.T, f)
+            drho = np.array([toeplitz_dft_diagonal(dd[p], dg[p][0] if p in dg else None, d.T, f) for p in range(P)])
+            rr = np.abs(r) ** 2
+            value = float(np.sum(rr / rho + np.log(rho)))
+            grad = -2 * (dmu @ (r.conj() / rho)).real + drho @ ((1 - rr / rho) / rho)
+            info = 2 * ((dmu / rho).conj() @ dmu.T).real + (drho / rho**2) @ drho.T
+            return value, grad, info
+        assert chol is not None
+        L = chol[0]
+        zz = solve_triangular(L, r, lower=True)
+        value = float(np.vdot(zz, zz).real + 2 * np.sum(np.log(np.diag(L).real)))
+        a = cho_solve(chol, r)
+        Rinv = cho_solve(chol, np.eye(r.size))
+        dR = np.array([toeplitz_dft(dd[p], dg[p][0] if p in dg else None, d.T, f, f) for p in range(P)])
+        grad = -2 * (dmu @ a.conj()).real
+        RdR = Rinv[None] @ dR
+        grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
+        flat = RdR.reshape(P, -1)
+        info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T).real
+        return value, grad, info
 
     # ------------------------------------------------------------------ criteria
     def _weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
