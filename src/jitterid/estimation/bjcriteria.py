@@ -42,6 +42,7 @@ from ..moments.sample import SampleMoments
 from ..noise.covariance import (
     JitteredAutocovariance,
     SampleCovariance,
+    autocovariance_derivatives,
     jittered_autocovariance,
     toeplitz_dft,
     toeplitz_dft_diagonal,
@@ -65,7 +66,7 @@ BJ_METHODS = ("bcls", "wbcls", "asml", "asml-diag", "gaussian")
 JOINT = ("asml", "asml-diag", "gaussian")
 LEAST_SQUARES = ("bcls", "wbcls")
 WHITE_FLOOR = 1e-12  # lower bound of an estimated white-noise std
-PROBES = 32  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
+PROBES = 16  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
 
 
 @dataclass(eq=False)
@@ -95,6 +96,7 @@ class BJProblem:
     _oe: Problem = field(init=False)
     _dgamma: tuple[bytes, dict[int, tuple[FloatArray, FloatArray]]] | None = field(init=False, default=None)
     _probes: FloatArray | None = field(init=False, default=None)
+    _nm: tuple[bytes, NoiseModel] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         jn: tuple[str, ...] = ()
@@ -138,11 +140,20 @@ class BJProblem:
 
     def split(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, NoiseModel, float]:
         """(jitter law, system, noise model, sigma_w) at parameter vector ``x``."""
-        nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
+        nj, ns = self.n_jitter, self.n_system
         tf = self.structure.system(x[nj : nj + ns])
-        nm = self.noise.model(x[nj + ns : nj + ns + nn])
-        white = float(x[-1]) if self.white_std is None else float(self.white_std)
-        return self._law(x), tf, nm, white
+        return self._law(x), tf, self._noise_model(x), self._white(x)
+
+    def _white(self, x: FloatArray) -> float:
+        return float(x[-1]) if self.white_std is None else float(self.white_std)
+
+    def _noise_model(self, x: FloatArray) -> NoiseModel:
+        """H at ``x``, kept for the last noise parameters (a model builds its modal form)."""
+        nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
+        eta = np.asarray(x[nj + ns : nj + ns + nn], float)
+        if self._nm is None or self._nm[0] != eta.tobytes():
+            self._nm = (eta.tobytes(), self.noise.model(eta))
+        return self._nm[1]
 
     def moments(self, x: FloatArray) -> SampleMoments:
         """Lemma 1-2 moments of the signal; depend on the jitter and system parameters only
@@ -156,24 +167,27 @@ class BJProblem:
         nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
         key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()
         if key not in self._autocov:
-            law, _, nm, _ = self.split(x)
             self._autocov.clear()
-            self._autocov[key] = jittered_autocovariance(nm, law, self.data.T)
+            self._autocov[key] = jittered_autocovariance(self._noise_model(x), self._law(x), self.data.T)
         return self._autocov[key]
 
     def covariance(self, x: FloatArray) -> SampleCovariance:
         """Sigma_y of (C2) at ``x``."""
         key = np.asarray(x, float).tobytes()
         if key not in self._cov:
-            white = self.split(x)[3]
+            white = self._white(x)
             self._cov.clear()
             self._cov[key] = SampleCovariance(self.moments(x).var + white**2, self.autocovariance(x))
         return self._cov[key]
 
     def autocovariance_derivatives(self, x: FloatArray) -> dict[int, tuple[FloatArray, FloatArray]]:
-        """d gamma(0..N-1) and d(ar) for each jitter and noise parameter (index into ``x``),
-        by :func:`jitterid.estimation.finite_diff.derivative` of (C1)-(C3): the near lags
-        are quadratures over the law, with no closed-form derivative."""
+        """d gamma(0..N-1) and d(ar) for each jitter and noise parameter (index into ``x``).
+
+        Noise parameters: in closed form (:func:`jitterid.noise.covariance.
+        autocovariance_derivatives` with :meth:`RationalNoise.mode_derivatives`) when the
+        jitter spans at most T. Otherwise, and for jitter-family parameters, by
+        :func:`jitterid.estimation.finite_diff.derivative` of (C1)-(C3): the near lags are
+        quadratures over the law, with no closed-form derivative."""
         nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
         key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()
         if self._dgamma is not None and self._dgamma[0] == key:
@@ -189,7 +203,18 @@ class BJProblem:
             return np.r_[g.sequence(N), g.ar]
 
         out: dict[int, tuple[FloatArray, FloatArray]] = {}
-        for i in [*range(nj), *range(nj + ns, nj + ns + nn)]:
+        fd = [*range(nj), *range(nj + ns, nj + ns + nn)]
+        modes = getattr(self.noise, "mode_derivatives", None)
+        if nn and modes is not None:  # closed form in the noise parameters when M0 = 1
+            eta = x[nj + ns : nj + ns + nn]
+            nm = self._noise_model(x)
+            dc, dp = modes(eta, nm)
+            exact = autocovariance_derivatives(nm, self._law(x), T, dc, dp, N)
+            if exact is not None:
+                for k in range(nn):
+                    out[nj + ns + k] = (exact[0][k], exact[1][k])
+                fd = fd[:nj]
+        for i in fd:
             dv = finite_diff.derivative(flat, np.asarray(x, float), i, natural[i], f0=base)
             out[i] = (dv[:N], dv[N:])
         self._dgamma = (key, out)
@@ -254,11 +279,13 @@ class BJProblem:
         value = float(u @ z + cov.logdet)
         Lm = cov.filter(dm.T)  # (N, P)
         grad = -2 * (Lm.T @ z)
-        dB = cov.derivative_band(dd, None, None)  # (P, w + 1, N)
-        for p, (dgam, dar) in dg.items():
-            dB[p] += cov.derivative_band(np.zeros(N), dgam, dar)
-            grad[p] += 2 * (cov.dfilter(dar, e) @ z)
         w = cov.width
+        n = cov.gamma.ar.size - 1 if cov.gamma is not None else 0
+        dgam, dar = np.zeros((P, N)), np.zeros((P, n + 1))
+        for p, (dgp, darp) in dg.items():
+            dgam[p], dar[p] = dgp, darp
+            grad[p] += 2 * (cov.dfilter(darp, e) @ z)
+        dB = cov.derivative_band(dd, dgam if dg else None, dar if dg else None)  # (P, w + 1, N)
         twice = np.where(np.arange(w + 1) > 0, 2.0, 1.0)[:, None]
         zz = np.zeros((w + 1, N))
         for b in range(w + 1):

@@ -42,7 +42,7 @@ _BAD = 1e10  # criterion value where the model cannot be evaluated (unstable, no
 # the search stops: 1e-6 units of V moves the estimate by ~1e-3 standard errors.
 NEWTON_TOL = 1e-6
 STALL_TOL = 1e-3  # decrement below which "no step decreases V" is the rounding floor
-STALL_WINDOW, STALL_GAIN = 10, 1e-4  # stop when V fell by < STALL_GAIN over the window
+STALL_WINDOW, STALL_GAIN = 6, 1e-4  # stop when V fell by < STALL_GAIN over the window
 
 
 class _Stalled(Exception):
@@ -239,7 +239,9 @@ def _whitened_stage(
     def resid(theta: FloatArray) -> FloatArray:
         with np.errstate(all="ignore"):
             try:
-                r = cov.whiten(y - problem.moments(np.r_[jit, theta]).mean)
+                # the derivatives come out of the same pass for about twice its cost, and
+                # least_squares asks for the Jacobian at every point it accepts (as fit._run)
+                r = cov.whiten(y - moment_derivatives(problem._oe, np.r_[jit, theta])[0].mean)
             except ValueError:
                 return np.full(y.size, _BAD)
         return r if np.all(np.isfinite(r)) else np.full(y.size, _BAD)
@@ -254,14 +256,26 @@ def _whitened_stage(
 
     gains = list(problem.structure.gain_params)
     wy = cov.whiten(y)
-    results: list[tuple[FloatArray, float]] = []
+    # The structure's starts (gains set by GLS) are scored by one evaluation each and only
+    # the best is searched, besides the BCLS start (as fit._oe_start chooses its start).
+    scored: list[tuple[float, FloatArray]] = []
     nfev = 0
-    for i, theta0 in enumerate([x_pre[nj:], *problem.structure.starts(problem.data.T)]):
+    for theta0 in problem.structure.starts(problem.data.T):
         theta0 = np.clip(np.asarray(theta0, float), lo, hi)
-        if i and gains:  # the mean is linear in the gains: give each start its GLS gain
-            ws = wy - resid(theta0)
+        r0 = resid(theta0)
+        nfev += 1
+        if gains and np.all(r0 < _BAD):  # the mean is linear in the gains: the GLS gain
+            ws = wy - r0
             if np.dot(ws, ws) > 0:
-                theta0[gains] *= np.dot(wy, ws) / np.dot(ws, ws)
+                c = np.dot(wy, ws) / np.dot(ws, ws)
+                theta0[gains] *= c
+                r0 = wy - c * ws
+        scored.append((float(np.dot(r0, r0)), theta0))
+    starts = [x_pre[nj:]]
+    if scored:
+        starts.append(min(scored, key=lambda item: item[0])[1])
+    results: list[tuple[FloatArray, float]] = []
+    for theta0 in starts:
         sol = least_squares(resid, theta0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=min(max_nfev, 200))
         nfev += int(sol.nfev)
         results.append((sol.x, float(sol.cost)))

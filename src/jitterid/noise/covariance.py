@@ -63,6 +63,7 @@ from .models import NoiseModel
 __all__ = [
     "JitteredAutocovariance",
     "SampleCovariance",
+    "autocovariance_derivatives",
     "coloured_dft_covariance",
     "coloured_dft_pseudo_covariance",
     "jittered_autocovariance",
@@ -217,6 +218,51 @@ def jittered_autocovariance(noise: NoiseModel, jitter: JitterLaw, T: float) -> J
     return JitteredAutocovariance(T, near, weights, np.exp(p * T))
 
 
+def autocovariance_derivatives(
+    noise: NoiseModel, jitter: JitterLaw, T: float, dc: ComplexArray, dp: ComplexArray, n: int
+) -> tuple[FloatArray, FloatArray] | None:
+    """d gamma(0..n-1) and d(ar) of (C1)-(C3) along mode derivatives (dc, dp) (shape (P, J),
+    e.g. :meth:`RationalNoise.mode_derivatives`), in closed form; None where the jitter
+    spans more than T (M0 > 1: near lags by quadrature, no closed form).
+
+    With M0 = 1: gamma(0) = Re sum c_j, gamma(m) = Re sum W_j z_j^(m - 1) (m >= 1),
+    W = c A B E, E = e^{p (T + lo - hi)}, z = e^{p T}, so
+    dW = W (dc / c) + c (A_p B + A B_p) E dp + W (T + lo - hi) dp and
+    d gamma(m) = Re sum (dW_j + (m - 1) T W_j dp_j) z_j^(m - 1),
+    with A_p = E[(tau - lo) e^{p (tau - lo)}], B_p = E[(hi - tau) e^{p (hi - tau)}] on the
+    nodes of A and B. ar = poly(z): d ar = -sum_j [0, poly(z without z_j)] T z_j dp_j.
+    """
+    c, p = noise.modes
+    lo, hi = (float(v) for v in jitter.support)
+    start = max(1, math.ceil((hi - lo) / T - _WIDTH_TOL))
+    if start > 1:
+        return None
+    if hi <= lo:
+        a = b = np.ones(p.size, complex)
+        ap = bp = np.zeros(p.size, complex)
+    else:
+        coarse, fine = _scales(jitter, p)
+        nodes, w = _rule(jitter, coarse, np.array([lo, hi]), fine)
+        ea, eb = np.exp(np.outer(p, nodes - lo)), np.exp(np.outer(p, hi - nodes))
+        a, b = ea @ w, eb @ w
+        ap, bp = (ea * (nodes - lo)) @ w, (eb * (hi - nodes)) @ w
+    e = np.exp(p * (T + lo - hi))
+    W = c * a * b * e
+    dW = dc * (a * b * e) + dp * (c * (ap * b + a * bp) * e + W * (T + lo - hi))  # (P, J)
+    m = np.arange(1, n)
+    z = np.exp(p * T)
+    powers = z[None, :] ** (m[:, None] - 1)  # (n - 1, J)
+    dgam = np.empty((dc.shape[0], n))
+    dgam[:, 0] = np.real(dc.sum(axis=1))
+    dgam[:, 1:] = np.real(dW @ powers.T + (dp * W * T) @ (powers * (m[:, None] - 1)).T)
+    J = p.size
+    dar = np.zeros((dc.shape[0], J + 1), complex)
+    for j in range(J):
+        rest = np.poly(np.delete(z, j)) if J > 1 else np.ones(1)
+        dar[:, 1:] -= np.outer(T * z[j] * dp[:, j], rest)
+    return dgam, np.real(dar)
+
+
 def _near_lag(noise: NoiseModel, law: JitterLaw, lag: float, coarse: float, fine: float) -> float:
     """E[r_v(lag + tau - tau')] by a double quadrature split where lag + tau - tau' = 0.
 
@@ -272,18 +318,25 @@ def _apply(S: FloatArray, r: FloatArray) -> FloatArray:
 
 
 def _band(SL: FloatArray, SR: FloatArray, gam: FloatArray, D: FloatArray, width: int) -> FloatArray:
-    """Band of L_1 (diag(d) + Toeplitz(gam)) L_2^T for each row d of D: (P, width + 1, N),
-    out[p, b, k - b] = entry (k, k - b); L_1, L_2 given by their stencils (:func:`_stencil`)."""
-    N, n1 = SL.shape
+    """Band of L_1 (diag(d) + Toeplitz(gam)) L_2^T, batched: (P, width + 1, N) with
+    out[p, b, k - b] = entry (k, k - b). L_1, L_2 by their stencils (:func:`_stencil`),
+    shape (N, n + 1) or (P, N, n + 1); gam shape (L,) or (P, L); D shape (P, N)."""
+    SL3, SR3 = (S if S.ndim == 3 else S[None] for S in (SL, SR))
+    G2 = gam if gam.ndim == 2 else gam[None]
+    P = max(SL3.shape[0], SR3.shape[0], G2.shape[0], D.shape[0])
+    N, n1 = SL3.shape[1:]
     i = np.arange(n1)
-    out = np.zeros((D.shape[0], width + 1, N))
+    out = np.zeros((P, width + 1, N))
+    toeplitz = bool(np.any(G2))
     for b in range(width + 1):
+        L = N - b
+        A, B = SL3[:, b:], SR3[:, :L]  # rows k and k - b
+        if toeplitz:
+            G = G2[:, np.abs(b - i[:, None] + i[None, :])]
+            out[:, b, :L] = np.einsum("...ki,...kj,...ij->...k", A, B, G)
         k = np.arange(b, N)
-        if np.any(gam):
-            G = gam[np.abs(b - i[:, None] + i[None, :])]
-            out[:, b, : N - b] = np.einsum("ki,kj,ij->k", SL[k], SR[k - b], G)
         for ii in range(b, n1):  # the diagonal d enters where k - i = l - j
-            out[:, b, : N - b] += (SL[k, ii] * SR[k - b, ii - b]) * D[:, k - ii]
+            out[:, b, :L] += (A[:, :, ii] * B[:, :, ii - b]) * D[:, k - ii]
     return out
 
 
@@ -422,25 +475,28 @@ class SampleCovariance:
             zj[0] = inv * (inv - acc)
         return np.array(z).T
 
-    def derivative_band(self, dd: FloatArray, dgamma: FloatArray | None, dar: FloatArray | None) -> FloatArray:
-        """dB for dSigma_y = diag(dd) + Toeplitz(dgamma) and d(ar) = ``dar``, band storage.
+    def derivative_band(
+        self, dd: FloatArray, dgamma: FloatArray | None = None, dar: FloatArray | None = None
+    ) -> FloatArray:
+        """dB for dSigma_y = diag(dd) + Toeplitz(dgamma) and d(ar) = ``dar``, band storage,
+        for P directions at once: dd (P, N), dgamma (P, >= w + n + 1) or None, dar (P, n + 1)
+        or None; returns (P, w + 1, N).
 
         B(p) = L_a(p) Sigma_y(p) L_a(p)^T is banded for every parameter p (the tail of gamma
         is annihilated at every p), so dB = dL Sigma L^T + L Sigma dL^T + L dSigma L^T is
         banded too, though its first two terms are not: only their band is formed.
-        ``dd`` may have shape (N,) or (P, N) (then ``dgamma``, ``dar`` must be None).
         """
         S, w = self._stencil, self.width
         n = S.shape[1] - 1
         D = np.atleast_2d(dd)
-        zeros = np.zeros(w + n + 1)
-        dg = zeros if dgamma is None else np.asarray(dgamma, dtype=float)[: w + n + 1]
+        dg = np.zeros(w + n + 1) if dgamma is None else np.asarray(dgamma, dtype=float)[:, : w + n + 1]
         out = _band(S, S, dg, D, w)
         if dar is not None and np.any(dar):
-            dS = _stencil(dar, self.N, derivative=True)
-            gam = self.gamma.sequence(w + n + 1) if self.gamma is not None else zeros
-            out = out + _band(dS, S, gam, self.d[None], w) + _band(S, dS, gam, self.d[None], w)
-        return out if np.ndim(dd) == 2 else out[0]
+            dS = np.zeros((D.shape[0], *S.shape))
+            dS[:, n:] = np.asarray(dar, dtype=float)[:, None, :]
+            gam = self.gamma.sequence(w + n + 1) if self.gamma is not None else np.zeros(w + n + 1)
+            out += _band(dS, S, gam, self.d[None], w) + _band(S, dS, gam, self.d[None], w)
+        return out
 
     def matmul(self, x: ArrayLike) -> FloatArray:
         """Sigma_y x for x of shape (N,) or (N, p), by an FFT Toeplitz product."""
