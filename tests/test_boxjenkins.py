@@ -20,11 +20,11 @@ import jitterid as ji
 from jitterid.cli import main
 from jitterid.estimation.bjcriteria import BJProblem
 from jitterid.estimation.problem import Problem
-from jitterid.noise.covariance import autocovariance_derivatives
 from jitterid.experiments import ExperimentError, load_experiment, packaged_path, parse_experiment
 from jitterid.experiments.bj import spectra_figure
 from jitterid.experiments.report import markdown_report
 from jitterid.experiments.runner import realize, seed_streams
+from jitterid.noise.covariance import autocovariance_derivatives
 
 T, N = 1.0, 200
 TRUTH = np.array([6.25, -1.5, 2.0])
@@ -250,15 +250,21 @@ def test_banded_derivative_gives_the_log_det_derivative_and_band_inverse_is_exac
     dgam, dar = autocovariance_derivatives(st.model(eta), law, T, dc, dp, n)
     dB = cov.derivative_band(np.zeros((eta.size, n)), dgam, dar)
     L = cov.filter(np.eye(n))
+
+    def band_matrix(e):
+        c = cov_at(e)
+        return c.filter(c.filter(c.dense()).T).T  # L_a Sigma L_a^T
+
+    dense_db = _central(band_matrix, eta)
+    dlogdets = _central(lambda e: np.array([cov_at(e).logdet]), eta)[:, 0]
     for i in range(eta.size):
-        fd = _central(lambda e: (lambda c: c.filter(c.filter(c.dense()).T).T)(cov_at(e)), eta)[i]
+        fd = dense_db[i]
         assert np.max(np.abs(np.tril(fd, -cov.width - 1))) < 1e-7  # banded
         for b in range(cov.width + 1):
             np.testing.assert_allclose(dB[i, b, : n - b], np.diag(fd, -b), atol=1e-7)
         zb = cov.band_inverse
         trace = np.sum(zb[0] * dB[i, 0]) + 2 * np.sum(zb[1:] * dB[i, 1:])
-        dlogdet = _central(lambda e: np.array([cov_at(e).logdet]), eta)[i, 0]
-        assert trace == pytest.approx(dlogdet, rel=1e-6)
+        assert trace == pytest.approx(dlogdets[i], rel=1e-6)
     Z = np.linalg.inv(L @ cov.dense() @ L.T)
     for b in range(cov.width + 1):
         np.testing.assert_allclose(cov.band_inverse[b, : n - b], np.diag(Z, -b), rtol=1e-10)
@@ -340,7 +346,7 @@ def test_frequency_domain_fisher_matches_a_dense_second_route(method):
     problem = _bj_problem(method, ji.Uniform(0.5), n=40)
     x = np.array([6.0, -1.4, 2.1, 0.07, 0.3, 0.012])
     d, f = problem.data, problem.freqs
-    mu = lambda z: ji.dtft(problem.moments(z).mean, d.T, f)  # noqa: E731
+    mu = lambda z: ji.dtft(problem.moments(z).mean, d.T, f)
     dmu = _central(lambda z: np.r_[mu(z).real, mu(z).imag], x)
     dmu = dmu[:, : f.size] + 1j * dmu[:, f.size :]
     R = problem.covariance(x).dft(d.T, f)
