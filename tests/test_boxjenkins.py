@@ -234,6 +234,21 @@ def test_bj_gradient_is_the_derivative_of_the_criterion(method, jitter, noise, x
     assert np.all(np.linalg.eigvalsh(M) > 0)
 
 
+@pytest.mark.parametrize("method", ["bcls", "wbcls"])
+def test_least_squares_jacobian_with_frozen_weights_is_the_derivative_of_the_residuals(method):
+    """bcls and wbcls with R frozen at ``weights_at`` (the OE fix carried over to BJ: the
+    literal (20) with R(theta) in the search is biased): -L^{-1} dmu against differences."""
+    problem = _bj_problem(method, ji.Uniform(0.5))
+    x = np.array([6.0, -1.4, 2.1, 0.07, 0.08, 0.012])
+    if method == "wbcls":
+        problem = dataclasses.replace(problem, pinned=x[3:], weights_at=x * 1.01)
+        with pytest.raises(ValueError, match="literal wbcls"):
+            dataclasses.replace(problem, weights_at=None).jacobian(x)
+    J = problem.jacobian(x)[:, :3]
+    fd = _central(problem.residuals, x)[:3].T
+    np.testing.assert_allclose(J, fd, rtol=1e-6, atol=1e-7 * np.max(np.abs(fd)))
+
+
 def test_banded_derivative_gives_the_log_det_derivative_and_band_inverse_is_exact():
     """(C4) for parameter derivatives: dB = d(L_a Sigma L_a^T) is banded although dL_a Sigma
     L_a^T is not, tr(B^{-1} dB) = d ln det Sigma, and B^{-1} on the band (Takahashi) equals

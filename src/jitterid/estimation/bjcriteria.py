@@ -10,7 +10,7 @@ of the jittered noise. The criteria of :mod:`jitterid.estimation.problem` with t
 method         criterion                                                            paper
 =============  ===================================================================  =========
 ``bcls``       sum_f |Y(f) - mu_Y(f)|^2 (noise model only for the error bars)       (14)
-``wbcls``      (Y - mu)^H R^{-1} (Y - mu), R = E Sigma_y E^H, noise model plugged in (20)
+``wbcls``      (Y - mu)^H R^{-1} (Y - mu), R = E Sigma_y E^H frozen (below)           (20)
 ``asml``       (Y - mu)^H R^{-1} (Y - mu) + ln det R                                (22)
 ``asml-diag``  sum_f |Y - mu|^2 / R(f, f) + ln R(f, f)                              (23)
 ``gaussian``   (y - m)^T Sigma_y^{-1} (y - m) + ln det Sigma_y, O(N) by (C4)        notes 3
@@ -20,6 +20,12 @@ Parameter order: jitter-family parameters (JBJ), system, noise structure, then
 ``noise_std`` (sigma_w) when it is estimated. ``bcls`` and ``wbcls`` cannot identify the noise
 (no ln det term): their noise parameters are *plug-in* values held fixed (``pinned``), so
 they get NaN standard errors.
+
+WBCLS weights: as for OE (:mod:`jitterid.estimation.problem`), R is frozen at ``weights_at``
+(the BCLS/GLS start with the plug-in noise model, then re-frozen once at the first WBCLS
+estimate, :func:`jitterid.estimation.boxjenkins.fit_bj`): the literal (20) with R(theta)
+inside the search, having no ln det R, is minimised partly by inflating R and is biased.
+``weights_at=None`` keeps the literal form, for comparison.
 
 Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance, because
 the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
@@ -85,6 +91,7 @@ class BJProblem:
     freqs: FloatArray
     white_std: float | None
     pinned: FloatArray | None = None
+    weights_at: FloatArray | None = None  # wbcls: the point at which R is frozen
     names: tuple[str, ...] = field(init=False)
     bounds: tuple[tuple[float, float], ...] = field(init=False)
     Y: ComplexArray = field(init=False)
@@ -97,6 +104,7 @@ class BJProblem:
     _dgamma: tuple[bytes, dict[int, tuple[FloatArray, FloatArray]]] | None = field(init=False, default=None)
     _probes: FloatArray | None = field(init=False, default=None)
     _nm: tuple[bytes, NoiseModel] | None = field(init=False, default=None)
+    _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         jn: tuple[str, ...] = ()
@@ -340,6 +348,11 @@ class BJProblem:
     def _weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
         d = self.data
         r = self.Y - dtft(self.moments(x).mean, d.T, self.freqs)
+        if self.method == "wbcls" and self.weights_at is not None:  # R frozen (module doc)
+            if self._frozen is None:
+                R = self.covariance(np.asarray(self.weights_at, float)).dft(d.T, self.freqs)
+                self._frozen = cho_factor(R, lower=True)
+            return r, self._frozen
         if self.method in ("wbcls", "asml"):
             R = self.covariance(x).dft(d.T, self.freqs)
             return r, cho_factor(R, lower=True)
@@ -351,6 +364,19 @@ class BJProblem:
         if chol is not None:
             r = solve_triangular(chol[0], r, lower=True)
         return np.concatenate([r.real, r.imag])
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        """d :meth:`residuals` / dx, shape (2F, P), for ``bcls`` and ``wbcls`` with R frozen
+        (``weights_at``): -[Re; Im] L^{-1} dmu with R = L L^H, dmu = F dm from the OE pass
+        (the noise parameters, pinned, do not enter)."""
+        if self.method == "wbcls" and self.weights_at is None:
+            raise ValueError("jacobian: the literal wbcls (R at the searched point) has none here")
+        _, dm, _, _ = self._derivatives(x)
+        dmu = dtft(dm, self.data.T, self.freqs).T  # (F, P)
+        _, chol = self._weighted(x)
+        if chol is not None:
+            dmu = solve_triangular(chol[0], dmu, lower=True)
+        return -np.vstack([dmu.real, dmu.imag])
 
     def objective(self, x: FloatArray) -> float:
         """The criterion value V of the chosen method (module docstring)."""

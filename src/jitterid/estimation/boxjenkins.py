@@ -15,6 +15,8 @@ noise parameters of the residual fit (plug-in).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
@@ -118,7 +120,16 @@ def _search(
                     return np.full(2 * problem.freqs.size, _BAD)
             return r if np.all(np.isfinite(r)) else np.full(r.size, _BAD)
 
-        sol = least_squares(resid, x0[idx], bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev)
+        jac: str | Callable[[FloatArray], FloatArray] = "2-point"
+        if problem.method == "bcls" or problem.weights_at is not None:
+
+            def jac(z: FloatArray) -> FloatArray:
+                try:
+                    return problem.jacobian(embed(z))[:, idx]
+                except ValueError:  # only where resid failed too; such a step is never taken
+                    return np.zeros((2 * problem.freqs.size, idx.size))
+
+        sol = least_squares(resid, x0[idx], jac=jac, bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev)
         status = FitStatus.CONVERGED if sol.status > 0 else FitStatus.MAX_EVALUATIONS
         if sol.status < 0:
             status = FitStatus.OPTIMISER_FAILED
@@ -287,6 +298,21 @@ def _whitened_stage(
     return (x_i if moved else x_b), moved, nfev
 
 
+def _run_wbcls(
+    problem: BJProblem, x0: FloatArray, max_nfev: int
+) -> tuple[BJProblem, tuple[FloatArray, float, FitStatus, str, int]]:
+    """WBCLS (20) with R frozen at ``x0``, then re-frozen once at that estimate (iterated
+    feasible GLS, as :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside
+    the search and no ln det R, (20) is minimised partly by inflating R, which biases it."""
+    nfev = 0
+    for _ in range(2):
+        problem = replace(problem, weights_at=np.array(x0, float))
+        out = _search(problem, x0, max_nfev)
+        nfev += out[4]
+        x0 = out[0]
+    return problem, (*out[:4], nfev)
+
+
 def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> NoiseModel:
     """The noise model H of a BJ/JBJ :class:`~jitterid.FitResult`, rebuilt from its parameters.
 
@@ -352,7 +378,10 @@ def fit_bj(
         if method in LEAST_SQUARES and free_noise:
             k = problem.n_jitter + problem.n_system
             problem = make(method=method, pinned=x0[k:])
-        best = _search(problem, x0, max_nfev)
+        if method == "wbcls":
+            problem, best = _run_wbcls(problem, x0, max_nfev)
+        else:
+            best = _search(problem, x0, max_nfev)
         nfev = best[4]
     else:
         pre = fit(data, structure, jitter, "bcls", start, freqs=f, max_nfev=max_nfev)
@@ -372,6 +401,9 @@ def fit_bj(
             problem = make(method=method, pinned=eta)
         if method == "bcls":  # the noise model does not enter the BCLS criterion (14)
             best = (x0, problem.objective(x0), pre.status, pre.message, 0)
+        elif method == "wbcls":
+            problem, best = _run_wbcls(problem, x0, max_nfev)
+            nfev += best[4]
         else:
             best = _search(problem, x0, max_nfev)
             nfev += best[4]
