@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cho_factor, cho_solve, matmul_toeplitz, solve_triangular
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from threadpoolctl import threadpool_limits
 
 from ..jitter.laws import JitterFamily, JitterLaw
@@ -249,17 +249,21 @@ class BJProblem:
         dg = self.autocovariance_derivatives(x) if nj + self.n_noise else {}
         return mom, dm, dd, dg
 
-    def objective_gradient(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+    def objective_gradient(
+        self, x: FloatArray, free: NDArray[np.intp] | None = None
+    ) -> tuple[float, FloatArray, FloatArray]:
         """(V, dV/dx, expected Hessian M of V) for ``gaussian``, ``asml``, ``asml-diag``: the
         input of :func:`jitterid.estimation.search.newton_search`. O(N) for ``gaussian``
-        (:meth:`_gaussian`), O(F^3) for ``asml`` as the criterion itself."""
+        (:meth:`_gaussian`), O(F^3) for ``asml`` as the criterion itself. ``free``: indices
+        of the parameters searched; ``gaussian`` then forms only their rows and columns
+        (zeros elsewhere), e.g. the noise stage with the system fixed."""
         if self.method == "gaussian":
-            return self._gaussian(x)
+            return self._gaussian(x, free)
         if self.method in ("asml", "asml-diag"):
             return self._frequency(x)
         raise ValueError(f"objective_gradient: method {self.method!r} is a least-squares criterion")
 
-    def _gaussian(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+    def _gaussian(self, x: FloatArray, free: NDArray[np.intp] | None = None) -> tuple[float, FloatArray, FloatArray]:
         """V = e^T S^{-1} e + ln det S, S = Sigma_y, e = y - m, through the banded B = L S L^T
         of (C4): with u = L e, z = B^{-1} u,
 
@@ -280,7 +284,11 @@ class BJProblem:
         x = np.asarray(x, float)
         mom, dm, dd, dg = self._derivatives(x)
         cov = self.covariance(x)
-        N, P = self.data.N, x.size
+        N, P_all = self.data.N, x.size
+        sel = np.arange(P_all) if free is None else np.asarray(free, dtype=np.intp)
+        dm, dd = dm[sel], dd[sel]
+        dg = {j: dg[p] for j, p in enumerate(sel) if p in dg}
+        P = sel.size
         e = self.data.y - mom.mean
         u = cov.filter(e)
         z = cov.band_solve(u)
@@ -298,7 +306,7 @@ class BJProblem:
         zz = np.zeros((w + 1, N))
         for b in range(w + 1):
             zz[b, : N - b] = z[b:] * z[: N - b]
-        grad += np.einsum("pbj,bj->p", dB, twice * (cov.band_inverse - zz))
+        grad += dB.reshape(P, -1) @ (twice * (cov.band_inverse - zz)).ravel()
         Wm = cov._triangular(Lm, "N")
         info = 2 * (Wm.T @ Wm)
         if self._probes is None:
@@ -306,11 +314,16 @@ class BJProblem:
         zeta = cov.colour(self._probes)  # (N, K)
         K = zeta.shape[1]
         V = dd.T[:, :, None] * zeta[:, None, :]  # (N, P, K): diag(dd_p) zeta
-        for p, (dgam, _) in dg.items():
-            V[:, p] += matmul_toeplitz((dgam, dgam), zeta)
-        X = cov.whiten(V.reshape(N, P * K)).reshape(N, P, K)
-        info += np.einsum("npk,nqk->pq", X, X) / K
-        return value, grad, info
+        if dg:
+            keys = list(dg)
+            V[:, keys] += _toeplitz_products(np.array([dg[p][0] for p in keys]), zeta)
+        X = cov.whiten(V.reshape(N, P * K)).reshape(N, P, K).transpose(1, 0, 2).reshape(P, N * K)
+        info += (X @ X.T) / K
+        if P_all == P:
+            return value, grad, info
+        g_all, M_all = np.zeros(P_all), np.zeros((P_all, P_all))
+        g_all[sel], M_all[np.ix_(sel, sel)] = grad, info
+        return value, g_all, M_all
 
     def _frequency(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
         """``asml-diag`` (23) and ``asml`` (22) with coloured noise: the OE formulas of
@@ -406,6 +419,20 @@ class BJProblem:
         elif m == "asml-diag":
             r = r / self.covariance(x).dft_diagonal(d.T, self.freqs)
         return 2 * adjoint_dtft(r, d.T, self.freqs, d.N).real
+
+
+def _toeplitz_products(g: FloatArray, x: FloatArray) -> FloatArray:
+    """Toeplitz(g_p) x for every row g_p of g (P, N) and x (N, K): (N, P, K), by one FFT of
+    x and of each g_p on the circulant embedding of size 2N (matmul_toeplitz per p would
+    transform x again for each)."""
+    P, N = g.shape
+    c = np.zeros((P, 2 * N))
+    c[:, :N] = g
+    c[:, N + 1 :] = g[:, :0:-1]
+    fx = np.fft.rfft(x, n=2 * N, axis=0)  # (N + 1, K)
+    fc = np.fft.rfft(c, axis=1)  # (P, N + 1)
+    out = np.fft.irfft(fc.T[:, :, None] * fx[:, None, :], n=2 * N, axis=0)
+    return np.asarray(out[:N], dtype=float)
 
 
 def bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:

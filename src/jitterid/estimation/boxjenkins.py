@@ -148,7 +148,7 @@ def _search(
             xs, jac = cz.forward(z)
             with np.errstate(all="ignore"):
                 try:
-                    v, g, M = problem.objective_gradient(embed(xs))
+                    v, g, M = problem.objective_gradient(embed(xs), idx)
                 except (OverflowError, ZeroDivisionError):  # a wild trial point: rejected
                     raise ValueError("criterion overflows") from None
                 out = (v, g[idx] * jac, M[np.ix_(idx, idx)] * np.outer(jac, jac))

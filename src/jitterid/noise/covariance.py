@@ -332,8 +332,10 @@ def _band(SL: FloatArray, SR: FloatArray, gam: FloatArray, D: FloatArray, width:
         L = N - b
         A, B = SL3[:, b:], SR3[:, :L]  # rows k and k - b
         if toeplitz:
-            G = G2[:, np.abs(b - i[:, None] + i[None, :])]
-            out[:, b, :L] = np.einsum("...ki,...kj,...ij->...k", A, B, G)
+            G = G2[:, np.abs(b - i[:, None] + i[None, :])]  # (p, n1, n1)
+            for ii in range(n1):  # n1 is small: products beat einsum's generic loop
+                for jj in range(n1):
+                    out[:, b, :L] += A[:, :, ii] * B[:, :, jj] * G[:, ii, jj, None]
         k = np.arange(b, N)
         for ii in range(b, n1):  # the diagonal d enters where k - i = l - j
             out[:, b, :L] += (A[:, :, ii] * B[:, :, ii - b]) * D[:, k - ii]
