@@ -14,7 +14,8 @@ BJ fit on the paper's Table 2 setting with coloured noise.
 ``noise=RationalNoise(0, 1)`` on Table 2's system (PolePairGain (6.25, -1.5, 2), telegraph
 input, U(-T/2, T/2) jitter, T = 1), on white-noise data (std 0.01, Table 2) and on the bj
 experiment's coloured noise, at each N of ``--fit-sizes`` (default 200 2000): wall and CPU
-time (best of ``--repeats``), evaluations, the ratio BJ/OE, and the machine load
+time (best of ``--repeats``, summed over ``--seeds`` data sets), evaluations (summed), k0, pr,
+pi of the first data set, the ratio BJ/OE, and the machine load
 (os.getloadavg). ``--baseline SRC`` runs the same fits with another source tree on
 PYTHONPATH (e.g. /work/main/src) in a subprocess, in the same session, and prints the
 before/after ratio of the BJ times:
@@ -55,38 +56,46 @@ def best_of(fun, repeats: int) -> float:
     return min(times)
 
 
-def fit_times(sizes: list[int], repeats: int) -> list[dict[str, object]]:
-    """OE gaussian and BJ gaussian fits on white and coloured data at each N (module doc)."""
+def fit_times(sizes: list[int], repeats: int, seeds: int) -> list[dict[str, object]]:
+    """OE gaussian and BJ gaussian fits on white and coloured data at each N (module doc):
+    per data set the best of ``repeats`` runs, summed over ``seeds`` data sets."""
     structure, law, noise = ji.PolePairGain(), ji.Uniform(0.5), ji.RationalNoise(0, 1)
     truth = structure.system(TRUTH)
     rows: list[dict[str, object]] = []
     for n in sizes:
         for kind in ("white", "coloured"):
-            rng = np.random.default_rng(n)
-            u = ji.telegraph_input(n * T + 2, rng)
-            model = noise.model(NOISE) if kind == "coloured" else None
-            d = ji.simulate(truth, u, law, T, n, 0.01, rng, noise_model=model)
-            data = ji.SampledData(d.y, d.T, d.u)
+            sets = []
+            for s in range(seeds):
+                rng = np.random.default_rng(n + 7919 * s)
+                u = ji.telegraph_input(n * T + 2, rng)
+                model = noise.model(NOISE) if kind == "coloured" else None
+                d = ji.simulate(truth, u, law, T, n, 0.01, rng, noise_model=model)
+                sets.append(ji.SampledData(d.y, d.T, d.u))
             for label, kw in (("OE", {}), ("BJ", {"noise": noise})):
-                walls, cpus = [], []
-                res = None
-                for _ in range(repeats):
-                    w0, c0 = time.perf_counter(), time.process_time()
-                    res = ji.fit(data, structure, law, "gaussian", **kw)
-                    walls.append(time.perf_counter() - w0)
-                    cpus.append(time.process_time() - c0)
-                assert res is not None
+                wall = cpu = 0.0
+                nfev, ok, first = 0, True, None
+                for data in sets:
+                    walls, cpus = [], []
+                    res = None
+                    for _ in range(repeats):
+                        w0, c0 = time.perf_counter(), time.process_time()
+                        res = ji.fit(data, structure, law, "gaussian", **kw)
+                        walls.append(time.perf_counter() - w0)
+                        cpus.append(time.process_time() - c0)
+                    assert res is not None
+                    wall, cpu, nfev = wall + min(walls), cpu + min(cpus), nfev + int(res.nfev)
+                    ok = ok and bool(res.success)
+                    first = first if first is not None else [float(v) for v in res.x[:3]]
                 rows.append({
-                    "N": n, "data": kind, "fit": label, "wall": min(walls), "cpu": min(cpus),
-                    "nfev": int(res.nfev), "success": bool(res.success),
-                    "x": [float(v) for v in res.x[:3]], "load": os.getloadavg()[0],
+                    "N": n, "data": kind, "fit": label, "wall": wall, "cpu": cpu, "nfev": nfev,
+                    "success": ok, "x": first, "load": os.getloadavg()[0],
                 })
     return rows
 
 
 def print_fits(rows: list[dict[str, object]], title: str) -> None:
     print(f"## {title}")
-    print(f"{'N':>6} {'data':>9} {'fit':>3} {'wall s':>8} {'cpu s':>8} {'nfev':>6} {'ok':>3} {'load':>5}  k0, pr, pi")
+    print(f"{'N':>6} {'data':>9} {'fit':>3} {'wall s':>8} {'cpu s':>8} {'nfev':>6} {'ok':>3} {'load':>5}  k0, pr, pi (first set)")
     for r in rows:
         x = ", ".join(f"{v:.4f}" for v in r["x"])  # type: ignore[union-attr]
         print(
@@ -105,7 +114,7 @@ def print_fits(rows: list[dict[str, object]], title: str) -> None:
 
 def fits_main(args: argparse.Namespace) -> None:
     if args.json:
-        print(json.dumps(fit_times(args.fit_sizes, args.repeats)))
+        print(json.dumps(fit_times(args.fit_sizes, args.repeats, args.seeds)))
         return
     print(
         f"# jitterid BJ vs OE fit times on {platform.node()} ({platform.processor() or platform.machine()}), "
@@ -114,11 +123,14 @@ def fits_main(args: argparse.Namespace) -> None:
     before = None
     if args.baseline:
         env = {**os.environ, "PYTHONPATH": args.baseline}
-        cmd = [sys.executable, __file__, "--fits", "--json", "--repeats", str(args.repeats), "--fit-sizes", *map(str, args.fit_sizes)]
+        cmd = [
+            sys.executable, __file__, "--fits", "--json", "--repeats", str(args.repeats),
+            "--seeds", str(args.seeds), "--fit-sizes", *map(str, args.fit_sizes),
+        ]
         out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
         before = json.loads(out.strip().splitlines()[-1])
         print_fits(before, f"before: {args.baseline}")
-    after = fit_times(args.fit_sizes, args.repeats)
+    after = fit_times(args.fit_sizes, args.repeats, args.seeds)
     print_fits(after, f"after: {ji.__file__}")
     if before is not None:
         old = {(r["N"], r["data"], r["fit"]): r for r in before}
@@ -137,6 +149,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--fits", action="store_true", help="time OE vs BJ gaussian fits instead")
     ap.add_argument("--fit-sizes", type=int, nargs="+", default=[200, 2000])
+    ap.add_argument("--seeds", type=int, default=1, help="data sets per N (times summed), with --fits")
     ap.add_argument("--baseline", help="source tree to compare against (PYTHONPATH), with --fits")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()

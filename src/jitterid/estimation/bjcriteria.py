@@ -29,8 +29,10 @@ inside the search, having no ln det R, is minimised partly by inflating R and is
 
 Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance, because
 the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
-d theta dy^T (central differences of dV/dy), H the Hessian of V (Gauss-Newton 2 J^T J for
-the least-squares criteria); G Sigma_y G^T is an FFT Toeplitz product.
+d theta dy^T (central differences of dV/dy), H the Hessian of V (central differences of the
+analytic gradient; Gauss-Newton 2 J^T J for the least-squares criteria); G Sigma_y G^T is an
+FFT Toeplitz product. Every difference quotient goes through
+:func:`jitterid.estimation.finite_diff.derivative`.
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ from ..simulate import SampledData
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from . import finite_diff
-from .covariance import _hessian, _steps
+from .covariance import _steps
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
 
@@ -446,28 +448,28 @@ def bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
 def _bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
-    h, free = _steps(x, problem.bounds)
+    _, free = _steps(x, problem.bounds)  # a parameter on (or next to) a bound: no error bar
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov
-
-    def embed(z: FloatArray) -> FloatArray:
-        out = x.copy()
-        out[idx] = z
-        return out
-
-    z0, hz = x[idx], h[idx]
-    G = np.empty((idx.size, problem.data.N))
-    J = np.empty((2 * problem.freqs.size, idx.size))
+    x = np.asarray(x, float)
+    bounds = problem.bounds
     with np.errstate(all="ignore"):
-        for i in range(idx.size):
-            dz = np.zeros(idx.size)
-            dz[i] = hz[i]
-            up, down = embed(z0 + dz), embed(z0 - dz)
-            G[i] = (problem.grad_y(up) - problem.grad_y(down)) / (2 * hz[i])
-            if problem.method in LEAST_SQUARES:
-                J[:, i] = (problem.residuals(up) - problem.residuals(down)) / (2 * hz[i])
-        H = 2 * J.T @ J if problem.method in LEAST_SQUARES else _hessian(lambda z: problem.objective(embed(z)), z0, hz)
+        # G = d^2 V / dx dy^T and, for the joint criteria, H = d(analytic gradient)/dx: the
+        # one difference rule (finite_diff); least squares: H = 2 J^T J with J analytic
+        # (bcls, frozen wbcls) or by the same rule.
+        G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i]) for i in idx])
+        if problem.method in LEAST_SQUARES:
+            if problem.method == "bcls" or problem.weights_at is not None:
+                J = problem.jacobian(x)[:, idx]
+            else:
+                J = np.array([finite_diff.derivative(problem.residuals, x, i, bounds[i]) for i in idx]).T
+            H = 2 * J.T @ J
+        else:
+            H = np.array(
+                [finite_diff.derivative(lambda z: problem.objective_gradient(z)[1][idx], x, i, bounds[i]) for i in idx]
+            )
+            H = 0.5 * (H + H.T)
     B = G @ problem.covariance(x).matmul(G.T)
     try:
         Hinv = np.linalg.inv(H)
