@@ -470,6 +470,13 @@ def _bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
                 [finite_diff.derivative(lambda z: problem.objective_gradient(z)[1][idx], x, i, bounds[i]) for i in idx]
             )
             H = 0.5 * (H + H.T)
+    # A parameter the criterion does not depend on (the pole of a noise model whose gain is
+    # 0) has a vanishing row of H: no error bar for it, and none of its noise in the others.
+    diag = np.abs(np.diag(H))
+    keep = diag > 1e-14 * np.max(diag, initial=0.0)
+    idx, H, G = idx[keep], H[np.ix_(keep, keep)], G[keep]
+    if idx.size == 0:
+        return cov
     B = G @ problem.covariance(x).matmul(G.T)
     try:
         Hinv = np.linalg.inv(H)

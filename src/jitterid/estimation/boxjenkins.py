@@ -43,11 +43,13 @@ _BAD = 1e10  # criterion value where the model cannot be evaluated (unstable, no
 # Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
 # the search stops: 1e-6 units of V moves the estimate by ~1e-3 standard errors.
 NEWTON_TOL = 1e-6
+_RATE_SPAN = 1e6  # most a rate searched in log units moves from its start (_Coordinates)
+_FAST = 100.0  # GLS stage: systems with a pole beyond _FAST times the Nyquist rate are refused
 # The noise and GLS stages only give the joint search its start: converged loosely (the joint
 # search refines every parameter to NEWTON_TOL), they cost a few evaluations less each.
 STAGE_TOL, STAGE_FTOL = 1e-2, 1e-5
 STALL_TOL = 1e-3  # decrement below which "no step decreases V" is the rounding floor
-STALL_WINDOW, STALL_GAIN = 6, 1e-4  # stop when V fell by < STALL_GAIN over the window
+STALL_WINDOW, STALL_GAIN = 6, 1e-4  # stop when the last 6 accepted steps gained < 1e-4 in all
 
 
 class _Stalled(Exception):
@@ -67,13 +69,17 @@ class _Coordinates:
     - anything else: z = x.
     """
 
-    def __init__(self, names: NDArray[np.str_], lo: FloatArray, hi: FloatArray) -> None:
+    def __init__(self, names: NDArray[np.str_], lo: FloatArray, hi: FloatArray, x0: FloatArray) -> None:
         unbounded = np.isinf(hi)
         self.square = unbounded & (names == "noise_std")
         self.log = unbounded & (lo > 0) & ~self.square
         self.lo = np.where(self.log, np.log(np.where(self.log, lo, 1.0)), lo)
         self.lo = np.where(self.square, np.maximum(lo, 1e-150) ** 2, self.lo)
-        self.hi = hi
+        # A rate may move by a factor _RATE_SPAN from its start at most: where it is not
+        # identified (a noise gain at 0 leaves its pole free) the Newton steps in ln x are
+        # ratios of vanishing numbers and would carry it to 1e100 and beyond.
+        span = np.log(np.maximum(np.where(self.log, x0, 1.0), np.where(self.log, lo, 1.0))) + np.log(_RATE_SPAN)
+        self.hi = np.where(self.log, span, hi)
 
     def forward(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
         """x(z) and dx/dz."""
@@ -142,13 +148,18 @@ def _search(
         # The one Newton (Fisher scoring) search of the OE path, with the analytic gradient
         # and expected Hessian of the BJ criterion (BJProblem.objective_gradient), in
         # coordinates where the Fisher information stays away from zero (_Coordinates).
-        cz = _Coordinates(np.array(problem.names)[idx], lo[idx], hi[idx])
+        cz = _Coordinates(np.array(problem.names)[idx], lo[idx], hi[idx], x0[idx])
         seen: dict[bytes, tuple[float, FloatArray, FloatArray]] = {}
-        best: list[tuple[float, FloatArray]] = []  # best (V, z) after each evaluation
+        # (V, z) of the evaluations that lowered V (accepted steps; rejected trials are the
+        # search's own damping and do not count towards a stall)
+        record: list[tuple[float, FloatArray]] = []
+
+        n_eval = [0]
 
         def fun(z: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-            if len(best) > STALL_WINDOW and best[-STALL_WINDOW - 1][0] - best[-1][0] < STALL_GAIN:
-                raise _Stalled
+            n_eval[0] += 1
+            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < STALL_GAIN:
+                raise _Stalled  # the last STALL_WINDOW accepted steps gained < STALL_GAIN
             xs, jac = cz.forward(z)
             with np.errstate(all="ignore"):
                 try:
@@ -158,10 +169,8 @@ def _search(
                 out = (v, g[idx] * jac, M[np.ix_(idx, idx)] * np.outer(jac, jac))
             seen.clear()
             seen[z.tobytes()] = out
-            if np.isfinite(v) and (not best or v < best[-1][0]):
-                best.append((float(v), z.copy()))
-            elif best:
-                best.append(best[-1])
+            if np.isfinite(v) and (not record or v < record[-1][0]):
+                record.append((float(v), z.copy()))
             return out
 
         z0, lz, hz = cz.inverse(x0[idx]), cz.lo, cz.hi
@@ -172,7 +181,7 @@ def _search(
             # noise pole runs off to infinity, where H is white) decreases without end by
             # amounts far below one unit of V; the estimate of every identifiable parameter
             # has converged. (search.newton_search has no relative-decrease test.)
-            z, ok, nfev = best[-1][1], True, len(best)
+            z, ok, nfev = record[-1][1], True, n_eval[0]
             msg = f"converged: V decreased by < {STALL_GAIN:g} over {STALL_WINDOW} evaluations"
         if not ok and msg.startswith("no step decreases") and z.tobytes() in seen:
             # Damping exhausted: no step, however short, lowers V. At a point whose Newton
@@ -251,9 +260,16 @@ def _whitened_stage(
     y, jit = problem.data.y, x_pre[:nj]
     lo, hi = np.array(problem.structure.bounds, dtype=float).reshape(-1, 2).T
 
+    fastest = _FAST * np.pi / problem.data.T
+
     def resid(theta: FloatArray) -> FloatArray:
         with np.errstate(all="ignore"):
             try:
+                # A trust-region step far out (a resonance hundreds of times above the
+                # Nyquist rate) is refused before its moments are formed: their quadrature
+                # plan grows with the pole's rate (one such evaluation cost ~0.8 s).
+                if np.max(np.abs(problem.structure.system(theta).poles), initial=0.0) > fastest:
+                    return np.full(y.size, _BAD)
                 # the derivatives come out of the same pass for about twice its cost, and
                 # least_squares asks for the Jacobian at every point it accepts (as fit._run)
                 r = cov.whiten(y - moment_derivatives(problem._oe, np.r_[jit, theta])[0].mean)
