@@ -9,12 +9,28 @@ N = 4000), then the log-log slope of the criterion's time against N, and the wal
 BJ fit on the paper's Table 2 setting with coloured noise.
 
     python benchmarks/bench_bj.py [--sizes 200 1000 5000 20000] [--repeats 5]
+
+``--fits`` times whole fits instead: OE ``gaussian`` against BJ ``gaussian`` with
+``noise=RationalNoise(0, 1)`` on Table 2's system (PolePairGain (6.25, -1.5, 2), telegraph
+input, U(-T/2, T/2) jitter, T = 1), on white-noise data (std 0.01, Table 2) and on the bj
+experiment's coloured noise, at each N of ``--fit-sizes`` (default 200 2000): wall and CPU
+time (best of ``--repeats``, summed over ``--seeds`` data sets), evaluations (summed), k0, pr,
+pi of the first data set, the ratio BJ/OE, and the machine load
+(os.getloadavg). ``--baseline SRC`` runs the same fits with another source tree on
+PYTHONPATH (e.g. /work/main/src) in a subprocess, in the same session, and prints the
+before/after ratio of the BJ times:
+
+    python benchmarks/bench_bj.py --fits --baseline /work/main/src
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import platform
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 
@@ -40,11 +56,106 @@ def best_of(fun, repeats: int) -> float:
     return min(times)
 
 
+def fit_times(sizes: list[int], repeats: int, seeds: int) -> list[dict[str, object]]:
+    """OE gaussian and BJ gaussian fits on white and coloured data at each N (module doc):
+    per data set the best of ``repeats`` runs, summed over ``seeds`` data sets."""
+    structure, law, noise = ji.PolePairGain(), ji.Uniform(0.5), ji.RationalNoise(0, 1)
+    truth = structure.system(TRUTH)
+    rows: list[dict[str, object]] = []
+    for n in sizes:
+        for kind in ("white", "coloured"):
+            sets = []
+            for s in range(seeds):
+                rng = np.random.default_rng(n + 7919 * s)
+                u = ji.telegraph_input(n * T + 2, rng)
+                model = noise.model(NOISE) if kind == "coloured" else None
+                d = ji.simulate(truth, u, law, T, n, 0.01, rng, noise_model=model)
+                sets.append(ji.SampledData(d.y, d.T, d.u))
+            for label, kw in (("OE", {}), ("BJ", {"noise": noise})):
+                wall = cpu = 0.0
+                nfev, ok, first = 0, True, None
+                for data in sets:
+                    walls, cpus = [], []
+                    res = None
+                    for _ in range(repeats):
+                        w0, c0 = time.perf_counter(), time.process_time()
+                        res = ji.fit(data, structure, law, "gaussian", **kw)
+                        walls.append(time.perf_counter() - w0)
+                        cpus.append(time.process_time() - c0)
+                    assert res is not None
+                    wall, cpu, nfev = wall + min(walls), cpu + min(cpus), nfev + int(res.nfev)
+                    ok = ok and bool(res.success)
+                    first = first if first is not None else [float(v) for v in res.x[:3]]
+                rows.append({
+                    "N": n, "data": kind, "fit": label, "wall": wall, "cpu": cpu, "nfev": nfev,
+                    "success": ok, "x": first, "load": os.getloadavg()[0],
+                })
+    return rows
+
+
+def print_fits(rows: list[dict[str, object]], title: str) -> None:
+    print(f"## {title}")
+    print(f"{'N':>6} {'data':>9} {'fit':>3} {'wall s':>8} {'cpu s':>8} {'nfev':>6} {'ok':>3} {'load':>5}  k0, pr, pi (first set)")
+    for r in rows:
+        x = ", ".join(f"{v:.4f}" for v in r["x"])  # type: ignore[union-attr]
+        print(
+            f"{r['N']:>6} {r['data']:>9} {r['fit']:>3} {r['wall']:>8.3f} {r['cpu']:>8.3f} {r['nfev']:>6} "
+            f"{'y' if r['success'] else 'n':>3} {r['load']:>5.2f}  {x}"
+        )
+    by = {(r["N"], r["data"], r["fit"]): r for r in rows}
+    for (n, kind, fit), r in by.items():
+        if fit == "BJ":
+            oe = by[n, kind, "OE"]
+            print(
+                f"ratio BJ/OE at N = {n}, {kind} data: wall {r['wall'] / oe['wall']:.1f}, "  # type: ignore[operator]
+                f"cpu {r['cpu'] / oe['cpu']:.1f}, evaluations {r['nfev']} / {oe['nfev']}"  # type: ignore[operator]
+            )
+
+
+def fits_main(args: argparse.Namespace) -> None:
+    if args.json:
+        print(json.dumps(fit_times(args.fit_sizes, args.repeats, args.seeds)))
+        return
+    print(
+        f"# jitterid BJ vs OE fit times on {platform.node()} ({platform.processor() or platform.machine()}), "
+        f"{time.strftime('%Y-%m-%d %H:%M')}, load average {os.getloadavg()}"
+    )
+    before = None
+    if args.baseline:
+        env = {**os.environ, "PYTHONPATH": args.baseline}
+        cmd = [
+            sys.executable, __file__, "--fits", "--json", "--repeats", str(args.repeats),
+            "--seeds", str(args.seeds), "--fit-sizes", *map(str, args.fit_sizes),
+        ]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+        before = json.loads(out.strip().splitlines()[-1])
+        print_fits(before, f"before: {args.baseline}")
+    after = fit_times(args.fit_sizes, args.repeats, args.seeds)
+    print_fits(after, f"after: {ji.__file__}")
+    if before is not None:
+        old = {(r["N"], r["data"], r["fit"]): r for r in before}
+        for r in after:
+            b = old[r["N"], r["data"], r["fit"]]
+            print(
+                f"after/before {r['fit']} at N = {r['N']}, {r['data']} data: wall {r['wall'] / b['wall']:.3f}, "
+                f"cpu {r['cpu'] / b['cpu']:.3f}, evaluations {r['nfev']} / {b['nfev']}"
+            )
+    print(f"load average at the end: {os.getloadavg()}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[200, 1000, 5000, 20000])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--fits", action="store_true", help="time OE vs BJ gaussian fits instead")
+    ap.add_argument("--fit-sizes", type=int, nargs="+", default=[200, 2000])
+    ap.add_argument("--seeds", type=int, default=1, help="data sets per N (times summed), with --fits")
+    ap.add_argument("--baseline", help="source tree to compare against (PYTHONPATH), with --fits")
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.fits:
+        fits_main(args)
+        return
     structure, law, noise = ji.PolePairGain(), ji.Uniform(0.5), ji.RationalNoise(0, 1)
     truth = structure.system(TRUTH)
     print(

@@ -3,21 +3,25 @@
 BJ (2b): system and noise model H free, jitter law known; JBJ (2d): the jitter family free
 too. The criteria are in :mod:`jitterid.estimation.bjcriteria`. The search: an OE BCLS fit (Section
 4.5); the noise parameters (and an unknown white std) fitted to its residuals by the
-Gaussian criterion with the system fixed (multi-start over the noise structure's starts); a
+Gaussian criterion with the system fixed (from the best of the noise structure's starts); a
 generalised least-squares stage that whitens the residuals by that noise covariance and
 restarts the system from the BCLS estimate and from the structure's starts (strong coloured
 noise can put BCLS in a wrong basin, which the joint search would not leave); then the joint
-search by L-BFGS-B in variables scaled by the start (trust-region least squares for
-``wbcls``). ``bcls`` and ``wbcls`` keep the noise parameters of the residual fit (plug-in).
+search: the project's one Newton (Fisher scoring) search
+(:func:`jitterid.estimation.search.newton_search`) with the criteria's analytic gradients and
+expected Hessians (trust-region least squares for ``wbcls``). ``bcls`` and ``wbcls`` keep the
+noise parameters of the residual fit (plug-in).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares, minimize
+from scipy.optimize import least_squares
 
 from .._checks import real_array
 from ..jitter.laws import JitterFamily, JitterLaw
@@ -26,18 +30,73 @@ from ..simulate import SampledData
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from .bjcriteria import BJ_METHODS, LEAST_SQUARES, BJProblem, bj_covariance
+from .jacobians import moment_derivatives
 from .problem import default_frequencies
 from .result import FitResult, FitStatus
+from .search import damped_step, evaluator, newton_search
 
 __all__ = ["BJ_METHODS", "fit_bj", "fitted_noise"]
 
 FloatArray = NDArray[np.float64]
 
 _BAD = 1e10  # criterion value where the model cannot be evaluated (unstable, not PD)
+# Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
+# the search stops: 1e-6 units of V moves the estimate by ~1e-3 standard errors.
+NEWTON_TOL = 1e-6
+_RATE_SPAN = 1e6  # most a rate searched in log units moves from its start (_Coordinates)
+_FAST = 100.0  # GLS stage: systems with a pole beyond _FAST times the Nyquist rate are refused
+# The noise and GLS stages only give the joint search its start: converged loosely (the joint
+# search refines every parameter to NEWTON_TOL), they cost a few evaluations less each.
+STAGE_TOL, STAGE_FTOL = 1e-2, 1e-5
+STALL_TOL = 1e-3  # decrement below which "no step decreases V" is the rounding floor
+STALL_WINDOW, STALL_GAIN = 6, 1e-4  # stop when the last 6 accepted steps gained < 1e-4 in all
+
+
+class _Stalled(Exception):
+    """Raised inside the Newton search's evaluation to stop it (see _search)."""
+
+
+class _Coordinates:
+    """Search coordinates z for the Newton search (x = x(z) elementwise):
+
+    - a rate with a positive floor and no upper bound (noise poles ``ha*``, a jitter scale):
+      z = ln x. The criterion varies on the rate's relative scale, and a Newton step in the
+      rate itself overshoots to the floor, where the noise model degenerates;
+    - a gain bounded below by 0 (``hb0``) and the white std ``noise_std``: z = x^2, the
+      variance they carry. Sigma_y depends on them through x^2, so the Fisher information
+      in x vanishes like x^2 as x -> 0 (a white record drives one of them there), and a
+      Newton step in x explodes; in x^2 it is regular;
+    - anything else: z = x.
+    """
+
+    def __init__(self, names: NDArray[np.str_], lo: FloatArray, hi: FloatArray, x0: FloatArray) -> None:
+        unbounded = np.isinf(hi)
+        self.square = unbounded & (names == "noise_std")
+        self.log = unbounded & (lo > 0) & ~self.square
+        self.lo = np.where(self.log, np.log(np.where(self.log, lo, 1.0)), lo)
+        self.lo = np.where(self.square, np.maximum(lo, 1e-150) ** 2, self.lo)
+        # A rate may move by a factor _RATE_SPAN from its start at most: where it is not
+        # identified (a noise gain at 0 leaves its pole free) the Newton steps in ln x are
+        # ratios of vanishing numbers and would carry it to 1e100 and beyond.
+        span = np.log(np.maximum(np.where(self.log, x0, 1.0), np.where(self.log, lo, 1.0))) + np.log(_RATE_SPAN)
+        self.hi = np.where(self.log, span, hi)
+
+    def forward(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """x(z) and dx/dz."""
+        x = np.where(self.log, np.exp(np.minimum(np.where(self.log, z, 0.0), 700.0)), z)
+        x = np.where(self.square, np.sqrt(np.maximum(np.where(self.square, z, 1.0), 0.0)), x)
+        jac = np.where(self.log, x, 1.0)
+        jac = np.where(self.square, 0.5 / np.maximum(np.where(self.square, x, 1.0), 1e-150), jac)
+        return x, jac
+
+    def inverse(self, x: FloatArray) -> FloatArray:
+        z = np.where(self.log, np.log(np.where(self.log, x, 1.0)), x)
+        return np.clip(np.where(self.square, x * x, z), self.lo, self.hi)
 
 
 def _search(
-    problem: BJProblem, x0: FloatArray, max_nfev: int, free: NDArray[np.bool_] | None = None
+    problem: BJProblem, x0: FloatArray, max_nfev: int, free: NDArray[np.bool_] | None = None,
+    tol: float | None = None,
 ) -> tuple[FloatArray, float, FitStatus, str, int]:
     """Minimise the criterion over the free parameters from ``x0``."""
     lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
@@ -71,33 +130,73 @@ def _search(
                     return np.full(2 * problem.freqs.size, _BAD)
             return r if np.all(np.isfinite(r)) else np.full(r.size, _BAD)
 
-        sol = least_squares(resid, x0[idx], bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev)
+        jac: str | Callable[[FloatArray], FloatArray] = "2-point"
+        if problem.method == "bcls" or problem.weights_at is not None:
+
+            def jac(z: FloatArray) -> FloatArray:
+                try:
+                    return problem.jacobian(embed(z))[:, idx]
+                except ValueError:  # only where resid failed too; such a step is never taken
+                    return np.zeros((2 * problem.freqs.size, idx.size))
+
+        sol = least_squares(resid, x0[idx], jac=jac, bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev)
         status = FitStatus.CONVERGED if sol.status > 0 else FitStatus.MAX_EVALUATIONS
         if sol.status < 0:
             status = FitStatus.OPTIMISER_FAILED
         z, nfev, msg = sol.x, int(sol.nfev), str(sol.message)
     else:
-        # Search in units of the start: the parameters span orders of magnitude (gains, rates,
-        # noise levels), which a quasi-Newton method started from the identity handles badly.
-        scale = np.where(np.abs(x0[idx]) > 0, np.abs(x0[idx]), 1.0)
-        bounds = [
-            (None if np.isinf(a) else a / s, None if np.isinf(b) else b / s)
-            for a, b, s in zip(lo[idx], hi[idx], scale, strict=True)
-        ]
-        sol = minimize(
-            lambda u: value(embed(u * scale)),
-            x0[idx] / scale,
-            method="L-BFGS-B",
-            bounds=bounds,
-            options={"maxfun": max_nfev, "finite_diff_rel_step": 1e-7},
-        )
-        if sol.success:
-            status = FitStatus.CONVERGED
-        elif sol.nfev >= max_nfev:
+        # The one Newton (Fisher scoring) search of the OE path, with the analytic gradient
+        # and expected Hessian of the BJ criterion (BJProblem.objective_gradient), in
+        # coordinates where the Fisher information stays away from zero (_Coordinates).
+        cz = _Coordinates(np.array(problem.names)[idx], lo[idx], hi[idx], x0[idx])
+        seen: dict[bytes, tuple[float, FloatArray, FloatArray]] = {}
+        # (V, z) of the evaluations that lowered V (accepted steps; rejected trials are the
+        # search's own damping and do not count towards a stall)
+        record: list[tuple[float, FloatArray]] = []
+
+        n_eval = [0]
+
+        def fun(z: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+            n_eval[0] += 1
+            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < STALL_GAIN:
+                raise _Stalled  # the last STALL_WINDOW accepted steps gained < STALL_GAIN
+            xs, jac = cz.forward(z)
+            with np.errstate(all="ignore"):
+                try:
+                    v, g, M = problem.objective_gradient(embed(xs), idx)
+                except (OverflowError, ZeroDivisionError):  # a wild trial point: rejected
+                    raise ValueError("criterion overflows") from None
+                out = (v, g[idx] * jac, M[np.ix_(idx, idx)] * np.outer(jac, jac))
+            seen.clear()
+            seen[z.tobytes()] = out
+            if np.isfinite(v) and (not record or v < record[-1][0]):
+                record.append((float(v), z.copy()))
+            return out
+
+        z0, lz, hz = cz.inverse(x0[idx]), cz.lo, cz.hi
+        try:
+            z, ok, msg, nfev = newton_search(evaluator(fun), z0, lz, hz, max_nfev, tol=NEWTON_TOL if tol is None else tol)
+        except _Stalled:
+            # A criterion whose infimum lies at the edge of the model (a white record: the
+            # noise pole runs off to infinity, where H is white) decreases without end by
+            # amounts far below one unit of V; the estimate of every identifiable parameter
+            # has converged. (search.newton_search has no relative-decrease test.)
+            z, ok, nfev = record[-1][1], True, n_eval[0]
+            msg = f"converged: V decreased by < {STALL_GAIN:g} over {STALL_WINDOW} evaluations"
+        if not ok and msg.startswith("no step decreases") and z.tobytes() in seen:
+            # Damping exhausted: no step, however short, lowers V. At a point whose Newton
+            # decrement is already far below one unit of V (-2 log-likelihood), that is the
+            # rounding floor of V and of the difference quotients of gamma, not a failure
+            # (degenerate noise models, e.g. a white-noise record, have flat directions).
+            _, g, M = seen[z.tobytes()]
+            free_z = ~(((z <= lz) & (g > 0)) | ((z >= hz) & (g < 0)))
+            dec = float(-g @ damped_step(M, g, free_z, 0.0))
+            if dec <= STALL_TOL:
+                ok, msg = True, f"converged: no decrease below rounding, Newton decrement {dec:.2g}"
+        z = cz.forward(z)[0]
+        status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
+        if not ok and nfev >= max_nfev:
             status = FitStatus.MAX_EVALUATIONS
-        else:
-            status = FitStatus.OPTIMISER_FAILED
-        z, nfev, msg = sol.x * scale, int(sol.nfev), str(sol.message)
     x = embed(np.clip(z, lo[idx], hi[idx]))
     cost = value(x)
     if cost >= _BAD:
@@ -106,32 +205,40 @@ def _search(
 
 
 def _noise_stage(
-    problem: BJProblem, x_pre: FloatArray, max_nfev: int
+    problem: BJProblem, x_pre: FloatArray, max_nfev: int, start: FloatArray | None = None
 ) -> tuple[FloatArray, int]:
     """Noise parameters (and sigma_w) by the Gaussian criterion with the system and jitter
-    fixed at the BCLS estimate ``x_pre``: multi-start over the structure's starts."""
+    fixed at ``x_pre``: from ``start`` if given, else from the best of the structure's starts
+    scored by one criterion evaluation each (as the OE start is chosen, fit._oe_start): the
+    system is fixed, so the criterion of the noise parameters is cheap and smooth, and every
+    start converged to the same point in the tests while each search costs ~15 evaluations."""
     nfixed = problem.n_jitter + problem.n_system
     stage = BJProblem(
         problem.data, problem.structure, problem.jitter, problem.noise, "gaussian",
         problem.freqs, problem.white_std,
     )
+    free = np.arange(len(stage.names)) >= nfixed
+    if start is not None:
+        x, _, _, _, nfev = _search(stage, np.r_[x_pre, start], max_nfev, free, STAGE_TOL)
+        return x[nfixed:], nfev
     mom = stage.moments(x_pre)
     resid, signal_var = problem.data.y - mom.mean, float(np.mean(mom.var))
     white = 0.0 if problem.white_std is None else problem.white_std**2
     power = float(np.var(resid))
     scale = float(np.sqrt(max(power - signal_var - white, 1e-4 * power, 1e-300)))
-    free = np.arange(len(stage.names)) >= nfixed
-    best: tuple[FloatArray, float] | None = None
-    nfev = 0
+    scored: list[tuple[float, FloatArray]] = []
     for eta in problem.noise.starts(problem.data.T, scale):
         tail = [0.3 * scale] if problem.white_std is None else []
         x0 = np.r_[x_pre, eta, tail]
-        x, cost, _, _, n = _search(stage, x0, max_nfev, free)
-        nfev += n
-        if best is None or cost < best[1]:
-            best = (x, cost)
-    assert best is not None
-    return best[0][nfixed:], nfev
+        with np.errstate(all="ignore"):
+            try:
+                v = stage.objective(x0)
+            except ValueError:
+                v = np.inf
+        scored.append((v if np.isfinite(v) else np.inf, x0))
+    x0 = min(scored, key=lambda item: item[0])[1]
+    x, _, _, _, n = _search(stage, x0, max_nfev, free, STAGE_TOL)
+    return x[nfixed:], n + len(scored)
 
 
 def _whitened_stage(
@@ -153,30 +260,80 @@ def _whitened_stage(
     y, jit = problem.data.y, x_pre[:nj]
     lo, hi = np.array(problem.structure.bounds, dtype=float).reshape(-1, 2).T
 
+    fastest = _FAST * np.pi / problem.data.T
+
     def resid(theta: FloatArray) -> FloatArray:
         with np.errstate(all="ignore"):
             try:
-                r = cov.whiten(y - problem.moments(np.r_[jit, theta]).mean)
+                # A trust-region step far out (a resonance hundreds of times above the
+                # Nyquist rate) is refused before its moments are formed: their quadrature
+                # plan grows with the pole's rate (one such evaluation cost ~0.8 s).
+                if np.max(np.abs(problem.structure.system(theta).poles), initial=0.0) > fastest:
+                    return np.full(y.size, _BAD)
+                # the derivatives come out of the same pass for about twice its cost, and
+                # least_squares asks for the Jacobian at every point it accepts (as fit._run)
+                r = cov.whiten(y - moment_derivatives(problem._oe, np.r_[jit, theta])[0].mean)
             except ValueError:
                 return np.full(y.size, _BAD)
         return r if np.all(np.isfinite(r)) else np.full(y.size, _BAD)
 
+    def jac(theta: FloatArray) -> FloatArray:
+        # -C^{-1} L_a dm/dtheta: the OE pass's analytic derivatives (jacobians), whitened.
+        try:
+            dm = moment_derivatives(problem._oe, np.r_[jit, theta])[2][nj:]
+        except ValueError:  # only where resid failed too; such a step is never taken
+            return np.zeros((y.size, ns))
+        return -cov.whiten(dm.T)
+
     gains = list(problem.structure.gain_params)
     wy = cov.whiten(y)
-    best: tuple[FloatArray, float, int] | None = None
+    # The structure's starts (gains set by GLS) are scored by one evaluation each and only
+    # the best is searched, besides the BCLS start (as fit._oe_start chooses its start).
+    scored: list[tuple[float, FloatArray]] = []
     nfev = 0
-    for i, theta0 in enumerate([x_pre[nj:], *problem.structure.starts(problem.data.T)]):
+    for theta0 in problem.structure.starts(problem.data.T):
         theta0 = np.clip(np.asarray(theta0, float), lo, hi)
-        if i and gains:  # the mean is linear in the gains: give each start its GLS gain
-            ws = wy - resid(theta0)
+        r0 = resid(theta0)
+        nfev += 1
+        if gains and np.all(r0 < _BAD):  # the mean is linear in the gains: the GLS gain
+            ws = wy - r0
             if np.dot(ws, ws) > 0:
-                theta0[gains] *= np.dot(wy, ws) / np.dot(ws, ws)
-        sol = least_squares(resid, theta0, bounds=(lo, hi), x_scale="jac", max_nfev=min(max_nfev, 200))
+                c = np.dot(wy, ws) / np.dot(ws, ws)
+                theta0[gains] *= c
+                r0 = wy - c * ws
+        scored.append((float(np.dot(r0, r0)), theta0))
+    starts = [x_pre[nj:]]
+    if scored:
+        starts.append(min(scored, key=lambda item: item[0])[1])
+    results: list[tuple[FloatArray, float]] = []
+    for theta0 in starts:
+        sol = least_squares(
+            resid, theta0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=min(max_nfev, 200),
+            ftol=STAGE_FTOL, xtol=STAGE_FTOL,
+        )
         nfev += int(sol.nfev)
-        if best is None or sol.cost < best[1]:
-            best = (sol.x, float(sol.cost), i)
-    assert best is not None
-    return best[0], best[2] > 0, nfev
+        results.append((sol.x, float(sol.cost)))
+    i = min(range(len(results)), key=lambda j: results[j][1])
+    # Another basin only if clearly better than the search from BCLS (not a rounding tie
+    # with the same point reached from another start).
+    (x_b, c_b), (x_i, c_i) = results[0], results[i]
+    moved = c_i < c_b - 1e-4 * (1.0 + abs(c_b)) and not np.allclose(x_i, x_b, rtol=1e-3, atol=1e-6)
+    return (x_i if moved else x_b), moved, nfev
+
+
+def _run_wbcls(
+    problem: BJProblem, x0: FloatArray, max_nfev: int
+) -> tuple[BJProblem, tuple[FloatArray, float, FitStatus, str, int]]:
+    """WBCLS (20) with R frozen at ``x0``, then re-frozen once at that estimate (iterated
+    feasible GLS, as :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside
+    the search and no ln det R, (20) is minimised partly by inflating R, which biases it."""
+    nfev = 0
+    for _ in range(2):
+        problem = replace(problem, weights_at=np.array(x0, float))
+        out = _search(problem, x0, max_nfev)
+        nfev += out[4]
+        x0 = out[0]
+    return problem, (*out[:4], nfev)
 
 
 def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> NoiseModel:
@@ -244,7 +401,10 @@ def fit_bj(
         if method in LEAST_SQUARES and free_noise:
             k = problem.n_jitter + problem.n_system
             problem = make(method=method, pinned=x0[k:])
-        best = _search(problem, x0, max_nfev)
+        if method == "wbcls":
+            problem, best = _run_wbcls(problem, x0, max_nfev)
+        else:
+            best = _search(problem, x0, max_nfev)
         nfev = best[4]
     else:
         pre = fit(data, structure, jitter, "bcls", start, freqs=f, max_nfev=max_nfev)
@@ -255,16 +415,18 @@ def fit_bj(
         if method != "bcls":  # bcls keeps its estimate; the others may start elsewhere
             theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
             nfev += n
-            if moved:  # another basin: refit the noise to its residuals
-                x_pre = np.r_[x_pre[: problem.n_jitter], theta]
-                if free_noise:
-                    eta, n = _noise_stage(problem, x_pre, max_nfev)
-                    nfev += n
+            x_pre = np.r_[x_pre[: problem.n_jitter], theta]  # the GLS system: a closer start
+            if moved and free_noise:  # another basin: refit the noise to its residuals
+                eta, n = _noise_stage(problem, x_pre, max_nfev, start=eta)
+                nfev += n
         x0 = np.r_[x_pre, eta]
         if method in LEAST_SQUARES and free_noise:
             problem = make(method=method, pinned=eta)
         if method == "bcls":  # the noise model does not enter the BCLS criterion (14)
             best = (x0, problem.objective(x0), pre.status, pre.message, 0)
+        elif method == "wbcls":
+            problem, best = _run_wbcls(problem, x0, max_nfev)
+            nfev += best[4]
         else:
             best = _search(problem, x0, max_nfev)
             nfev += best[4]

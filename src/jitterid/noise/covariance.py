@@ -48,7 +48,8 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import cho_solve_banded, cholesky_banded, matmul_toeplitz, solve_banded
+from scipy.linalg import cho_solve_banded, cholesky_banded, matmul_toeplitz
+from scipy.linalg.lapack import dtbtrs
 
 from .._checks import count, positive, real_array
 from ..inputs import Input
@@ -62,6 +63,7 @@ from .models import NoiseModel
 __all__ = [
     "JitteredAutocovariance",
     "SampleCovariance",
+    "autocovariance_derivatives",
     "coloured_dft_covariance",
     "coloured_dft_pseudo_covariance",
     "jittered_autocovariance",
@@ -74,6 +76,7 @@ ComplexArray = NDArray[np.complex128]
 _ORDER = 10  # Gauss-Legendre nodes per panel
 _CHUNK = 2_000_000  # complex values per block of the near-lag quadrature
 _MAX_START = 256  # most lags evaluated by the double quadrature (support / T)
+_GL = np.polynomial.legendre.leggauss(_ORDER)  # nodes and weights on [-1, 1], made once
 # A support wider than M0 T by this relative amount is treated as M0 T (probability ~1e-9).
 _WIDTH_TOL = 1e-9
 
@@ -105,7 +108,7 @@ def _rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tu
     lo, hi = law.support
     edges = np.concatenate([_relative_cuts(law, coarse), (anchors[:, None] + _offsets(coarse, fine)).ravel()])
     edges = np.unique(np.clip(edges, lo, hi))
-    x, wx = np.polynomial.legendre.leggauss(_ORDER)
+    x, wx = _GL
     half = 0.5 * np.diff(edges)[:, None]
     nodes = (0.5 * (edges[:-1, None] + edges[1:, None]) + half * x).ravel()
     return nodes, (half * wx).ravel() * law.pdf(np.clip(nodes, lo, hi))
@@ -215,6 +218,51 @@ def jittered_autocovariance(noise: NoiseModel, jitter: JitterLaw, T: float) -> J
     return JitteredAutocovariance(T, near, weights, np.exp(p * T))
 
 
+def autocovariance_derivatives(
+    noise: NoiseModel, jitter: JitterLaw, T: float, dc: ComplexArray, dp: ComplexArray, n: int
+) -> tuple[FloatArray, FloatArray] | None:
+    """d gamma(0..n-1) and d(ar) of (C1)-(C3) along mode derivatives (dc, dp) (shape (P, J),
+    e.g. :meth:`RationalNoise.mode_derivatives`), in closed form; None where the jitter
+    spans more than T (M0 > 1: near lags by quadrature, no closed form).
+
+    With M0 = 1: gamma(0) = Re sum c_j, gamma(m) = Re sum W_j z_j^(m - 1) (m >= 1),
+    W = c A B E, E = e^{p (T + lo - hi)}, z = e^{p T}, so
+    dW = W (dc / c) + c (A_p B + A B_p) E dp + W (T + lo - hi) dp and
+    d gamma(m) = Re sum (dW_j + (m - 1) T W_j dp_j) z_j^(m - 1),
+    with A_p = E[(tau - lo) e^{p (tau - lo)}], B_p = E[(hi - tau) e^{p (hi - tau)}] on the
+    nodes of A and B. ar = poly(z): d ar = -sum_j [0, poly(z without z_j)] T z_j dp_j.
+    """
+    c, p = noise.modes
+    lo, hi = (float(v) for v in jitter.support)
+    start = max(1, math.ceil((hi - lo) / T - _WIDTH_TOL))
+    if start > 1:
+        return None
+    if hi <= lo:
+        a = b = np.ones(p.size, complex)
+        ap = bp = np.zeros(p.size, complex)
+    else:
+        coarse, fine = _scales(jitter, p)
+        nodes, w = _rule(jitter, coarse, np.array([lo, hi]), fine)
+        ea, eb = np.exp(np.outer(p, nodes - lo)), np.exp(np.outer(p, hi - nodes))
+        a, b = ea @ w, eb @ w
+        ap, bp = (ea * (nodes - lo)) @ w, (eb * (hi - nodes)) @ w
+    e = np.exp(p * (T + lo - hi))
+    W = c * a * b * e
+    dW = dc * (a * b * e) + dp * (c * (ap * b + a * bp) * e + W * (T + lo - hi))  # (P, J)
+    m = np.arange(1, n)
+    z = np.exp(p * T)
+    powers = z[None, :] ** (m[:, None] - 1)  # (n - 1, J)
+    dgam = np.empty((dc.shape[0], n))
+    dgam[:, 0] = np.real(dc.sum(axis=1))
+    dgam[:, 1:] = np.real(dW @ powers.T + (dp * W * T) @ (powers * (m[:, None] - 1)).T)
+    J = p.size
+    dar = np.zeros((dc.shape[0], J + 1), complex)
+    for j in range(J):
+        rest = np.poly(np.delete(z, j)) if J > 1 else np.ones(1)
+        dar[:, 1:] -= np.outer(T * z[j] * dp[:, j], rest)
+    return dgam, np.real(dar)
+
+
 def _near_lag(noise: NoiseModel, law: JitterLaw, lag: float, coarse: float, fine: float) -> float:
     """E[r_v(lag + tau - tau')] by a double quadrature split where lag + tau - tau' = 0.
 
@@ -228,7 +276,7 @@ def _near_lag(noise: NoiseModel, law: JitterLaw, lag: float, coarse: float, fine
     outer, wo = _rule(law, coarse, knots + lag, fine)
     base = _relative_cuts(law, coarse)
     offs = _offsets(coarse, fine)
-    x, wx = np.polynomial.legendre.leggauss(_ORDER)
+    x, wx = _GL
     total = 0.0
     width = base.size + offs.size
     step = max(1, _CHUNK // (width * _ORDER * max(1, p.size)))
@@ -246,6 +294,52 @@ def _near_lag(noise: NoiseModel, law: JitterLaw, lag: float, coarse: float, fine
         r = np.real(np.exp(p * dist) @ c)
         total += float(np.sum(wo[i0 : i0 + step] * np.sum(w * r, axis=(1, 2))))
     return total
+
+
+def _stencil(a: FloatArray, N: int, derivative: bool = False) -> FloatArray:
+    """Rows of L_a for AR coefficients ``a``: S[k, i] multiplies y_{k-i}; rows k < n are
+    identity rows (zero rows for a ``derivative`` of the coefficients)."""
+    n = a.size - 1
+    S = np.zeros((N, n + 1))
+    S[n:] = a
+    S[: min(n, N)] = 0.0
+    if not derivative:
+        S[: min(n, N), 0] = 1.0
+    return S
+
+
+def _apply(S: FloatArray, r: FloatArray) -> FloatArray:
+    """sum_i S[k, i] r[k - i] for r of shape (N,) or (N, p)."""
+    out = S[:, 0, None] * r if r.ndim == 2 else S[:, 0] * r
+    for i in range(1, S.shape[1]):
+        coef = S[i:, i, None] if r.ndim == 2 else S[i:, i]
+        out[i:] += coef * r[:-i]
+    return out
+
+
+def _band(SL: FloatArray, SR: FloatArray, gam: FloatArray, D: FloatArray, width: int) -> FloatArray:
+    """Band of L_1 (diag(d) + Toeplitz(gam)) L_2^T, batched: (P, width + 1, N) with
+    out[p, b, k - b] = entry (k, k - b). L_1, L_2 by their stencils (:func:`_stencil`),
+    shape (N, n + 1) or (P, N, n + 1); gam shape (L,) or (P, L); D shape (P, N)."""
+    SL3, SR3 = (S if S.ndim == 3 else S[None] for S in (SL, SR))
+    G2 = gam if gam.ndim == 2 else gam[None]
+    P = max(SL3.shape[0], SR3.shape[0], G2.shape[0], D.shape[0])
+    N, n1 = SL3.shape[1:]
+    i = np.arange(n1)
+    out = np.zeros((P, width + 1, N))
+    toeplitz = bool(np.any(G2))
+    for b in range(width + 1):
+        L = N - b
+        A, B = SL3[:, b:], SR3[:, :L]  # rows k and k - b
+        if toeplitz:
+            G = G2[:, np.abs(b - i[:, None] + i[None, :])]  # (p, n1, n1)
+            for ii in range(n1):  # n1 is small: products beat einsum's generic loop
+                for jj in range(n1):
+                    out[:, b, :L] += A[:, :, ii] * B[:, :, jj] * G[:, ii, jj, None]
+        k = np.arange(b, N)
+        for ii in range(b, n1):  # the diagonal d enters where k - i = l - j
+            out[:, b, :L] += (A[:, :, ii] * B[:, :, ii - b]) * D[:, k - ii]
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -271,34 +365,31 @@ class SampleCovariance:
     def _stencil(self) -> FloatArray:
         """Rows of L_a: S[k, i] multiplies y_{k-i}; identity rows for k < n."""
         a = self.gamma.ar if self.gamma is not None else np.ones(1)
-        n = a.size - 1
-        S = np.zeros((self.N, n + 1))
-        S[n:] = a
-        S[: min(n, self.N), 0] = 1.0
-        return S
+        return _stencil(a, self.N)
+
+    @property
+    def width(self) -> int:
+        """Half-bandwidth of B = L_a Sigma_y L_a^T, (C4)."""
+        n = self._stencil.shape[1] - 1
+        start = self.gamma.start if self.gamma is not None else 1
+        return min(n + start - 1, self.N - 1)
+
+    @cached_property
+    def band(self) -> FloatArray:
+        """B = L_a Sigma_y L_a^T in lower band storage: band[b, j] = B[j + b, j]."""
+        S = self._stencil
+        n = S.shape[1] - 1
+        gam = (
+            self.gamma.sequence(self.width + n + 1)
+            if self.gamma is not None
+            else np.zeros(self.width + n + 1)
+        )
+        return _band(S, S, gam, self.d[None], self.width)[0]
 
     @cached_property
     def _factor(self) -> tuple[FloatArray, float]:
-        """Banded Cholesky factor of L_a Sigma L_a^T (lower storage) and ln det Sigma."""
-        S, N = self._stencil, self.N
-        n = S.shape[1] - 1
-        start = self.gamma.start if self.gamma is not None else 1
-        width = min(n + start - 1, N - 1)
-        gam = (
-            self.gamma.sequence(width + n + 1)
-            if self.gamma is not None
-            else np.zeros(width + n + 1)
-        )
-        i = np.arange(n + 1)
-        ab = np.zeros((width + 1, N))
-        for b in range(width + 1):
-            k = np.arange(b, N)
-            G = gam[np.abs(b - i[:, None] + i[None, :])]
-            band = np.einsum("ki,kj,ij->k", S[k], S[k - b], G)
-            for ii in range(max(b, 0), n + 1):  # the diagonal d enters where k - i = l - j
-                band += S[k, ii] * S[k - b, ii - b] * self.d[k - ii]
-            ab[b, : N - b] = band
-        cb = cholesky_banded(ab, lower=True)
+        """Banded Cholesky factor C of B = L_a Sigma L_a^T (lower storage) and ln det Sigma."""
+        cb = cholesky_banded(self.band, lower=True)
         return cb, float(2.0 * np.sum(np.log(cb[0])))
 
     @property
@@ -307,12 +398,7 @@ class SampleCovariance:
         return self._factor[1]
 
     def _filter(self, r: FloatArray) -> FloatArray:
-        S = self._stencil
-        out = S[:, 0, None] * r if r.ndim == 2 else S[:, 0] * r
-        for i in range(1, S.shape[1]):
-            coef = S[i:, i, None] if r.ndim == 2 else S[i:, i]
-            out[i:] += coef * r[:-i]
-        return out
+        return _apply(self._stencil, r)
 
     def _filter_t(self, u: FloatArray) -> FloatArray:
         S = self._stencil
@@ -322,6 +408,18 @@ class SampleCovariance:
             out[:-i] += coef * u[i:]
         return out
 
+    def filter(self, r: ArrayLike) -> FloatArray:
+        """L_a r for r of shape (N,) or (N, p): the AR filter of (C4)."""
+        return self._filter(np.asarray(r, dtype=float))
+
+    def dfilter(self, dar: FloatArray, r: ArrayLike) -> FloatArray:
+        """(dL_a) r for a derivative ``dar`` of the AR coefficients (identity rows fixed)."""
+        return _apply(_stencil(dar, self.N, derivative=True), np.asarray(r, dtype=float))
+
+    def band_solve(self, u: ArrayLike) -> FloatArray:
+        """B^{-1} u, B = L_a Sigma_y L_a^T (so Sigma_y^{-1} r = L_a^T B^{-1} L_a r)."""
+        return np.asarray(cho_solve_banded((self._factor[0], True), np.asarray(u, dtype=float)), dtype=float)
+
     def solve(self, r: ArrayLike) -> FloatArray:
         """Sigma_y^{-1} r for r of shape (N,) or (N, p), by (C4)."""
         rr = np.asarray(r, dtype=float)
@@ -329,9 +427,78 @@ class SampleCovariance:
         return self._filter_t(np.asarray(z, dtype=float))
 
     def whiten(self, r: ArrayLike) -> FloatArray:
-        """L^{-1} L_a r, with L L^T = L_a Sigma_y L_a^T: ||whiten(r)||^2 = r^T Sigma_y^{-1} r."""
+        """C^{-1} L_a r, with C C^T = L_a Sigma_y L_a^T: ||whiten(r)||^2 = r^T Sigma_y^{-1} r."""
+        return self._triangular(self._filter(np.asarray(r, dtype=float)), "N")
+
+    def colour(self, xi: ArrayLike) -> FloatArray:
+        """L_a^T C^{-T} xi: for xi ~ N(0, I) a draw of N(0, Sigma_y^{-1})."""
+        return self._filter_t(self._triangular(np.asarray(xi, dtype=float), "T"))
+
+    def _triangular(self, r: FloatArray, trans: str) -> FloatArray:
+        rhs = r[:, None] if r.ndim == 1 else r
+        x, info = dtbtrs(self._factor[0], rhs, uplo="L", trans=trans)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"dtbtrs failed (info {info})")
+        return np.asarray(x[:, 0] if r.ndim == 1 else x, dtype=float)
+
+    @cached_property
+    def band_inverse(self) -> FloatArray:
+        """B^{-1} on the band of B (lower storage), by Takahashi's recursion on C: O(N w^2).
+
+        With Z = B^{-1} = C^{-T} C^{-1}, Z C = C^{-T} is upper triangular with diagonal
+        1 / C_jj, which gives column j of Z's band from the columns to its right. Traces
+        tr(B^{-1} dB) of banded dB need no more of Z.
+        """
         cb = self._factor[0]
-        return np.asarray(solve_banded((cb.shape[0] - 1, 0), cb, self._filter(np.asarray(r, dtype=float))), dtype=float)
+        w, N = cb.shape[0] - 1, cb.shape[1]
+        if w == 1:  # tridiagonal B (first-order noise, jitter within T): scalar recursion
+            c0, c1 = cb[0].tolist(), cb[1].tolist()
+            z0, z1 = [0.0] * N, [0.0] * N
+            z0[N - 1] = 1.0 / c0[N - 1] ** 2
+            for j in range(N - 2, -1, -1):
+                inv = 1.0 / c0[j]
+                z1[j] = -inv * c1[j] * z0[j + 1]
+                z0[j] = inv * (inv - c1[j] * z1[j])
+            return np.array([z0, z1])
+        c = cb.T.tolist()  # c[j][r] = C[j + r, j]
+        z = [[0.0] * (w + 1) for _ in range(N)]  # z[j][b] = Z[j + b, j]
+        for j in range(N - 1, -1, -1):
+            cj, zj = c[j], z[j]
+            inv = 1.0 / cj[0]
+            top = min(w, N - 1 - j)
+            for b in range(top, 0, -1):
+                acc = 0.0
+                for r in range(1, top + 1):
+                    acc += cj[r] * (z[j + r][b - r] if b >= r else z[j + b][r - b])
+                zj[b] = -inv * acc
+            acc = 0.0
+            for r in range(1, top + 1):
+                acc += cj[r] * zj[r]
+            zj[0] = inv * (inv - acc)
+        return np.array(z).T
+
+    def derivative_band(
+        self, dd: FloatArray, dgamma: FloatArray | None = None, dar: FloatArray | None = None
+    ) -> FloatArray:
+        """dB for dSigma_y = diag(dd) + Toeplitz(dgamma) and d(ar) = ``dar``, band storage,
+        for P directions at once: dd (P, N), dgamma (P, >= w + n + 1) or None, dar (P, n + 1)
+        or None; returns (P, w + 1, N).
+
+        B(p) = L_a(p) Sigma_y(p) L_a(p)^T is banded for every parameter p (the tail of gamma
+        is annihilated at every p), so dB = dL Sigma L^T + L Sigma dL^T + L dSigma L^T is
+        banded too, though its first two terms are not: only their band is formed.
+        """
+        S, w = self._stencil, self.width
+        n = S.shape[1] - 1
+        D = np.atleast_2d(dd)
+        dg = np.zeros(w + n + 1) if dgamma is None else np.asarray(dgamma, dtype=float)[:, : w + n + 1]
+        out = _band(S, S, dg, D, w)
+        if dar is not None and np.any(dar):
+            dS = np.zeros((D.shape[0], *S.shape))
+            dS[:, n:] = np.asarray(dar, dtype=float)[:, None, :]
+            gam = self.gamma.sequence(w + n + 1) if self.gamma is not None else np.zeros(w + n + 1)
+            out += _band(dS, S, gam, self.d[None], w) + _band(S, dS, gam, self.d[None], w)
+        return out
 
     def matmul(self, x: ArrayLike) -> FloatArray:
         """Sigma_y x for x of shape (N,) or (N, p), by an FFT Toeplitz product."""
@@ -352,12 +519,8 @@ class SampleCovariance:
         This is what the reduced AsML (23) weights by; with coloured noise it is no longer
         the same at every frequency.
         """
-        ff = np.atleast_1d(real_array(f, "f"))
-        total = float(np.sum(self.d))
-        if self.gamma is None:
-            return np.full(ff.shape, total)
-        q = (self.N - np.arange(self.N)) * self.gamma.sequence(self.N)
-        return np.asarray(total + 2.0 * dtft(q, T, ff).real - q[0], dtype=float)
+        g = None if self.gamma is None else self.gamma.sequence(self.N)
+        return toeplitz_dft_diagonal(self.d, g, T, np.atleast_1d(real_array(f, "f")))
 
     def dft(self, T: float, f: ArrayLike, psi: ArrayLike | None = None, sign: float = 1.0) -> ComplexArray:
         """R_Y(f, psi) = E Sigma E^H (sign 1) or the pseudo-covariance C_Y (sign -1), (17), (C2).
@@ -366,16 +529,33 @@ class SampleCovariance:
         """
         ff = np.atleast_1d(real_array(f, "f"))
         other = sign * (ff if psi is None else np.atleast_1d(real_array(psi, "psi")))
-        g0 = self.gamma.near[0] if self.gamma is not None else 0.0
-        out = covariance_from_variances(self.d + g0, T, ff, other)
-        if self.gamma is None or self.N < 2:
-            return out
-        g = self.gamma.sequence(self.N)
-        g[0] = 0.0
-        k = np.arange(self.N) * T
-        eh = np.exp(2j * np.pi * np.outer(k, other))  # E_psi^H, N x F
-        x = np.asarray(matmul_toeplitz((g.astype(complex), g.astype(complex)), eh))
-        return out + dtft(x.T, T, ff).T
+        g = None if self.gamma is None else self.gamma.sequence(self.N)
+        return toeplitz_dft(self.d, g, T, ff, other)
+
+
+def toeplitz_dft_diagonal(d: FloatArray, g: FloatArray | None, T: float, f: FloatArray) -> FloatArray:
+    """E M E^H on the diagonal for M = diag(d) + Toeplitz(g) (g = gamma(0..N-1) or None):
+    :meth:`SampleCovariance.dft_diagonal`, and its derivatives (M linear in d, g)."""
+    total = float(np.sum(d))
+    if g is None:
+        return np.full(f.shape, total)
+    q = (d.size - np.arange(d.size)) * g
+    return np.asarray(total + 2.0 * dtft(q, T, f).real - q[0], dtype=float)
+
+
+def toeplitz_dft(d: FloatArray, g: FloatArray | None, T: float, f: FloatArray, other: FloatArray) -> ComplexArray:
+    """E_f M E_other^H for M = diag(d) + Toeplitz(g): :meth:`SampleCovariance.dft`, and its
+    derivatives (M linear in d, g)."""
+    g0 = g[0] if g is not None else 0.0
+    out = covariance_from_variances(d + g0, T, f, other)
+    if g is None or d.size < 2:
+        return out
+    g = np.array(g, dtype=float)
+    g[0] = 0.0
+    k = np.arange(d.size) * T
+    eh = np.exp(2j * np.pi * np.outer(k, other))  # E_psi^H, N x F
+    x = np.asarray(matmul_toeplitz((g.astype(complex), g.astype(complex)), eh))
+    return out + dtft(x.T, T, f).T
 
 
 def sample_covariance(

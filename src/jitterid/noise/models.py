@@ -245,6 +245,41 @@ class RationalNoise(NoiseStructure):
         nb = self.num_order + 1
         return NoiseModel(TransferFunction(x[:nb], np.r_[1.0, x[nb:]]))
 
+    def mode_derivatives(
+        self, params: ArrayLike, model: NoiseModel | None = None
+    ) -> tuple[ComplexArray, ComplexArray]:
+        """(dc, dp), shape (P, n): derivatives of the modes (c, p) of (N1) of ``model(params)``
+        (in its order) with respect to each parameter, in closed form.
+
+        With H = B / A (A monic) and simple poles, A(p_j) = 0 gives dp_j = -dA(p_j) / A'(p_j),
+        and c_j = B(p_j) B(-p_j) / (A'(p_j) A(-p_j)) =: f(p_j) (unit intensity) gives
+        dc_j = df + f'(p_j) dp_j, where d acts on the coefficients at fixed p. ``model``:
+        ``model(params)`` if already built.
+        """
+        model = self.model(params) if model is None else model
+        num, den = model.tf.num, model.tf.den
+        if num.size < self.num_order + 1:  # TransferFunction trims leading zeros: restore them
+            num = np.r_[np.zeros(self.num_order + 1 - num.size), num]
+        _, p = model.modes
+        d1, d2 = np.polyder(den), np.polyder(den, 2) if den.size > 2 else np.zeros(1)
+        B, Bm = np.polyval(num, p), np.polyval(num, -p)
+        dB, dBm = np.polyval(np.polyder(num), p), np.polyval(np.polyder(num), -p)
+        A1, Am, A1m = np.polyval(d1, p), np.polyval(den, -p), np.polyval(d1, -p)
+        A2 = np.polyval(d2, p)
+        f = B * Bm / (A1 * Am)
+        fp = (dB * Bm - B * dBm) / (A1 * Am) - f * (A2 / A1 - A1m / Am)
+        rows_c, rows_p = [], []
+        for k in range(self.num_order, -1, -1):  # hb_k multiplies s^k
+            rows_c.append((p**k * Bm + B * (-p) ** k) / (A1 * Am))
+            rows_p.append(np.zeros_like(p))
+        for k in range(self.den_order - 1, -1, -1):  # ha_k multiplies s^k
+            dA1 = k * p ** (k - 1) if k else np.zeros_like(p)
+            dfc = -f * (dA1 / A1 + (-p) ** k / Am)
+            dpk = -(p**k) / A1
+            rows_c.append(dfc + fp * dpk)
+            rows_p.append(dpk)
+        return np.array(rows_c) * model.intensity, np.array(rows_p)
+
     def starts(self, T: float, scale: float) -> list[FloatArray]:
         # Real poles from slow to fast against the Nyquist rate pi/T; the numerator is scaled
         # so that v carries half of scale^2 (the rest may be white noise or jitter).

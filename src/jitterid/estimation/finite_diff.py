@@ -1,0 +1,55 @@
+"""The one finite-difference rule of the Box-Jenkins stack.
+
+Derivatives that have no closed form (the jittered noise autocovariance (C1)-(C3) with
+respect to the noise and jitter-family parameters, whose near lags are quadratures over the
+law) are taken here and nowhere else in :mod:`jitterid.estimation.bjcriteria`: a central
+difference of step ``rel * max(|x_i|, floor)``, or the second-order one-sided rule
+(-3 f(x) + 4 f(x + h) - f(x + 2 h)) / (2 h) (and its mirror) where a central step would
+leave the bounds. Both are O(h^2).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["derivative", "step"]
+
+FloatArray = NDArray[np.float64]
+
+REL_STEP = 1e-5  # (eps)^(1/3) ~ 6e-6: balances the O(h^2) error against rounding
+
+
+def step(x: FloatArray, i: int, rel: float = REL_STEP, floor: float = 1e-2) -> float:
+    """The step for parameter ``i``: rel * max(|x_i|, floor)."""
+    return rel * max(abs(float(x[i])), floor)
+
+
+def derivative(
+    fun: Callable[[FloatArray], FloatArray],
+    x: FloatArray,
+    i: int,
+    bounds: tuple[float, float],
+    f0: FloatArray | None = None,
+    rel: float = REL_STEP,
+) -> FloatArray:
+    """d fun / d x_i at ``x`` (``fun`` returns an array), O(h^2), never outside ``bounds``.
+
+    ``f0`` = fun(x), if known, saves an evaluation in the one-sided case.
+    """
+    x = np.asarray(x, dtype=float)
+    h = step(x, i, rel)
+    lo, hi = bounds
+
+    def at(dx: float) -> FloatArray:
+        xs = x.copy()
+        xs[i] += dx
+        return np.asarray(fun(xs), dtype=float)
+
+    if x[i] - h >= lo and x[i] + h <= hi:
+        return (at(h) - at(-h)) / (2 * h)
+    side = 1.0 if x[i] + 2 * h <= hi else -1.0
+    base = np.asarray(fun(x), dtype=float) if f0 is None else f0
+    return side * (-3 * base + 4 * at(side * h) - at(2 * side * h)) / (2 * h)
