@@ -455,8 +455,11 @@ def test_jbj_estimates_jitter_system_and_noise_jointly():
     for name, true in (("a", 0.5), ("k0", 6.25), ("pr", -1.5), ("pi", 2.0)):
         assert abs(res.params[name] - true) < 4 * se[name], (name, res.params[name], se[name])
     assert res.jitter_law == ji.Uniform(res.params["a"])
-    model = ji.fitted_noise(res, ji.RationalNoise(0, 1))
+    model = res.noise_model
     assert model.tf.den[-1] == pytest.approx(res.params["ha0"])
+    with pytest.warns(DeprecationWarning, match="result.noise_model"):
+        old = ji.fitted_noise(res, ji.RationalNoise(0, 1))
+    np.testing.assert_array_equal(old.tf.den, model.tf.den)
 
 
 @pytest.mark.parametrize("method", ["bcls", "wbcls"])
@@ -490,7 +493,7 @@ def test_least_squares_criteria_plug_in_the_noise_model_for_their_error_bars(met
         (lambda d: OU.sample(np.zeros((2, 2, 2)), 0), ValueError, "instants must have shape"),
         (lambda d: ji.jittered_autocovariance(OU, ji.Uniform(0.5), 0.0), ValueError, "T must"),
         (lambda d: ji.jittered_autocovariance(OU, ji.Uniform(300.0), 1.0), ValueError, "jitter: its support"),
-        (lambda d: ji.fitted_noise(ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5)), ji.RationalNoise()), ValueError, "no noise parameters"),
+        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(), cov_type="robust"), ValueError, "cov_type must be 'sandwich' or 'none'"),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument(call, exc, match):

@@ -15,6 +15,7 @@ noise parameters of the residual fit (plug-in).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
@@ -337,7 +338,8 @@ def _run_wbcls(
 
 
 def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> NoiseModel:
-    """The noise model H of a BJ/JBJ :class:`~jitterid.FitResult`, rebuilt from its parameters.
+    """Deprecated: ``result.noise_model``. The noise model H of a BJ/JBJ
+    :class:`~jitterid.FitResult`, rebuilt from its parameters.
 
     Parameters
     ----------
@@ -346,6 +348,12 @@ def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> Noise
     noise : NoiseStructure or NoiseModel
         The noise structure that was fitted (a NoiseModel is returned as it is).
     """
+    warnings.warn(
+        "fitted_noise(result, noise) is deprecated: the result keeps its fitted noise model, "
+        "result.noise_model",
+        DeprecationWarning,
+        stacklevel=2,
+    )
     structure = as_noise_structure(noise)
     params = result.params
     missing = [n for n in structure.param_names if n not in params]
@@ -368,6 +376,8 @@ def fit_bj(
     freqs: ArrayLike | None,
     noise_std: float | None,
     max_nfev: int,
+    oe_fit: Callable[..., FitResult],
+    cov_type: str = "sandwich",
 ) -> FitResult:
     """:func:`jitterid.fit` with ``noise=``: the BJ (2b) and JBJ (2d) structures.
 
@@ -375,14 +385,22 @@ def fit_bj(
     parameters (``RationalNoise(0, 1)``) or a known :class:`~jitterid.NoiseModel`, and
     ``noise_std`` (default ``data.noise_std``) is the std of the additional white part,
     estimated as parameter ``noise_std`` by ``asml``, ``asml-diag``, ``gaussian`` when neither
-    is given (``bcls``/``wbcls`` plug it in with the noise parameters).
+    is given (``bcls``/``wbcls`` plug it in with the noise parameters). ``oe_fit`` is
+    :func:`jitterid.fit` itself, whose white-noise BCLS fit gives the start (Section 4.5);
+    ``cov_type`` is ``"sandwich"`` (the delta method with the coloured covariance) or
+    ``"none"``.
     """
-    from .fit import fit  # the OE fit gives the BCLS start (Section 4.5)
+    fit = oe_fit
 
     if method not in BJ_METHODS:
         hint = " ('ls' ignores the jitter; fit it with noise=None)" if method == "ls" else ""
         raise ValueError(
             f"method must be one of {BJ_METHODS} when a noise model is given; got {method!r}{hint}"
+        )
+    if cov_type not in ("sandwich", "none"):
+        raise ValueError(
+            f"cov_type must be 'sandwich' or 'none' with a noise model; got {cov_type!r} (the "
+            "robust and observed-information forms are not implemented for Box-Jenkins yet)"
         )
     structure = as_structure(system)
     nstruct = as_noise_structure(noise)
@@ -444,8 +462,8 @@ def fit_bj(
         jitter_law=law,
         noise_std=white_used,
         freqs=f,
-        cov=bj_covariance(problem, np.asarray(x, float)),
-        cov_type="sandwich",
+        cov=bj_covariance(problem, np.asarray(x, float)) if cov_type == "sandwich" else np.full((x.size, x.size), np.nan),
+        cov_type=cov_type,
         structure=structure,
         jitter_model=jitter,
         noise_structure=nstruct,

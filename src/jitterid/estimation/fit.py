@@ -227,7 +227,10 @@ def _fit(
     method = est.name
     cov_type = est.check_cov_type(cov_type)
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
-        return fit_bj(data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev)
+        return fit_bj(
+            data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
+            max_nfev=max_nfev, oe_fit=fit, cov_type=cov_type,
+        )
     prefit = start if isinstance(start, FitResult) else None
     if prefit is not None:
         start = None
