@@ -36,6 +36,8 @@ from numpy.typing import NDArray
 from scipy import optimize
 from threadpoolctl import threadpool_limits
 
+from . import finite_diff
+
 if TYPE_CHECKING:
     from .problem import Problem
 
@@ -46,24 +48,12 @@ _REL_STEP = 1e-4
 
 
 def _steps(x: FloatArray, bounds: tuple[tuple[float, float], ...]) -> tuple[FloatArray, NDArray[np.bool_]]:
-    h = _REL_STEP * np.maximum(np.abs(x), 1e-2)
+    """Difference steps, and which parameters are far enough from their bounds for an error
+    bar (x +- 2h inside): the others get NaN rows and columns."""
+    h = np.array([finite_diff.step(x, i, _REL_STEP) for i in range(x.size)])
     lo, hi = np.array(bounds, dtype=float).reshape(-1, 2).T
     free = (x - 2 * h >= lo) & (x + 2 * h <= hi)
     return h, free
-
-
-def _hessian(fun: Callable[[FloatArray], float], x: FloatArray, h: FloatArray) -> FloatArray:
-    p = x.size
-    H = np.empty((p, p))
-    f0 = fun(x)
-    e = np.eye(p) * h
-    for i in range(p):
-        H[i, i] = (fun(x + 2 * e[i]) - 2 * f0 + fun(x - 2 * e[i])) / (4 * h[i] ** 2)
-        for j in range(i):
-            H[i, j] = H[j, i] = (
-                fun(x + e[i] + e[j]) - fun(x + e[i] - e[j]) - fun(x - e[i] + e[j]) + fun(x - e[i] - e[j])
-            ) / (4 * h[i] * h[j])
-    return H
 
 
 def noise_variance_ml(r: FloatArray, var: FloatArray) -> float:
@@ -114,24 +104,18 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
     z0, hz = x[idx], h[idx]
     if problem.method == "ml":
         return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov)
-    G = np.empty((idx.size, problem.data.N))
-    for i in range(idx.size):
-        dz = np.zeros(idx.size)
-        dz[i] = hz[i]
-        G[i] = (problem.grad_y(embed(z0 + dz)) - problem.grad_y(embed(z0 - dz))) / (2 * hz[i])
+    bounds = problem.bounds
+    G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i], rel=_REL_STEP) for i in idx])
     if problem.estimator.least_squares:
         J = problem.jacobian(x)[:, idx]  # analytic (jitterid.estimation.jacobians)
         H = 2 * J.T @ J
     else:
         # Central differences of the analytic gradient: 2 p evaluations, against ~2 p^2 for
         # second differences of the criterion, and one order of differencing fewer.
-        H = np.empty((idx.size, idx.size))
-        for i in range(idx.size):
-            dz = np.zeros(idx.size)
-            dz[i] = hz[i]
-            up = problem.objective_gradient(embed(z0 + dz))[1][idx]
-            down = problem.objective_gradient(embed(z0 - dz))[1][idx]
-            H[:, i] = (up - down) / (2 * hz[i])
+        def gradient(z: FloatArray) -> FloatArray:
+            return problem.objective_gradient(z)[1][idx]
+
+        H = np.array([finite_diff.derivative(gradient, x, i, bounds[i], rel=_REL_STEP) for i in idx]).T
         H = 0.5 * (H + H.T)
     try:
         Hinv = np.linalg.inv(H)
@@ -162,7 +146,7 @@ def _ml_covariance(
     cov: FloatArray,
 ) -> FloatArray:
     """Inverse observed information of the exact likelihood (or its Huber-White sandwich)."""
-    H = _hessian(lambda z: problem.objective(embed(z)), z0, hz)  # of V = -2 ln L
+    H = finite_diff.hessian(lambda z: problem.objective(embed(z)), z0, hz)  # of V = -2 ln L
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:

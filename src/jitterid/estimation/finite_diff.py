@@ -1,11 +1,15 @@
-"""The one finite-difference rule of the Box-Jenkins stack.
+"""The one finite-difference rule of the estimation package.
 
-Derivatives that have no closed form (the jittered noise autocovariance (C1)-(C3) with
-respect to the noise and jitter-family parameters, whose near lags are quadratures over the
-law) are taken here and nowhere else in :mod:`jitterid.estimation.bjcriteria`: a central
-difference of step ``rel * max(|x_i|, floor)``, or the second-order one-sided rule
+Derivatives that have no closed form are taken here: the jittered noise autocovariance
+(C1)-(C3) with respect to the noise and jitter-family parameters (whose near lags are
+quadratures over the law), the delta-method covariance's d^2 V / d theta dy and
+d(gradient)/d theta (:mod:`jitterid.estimation.covariance`,
+:func:`jitterid.estimation.bjcriteria.bj_covariance`), and the exact likelihood's
+observed information. :func:`derivative` is a central difference of step
+``rel * max(|x_i|, floor)``, or the second-order one-sided rule
 (-3 f(x) + 4 f(x + h) - f(x + 2 h)) / (2 h) (and its mirror) where a central step would
-leave the bounds. Both are O(h^2).
+leave the bounds; :func:`hessian` the second differences of a scalar function. All are
+O(h^2).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["derivative", "step"]
+__all__ = ["derivative", "hessian", "step"]
 
 FloatArray = NDArray[np.float64]
 
@@ -53,3 +57,20 @@ def derivative(
     side = 1.0 if x[i] + 2 * h <= hi else -1.0
     base = np.asarray(fun(x), dtype=float) if f0 is None else f0
     return side * (-3 * base + 4 * at(side * h) - at(2 * side * h)) / (2 * h)
+
+
+def hessian(fun: Callable[[FloatArray], float], x: FloatArray, h: FloatArray) -> FloatArray:
+    """Second differences of a scalar ``fun`` at ``x`` with steps ``h`` (x +- 2h inside the
+    domain): (f(x + 2h e_i) - 2 f(x) + f(x - 2h e_i)) / 4h_i^2 on the diagonal and the
+    four-point cross rule off it."""
+    p = x.size
+    H = np.empty((p, p))
+    f0 = fun(x)
+    e = np.eye(p) * h
+    for i in range(p):
+        H[i, i] = (fun(x + 2 * e[i]) - 2 * f0 + fun(x - 2 * e[i])) / (4 * h[i] ** 2)
+        for j in range(i):
+            H[i, j] = H[j, i] = (
+                fun(x + e[i] + e[j]) - fun(x + e[i] - e[j]) - fun(x - e[i] + e[j]) + fun(x - e[i] - e[j])
+            ) / (4 * h[i] * h[j])
+    return H
