@@ -59,6 +59,8 @@ from ..moments.quadrature import jitter_nodes
 from ..moments.sample import sample_moments
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
+from . import jacobians as _jacobians
+from .search import evaluator, newton_search
 
 __all__ = [
     "DEFAULT_ORDER",
@@ -210,20 +212,39 @@ class _NodeSignal:
     def gradient(
         self,
         tf: TransferFunction,
-        dmodal: tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]],
-        dX: NDArray[np.complex128],
-    ) -> tuple[FloatArray, FloatArray]:
+        dmodal: tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]] | None,
+        dX: NDArray[np.complex128] | None,
+        *,
+        slope: bool = False,
+    ) -> tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, FloatArray]:
         """s at the nodes and ds/dtheta, shape (n_params, n_nodes), given the modal gradient
-        (:func:`_modal_gradient`) and the switch-state pole sensitivity (:func:`_pole_sensitivity`)."""
+        (:func:`_modal_gradient`) and the switch-state pole sensitivity (:func:`_pole_sensitivity`);
+        ``dmodal = None``: no parameters (shape (0, n_nodes)). With ``slope``, also the time
+        derivative s'(t) = Re sum rho (p x + u) at the nodes, from the same exponentials (the
+        score of a jitter scale parameter, see :meth:`ExactLikelihood._terms`)."""
         assert isinstance(self.u, PiecewiseConstant)
-        dd, drho, dp = dmodal
         s = tf._modal[0] * self.level
-        D = dd[:, None] * self.level[None, :]
-        for k, (rk, _, xr, xi, zr, zi) in enumerate(self._pole_terms(tf, dX)):
+        ds = np.zeros(self.t.size)
+        if dmodal is None:
+            D = np.zeros((0, self.t.size))
+            terms = self._pole_terms(tf)
+        else:
+            assert dX is not None
+            dd, drho, dp = dmodal
+            D = dd[:, None] * self.level[None, :]
+            terms = self._pole_terms(tf, dX)
+        for k, (rk, p, xr, xi, zr, zi) in enumerate(terms):
             s = s + (rk.real * xr - rk.imag * xi)
-            for i in range(dd.size):
+            if slope:  # dx/dt = p x + u
+                vr, vi = p.real * xr - p.imag * xi + self.level, p.real * xi + p.imag * xr
+                ds += rk.real * vr - rk.imag * vi
+            if dmodal is None:
+                continue
+            for i in range(D.shape[0]):
                 c1, c2 = drho[i, k], rk * dp[i, k]  # ds = Re(drho x + rho dp dx/dp)
                 D[i] += c1.real * xr - c1.imag * xi + c2.real * zr - c2.imag * zi
+        if slope:
+            return np.asarray(s, dtype=float), D, ds
         return np.asarray(s, dtype=float), D
 
 
@@ -416,7 +437,7 @@ class ExactLikelihood:
         assert self._cuts is not None
         breaks = np.concatenate([resp.breaks, self._cuts])
         for ch in jitter_nodes(
-            law, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK
+            law, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK, shared_pdf=True
         ):
             keep = ch.w > 0
             owner = ch.owner[keep]
@@ -473,78 +494,107 @@ class ExactLikelihood:
         logp, G, _ = self._terms(x, y, information=False)
         return logp, G
 
+    def _scale_index(self, analytic: bool) -> int | None:
+        """Index of the jitter family's scale parameter a (the law of a xi, xi fixed), whose
+        score is analytic (:meth:`_terms`); None if there is none or the input is not
+        piecewise constant (then it is differenced like the shape parameters)."""
+        if not (analytic and self.n_jitter):
+            return None
+        return _jacobians._SCALE.get(type(self.jitter))  # exact type: a subclass may differ
+
     def _terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """ln p per sample, per-sample scores and (optionally) the observed information.
 
         The information -d^2 ln L is sum_k [g_k g_k^T - E_post(a a^T + da)] with a_j the
-        gradient of ln(w_j N(y_k; s_j, sigma_v^2)); for the parameters that leave the nodes in
-        place (system, noise) the second term is kept, without d^2 s / d theta^2 (whose
-        posterior mean is zero-mean noise: Gauss-Newton); for jitter-family parameters only
-        the outer products remain (BHHH).
+        gradient of ln(w_j N(y_k; s_j, sigma_v^2)); for the system and noise parameters the
+        second term is kept, without d^2 s / d theta^2 (whose posterior mean is zero-mean
+        noise: Gauss-Newton); for the jitter-family parameters only the outer products remain
+        (BHHH).
+
+        The jitter scale a of a family whose law is that of a xi (Uniform, Gaussian,
+        SumOfUniforms at fixed n) enters p(y_k) = int p(xi) N(y_k; s(kT + a xi)) dxi through
+        the signal only, so ds/da = xi s'(kT + a xi) = (tau / a) s'(t): its score is (L2)
+        with that derivative at the same nodes, exact for the integral, with s' from the
+        modal form. The shape parameters (n) move the weights: forward differences of ln p.
         """
         law, tf, sigma = self.split(x)
         nj, p = self.n_jitter, x.size
         ns = len(self.model.param_names)
         noise = self.noise_std is None
-        shifted = [_shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj + ns)]
+        nodes = self._nodes(x, law, tf)
+        analytic = nodes[0].signal.analytic
+        scale = self._scale_index(analytic)
+        # parameters whose score comes from ds at the nodes: the scale, then the system
+        inner = ([scale] if scale is not None else []) + list(range(nj, nj + ns))
         dX: NDArray[np.complex128] | None = None
         logp, G, C = np.empty(self.N), np.empty((self.N, p)), np.zeros((p, p))
-        nodes = self._nodes(x, law, tf)
         dmodal = None
-        if ns and nodes[0].signal.analytic:
+        if ns and analytic:
             assert isinstance(self.u, PiecewiseConstant)
             dmodal = _modal_gradient(self.model, x[nj : nj + ns], tf)
             dX = _pole_sensitivity(tf, self.u) if dmodal is not None else None
+        shifted = {i: _shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj + ns) if i not in inner}
+        if dmodal is None:  # system parameters by differences of s (then not in `shifted`)
+            shifted.update({i: _shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj, nj + ns)})
         for nd in nodes:
-            if dmodal is not None:
-                assert dX is not None
-                s, D = nd.signal.gradient(tf, dmodal, dX)
+            if analytic and (dmodal is not None or not ns):
+                s, D, ds = nd.signal.gradient(tf, dmodal, dX, slope=True)  # type: ignore[misc]
             else:
                 s, D = nd.signal(tf), np.empty((ns, nd.t.size))
-                for i, (xi, h) in enumerate(shifted[nj:]):
+                for i in range(ns):
+                    xi, h = shifted[nj + i]
                     D[i] = (nd.signal(self.split(xi)[1]) - s) / h
+                if scale is not None:
+                    ds = nd.signal.gradient(tf, None, None, slope=True)[2]  # type: ignore[misc]
+            if scale is not None:
+                tau = nd.t - (nd.k0 + nd.owner) * self.T
+                D = np.vstack([ds * (tau / x[scale]), D])
             ev = _evaluate(nd, s, y, sigma)
             rows = slice(nd.k0, nd.k1)
             logp[rows] = ev.logp
             A = D * (ev.e / sigma)
             if noise:
                 A = np.vstack([A, (ev.e**2 - 1) / sigma])
+            cols = inner + ([p - 1] if noise else [])
             if A.shape[0]:
-                G[rows, nj:] = np.add.reduceat(A * ev.post, nd.starts, axis=1).T
+                G[rows, cols] = np.add.reduceat(A * ev.post, nd.starts, axis=1).T
             if information:
                 e2, pi = ev.e**2, ev.post
-                C[nj : nj + ns, nj : nj + ns] += (D * (pi * (1 - e2))) @ D.T / sigma**2
+                # the Gauss-Newton term over the system parameters only: the jitter scale's
+                # stays BHHH, as before its score was analytic (the profile in n has a local
+                # maximum at each integer, and this keeps the search on the same path)
+                Dg, gn = (D[1:], inner[1:]) if scale is not None else (D, inner)
+                C[np.ix_(gn, gn)] += (Dg * (pi * (1 - e2))) @ Dg.T / sigma**2
                 if noise:
-                    cross = D @ (pi * ev.e * (3 - e2)) / sigma**2
-                    C[nj : nj + ns, -1] += cross
-                    C[-1, nj : nj + ns] += cross
+                    cross = Dg @ (pi * ev.e * (3 - e2)) / sigma**2
+                    C[gn, -1] += cross
+                    C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
         for i in range(nj):
-            xi, h = shifted[i]
-            G[:, i] = (self.logpdf(xi, y) - logp) / h
+            if i in shifted:
+                xi, h = shifted[i]
+                G[:, i] = (self.logpdf(xi, y) - logp) / h
         return logp, G, G.T @ G + C
 
     def maximise(
         self, y: ArrayLike, x0: ArrayLike, *, max_evaluations: int = 200, tol: float = 1e-8
     ) -> tuple[FloatArray, float, bool, str, int]:
-        """Maximise ln L from ``x0`` inside the bounds (Levenberg-Marquardt-damped Newton).
+        """Maximise ln L from ``x0`` inside the bounds: :func:`jitterid.estimation.search.newton_search`
+        on V = -ln L (so that its Newton decrement g^T M^{-1} g, twice the remaining gain in
+        ln L, is compared with ``tol``).
 
         The Newton matrix M is the observed information of :meth:`_terms` (Gauss-Newton for
-        the system and noise parameters: within ~1% of the exact Hessian at the optimum on
-        the paper's experiments); the step solves (M + lam diag M) d = g, and lam is divided
-        by 4 after a step that gains at least 3/4 of the predicted gain g.d - d.M.d / 2 and
-        multiplied by 4 (at least to 1e-3) after one that gains less than 1/4 of it; a step
-        gaining less than 1e-4 of the prediction is rejected. Parameters on
-        a bound whose gradient points outwards are held there. Converged when the Newton
-        decrement g^T M^{-1} g (twice the remaining gain in ln L) is below ``tol``.
+        the system, noise and jitter-scale parameters: within ~1% of the exact Hessian at the
+        optimum on the paper's experiments; BHHH for the jitter shape).
 
-        The likelihood need not be differentiable in the jitter-family parameters (the
-        non-integer extension of :class:`SumOfUniforms` has a kink at every integer n). After
-        a rejected step, a Newton step in the system/noise parameters alone is tried; a point
-        where that block is stationary and the damped full step keeps failing (lam > 1e6) is
-        reported as converged, with a message saying so.
+        The likelihood need not be differentiable in the jitter shape parameters (the
+        non-integer extension of :class:`SumOfUniforms` has a kink at every integer n): those
+        are passed to the search as not smooth, so that after a rejected step it tries a
+        Newton step in the other parameters alone, and a point where those are stationary
+        and a step in the shape predicted to gain little loses instead is reported as
+        converged, with a message saying so.
 
         Returns
         -------
@@ -552,55 +602,29 @@ class ExactLikelihood:
         """
         y = self._data(y)
         lo, hi = np.array(self.bounds, dtype=float).reshape(-1, 2).T
-        x = np.clip(np.atleast_1d(real_array(x0, "x0")), lo, hi)
-        logp, G, M = self._terms(x, y, information=True)
-        f, n, lam = float(np.sum(logp)), 1, 0.0
-        inner = np.arange(x.size) >= self.n_jitter  # parameters that leave the nodes in place
-        while n < max_evaluations:
-            g = G.sum(axis=0)
-            free = ~(((x <= lo) & (g < 0)) | ((x >= hi) & (g > 0)))
-            dec = float(g @ _newton_step(M, G, g, free))
-            if dec <= tol:
-                return x, f, True, f"converged: Newton decrement {dec:.2g} <= {tol:g}", n
-            trials = [(free, lam)]
-            if lam > 0 and self.n_jitter:
-                trials.append((free & inner, 0.0))
-            accepted = False
-            for block, damping in trials:
-                step = _newton_step(M, G, g, block, damping)
-                xn = np.clip(x + step, lo, hi)
-                d = xn - x
-                pred = float(g @ d - 0.5 * d @ M @ d)
-                gain = -np.inf
-                if pred > 0:
-                    n += 1
-                    try:
-                        # With jitter parameters the scores cost several likelihoods: try
-                        # the value first, so that a rejected step costs only one.
-                        if self.n_jitter:
-                            gain = self.loglik(xn, y) - f
-                        if not self.n_jitter or gain >= 1e-4 * pred:
-                            logp_n, G_n, M_n = self._terms(xn, y, information=True)
-                            gain = float(np.sum(logp_n)) - f
-                    except ValueError:  # e.g. an unstable system
-                        pass
-                if block is free:  # trust-region rule on the ratio gain / predicted gain
-                    lam = lam / 4 if gain >= 0.75 * pred else lam
-                    lam = lam if gain >= 0.25 * pred else max(4 * lam, 1e-3)
-                if gain >= 1e-4 * pred:
-                    x, f, G, M, accepted = xn, f + gain, G_n, M_n, True
-                    break
-            if not accepted and lam > 1e6:
-                inner_dec = float(g @ _newton_step(M, G, g, free & inner))
-                if self.n_jitter and inner_dec <= tol:
-                    msg = (
-                        f"converged: stationary in the system/noise parameters (decrement "
-                        f"{inner_dec:.2g}) and no ascent in the jitter parameters, where the "
-                        "likelihood is not differentiable (e.g. SumOfUniformsFamily at integer n)"
-                    )
-                    return x, f, True, msg, n
-                return x, f, False, "no step increases the likelihood (damping exhausted)", n
-        return x, f, False, f"evaluation budget ({max_evaluations}) used up", n
+        x0 = np.clip(np.atleast_1d(real_array(x0, "x0")), lo, hi)
+
+        values: dict[bytes, float] = {}
+
+        def negloglik(x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+            logp, G, M = self._terms(x, y, information=True)
+            values[x.tobytes()] = v = -float(np.sum(logp))
+            return v, -G.sum(axis=0), M
+
+        smooth = None
+        nj = self.n_jitter
+        if nj:
+            scale = self._scale_index(isinstance(self.u, PiecewiseConstant))
+            smooth = np.arange(x0.size) >= nj
+            if scale is not None:
+                smooth[scale] = True
+            if smooth.all():
+                smooth = None
+        x, ok, msg, n = newton_search(
+            evaluator(negloglik), x0, lo, hi, max_evaluations, tol=tol, smooth=smooth
+        )
+        loglik = -values[x.tobytes()] if x.tobytes() in values else self.loglik(x, y)
+        return x, loglik, ok, msg, n
 
     def fisher(self, x: ArrayLike) -> FloatArray:
         """Fisher information (L3) of the N samples at ``x``, in :attr:`names` order."""
@@ -637,32 +661,6 @@ class ExactLikelihood:
                 g = (L[1::2] - L[2::2]) / steps[:, None]
                 info += (g * (np.exp(L[0]) * dy)) @ g.T
         return 0.5 * (info + info.T)
-
-
-def _newton_step(
-    M: FloatArray, G: FloatArray, g: FloatArray, free: NDArray[np.bool_], damping: float = 0.0
-) -> FloatArray:
-    """Solve (M + damping diag M) d = g on the free parameters (zero elsewhere); the centred
-    score outer products replace M where it is not positive definite."""
-    step = np.zeros_like(g)
-    idx = np.flatnonzero(free)
-    if idx.size == 0:
-        return step
-    Gc = G[:, idx] - G[:, idx].mean(axis=0)
-    for mat in (M[np.ix_(idx, idx)], Gc.T @ Gc):
-        d = np.sqrt(np.abs(np.diag(mat)))
-        if np.any(d == 0) or not np.all(np.isfinite(mat)):
-            continue
-        scaled = mat / np.outer(d, d) + (damping + 1e-12) * np.eye(idx.size)
-        try:
-            L = np.linalg.cholesky(scaled)
-        except np.linalg.LinAlgError:
-            continue
-        step[idx] = np.linalg.solve(L.T, np.linalg.solve(L, g[idx] / d)) / d
-        return step
-    scale = np.sum(G[:, idx] ** 2, axis=0)  # last resort: scaled steepest ascent
-    step[idx] = g[idx] / np.where(scale > 0, scale, 1.0) / (1.0 + damping)
-    return step
 
 
 def _segment(nd: _Nodes, k: int) -> tuple[int, int]:
