@@ -298,9 +298,13 @@ class _Eval:
     post: FloatArray
 
 
-def _evaluate(nodes: _Nodes, s: FloatArray, y: FloatArray, sigma: float) -> _Eval:
+def _evaluate(
+    nodes: _Nodes, s: FloatArray, y: FloatArray, sigma: float, logw: FloatArray | None = None
+) -> _Eval:
+    """ln p per sample and the posterior weights at the nodes (with other ln weights ``logw``
+    if given)."""
     e = (y[nodes.k0 + nodes.owner] - s) / sigma
-    z = nodes.logw - 0.5 * e * e
+    z = (nodes.logw if logw is None else logw) - 0.5 * e * e
     top = np.maximum.reduceat(z, nodes.starts)
     ez = np.exp(z - top[nodes.owner])
     total = np.add.reduceat(ez, nodes.starts)
@@ -530,6 +534,7 @@ class ExactLikelihood:
         inner = ([scale] if scale is not None else []) + list(range(nj, nj + ns))
         dX: NDArray[np.complex128] | None = None
         logp, G, C = np.empty(self.N), np.empty((self.N, p)), np.zeros((p, p))
+        kept: list[tuple[_Nodes, FloatArray, _Eval]] = []
         dmodal = None
         if ns and analytic:
             assert isinstance(self.u, PiecewiseConstant)
@@ -552,6 +557,7 @@ class ExactLikelihood:
                 tau = nd.t - (nd.k0 + nd.owner) * self.T
                 D = np.vstack([ds * (tau / x[scale]), D])
             ev = _evaluate(nd, s, y, sigma)
+            kept.append((nd, s, ev))
             rows = slice(nd.k0, nd.k1)
             logp[rows] = ev.logp
             A = D * (ev.e / sigma)
@@ -572,10 +578,19 @@ class ExactLikelihood:
                     C[gn, -1] += cross
                     C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
-        for i in range(nj):
-            if i in shifted:
-                xi, h = shifted[i]
-                G[:, i] = (self.logpdf(xi, y) - logp) / h
+        # The shape parameters by differences of ln p with the weights alone moved: the pdf
+        # of the shifted law at the same nodes (the derivative of the integral: the rule's
+        # panels end at the law's knots, which move by O(h), where the pdf is continuous).
+        shapes = [(i, *shifted[i]) for i in range(nj) if i in shifted]
+        if shapes:
+            with np.errstate(divide="ignore"):
+                for nd, s, ev in kept:
+                    tau = nd.t - (nd.k0 + nd.owner) * self.T
+                    base = nd.logw - np.log(law.pdf(tau))
+                    for i, xi, h in shapes:
+                        logw = base + np.log(self.split(xi)[0].pdf(tau))
+                        moved = _evaluate(nd, s, y, sigma, logw).logp
+                        G[nd.k0 : nd.k1, i] = (moved - ev.logp) / h
         return logp, G, G.T @ G + C
 
     def maximise(
