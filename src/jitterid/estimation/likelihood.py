@@ -54,7 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw
+from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import jitter_nodes
 from ..moments.sample import sample_moments
 from ..systems.structures import ModelStructure, as_structure
@@ -285,6 +285,61 @@ class _Nodes:
     owner: NDArray[np.int64]
     starts: NDArray[np.int64]
     signal: _NodeSignal
+    logrule: FloatArray | None = None  # ln of the weights without the pdf (shape families)
+
+
+def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
+    """law.pdf(tau); for :class:`SumOfUniforms` from its exact piecewise-polynomial form.
+
+    Between consecutive breakpoints that density is a polynomial of degree at most m (m
+    uniforms, plus the window of width 2c at non-integer n), which its Chebyshev interpolant
+    at m + 1 points of ``law.pdf`` reproduces to rounding (Clenshaw, per interval): O(m)
+    operations per point where the B-spline evaluation of ``law.pdf`` costs O(m^2) and more
+    (and a Gauss-Legendre window per point just above an integer n). Like ``law.pdf`` it is
+    evaluated at -|tau| (exactly symmetric).
+    """
+    if not isinstance(law, SumOfUniforms):
+        return np.asarray(law.pdf(tau), dtype=float)
+    m, _, c = law.components
+    deg = m if c > 0 else max(m - 1, 0)
+    bp = np.asarray(law.breakpoints(), dtype=float)
+    bp = bp[bp <= 0.0]
+    if bp[-1] < 0.0:
+        bp = np.r_[bp, 0.0]
+    x = -np.abs(np.asarray(tau, dtype=float))
+    inside = x >= -law.a
+    left, right = bp[:-1], bp[1:]
+    cheb = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # first-kind points
+    pts = 0.5 * (left + right)[:, None] + 0.5 * (right - left)[:, None] * cheb[None, :]
+    vals = law.pdf(pts)
+    # Chebyshev coefficients of each interval's interpolant (discrete cosine transform)
+    k = np.arange(deg + 1)
+    T = np.cos(np.outer(k, np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1)))
+    coef = vals @ T.T * (2.0 / (deg + 1))
+    coef[:, 0] *= 0.5
+    i = np.clip(np.searchsorted(bp, x, side="right") - 1, 0, left.size - 1)
+    u = np.clip((2.0 * x - (left[i] + right[i])) / (right[i] - left[i]), -1.0, 1.0)
+    b1, b2 = np.zeros_like(u), np.zeros_like(u)
+    for j in range(deg, 0, -1):
+        b1, b2 = coef[i, j] + 2.0 * u * b1 - b2, b1
+    out = coef[i, 0] + u * b1 - b2
+    return np.where(inside, np.maximum(out, 0.0), 0.0)
+
+
+class _UnitDensity:
+    """A jitter law with its pdf replaced by 1: :func:`jitter_nodes` then returns the rule's
+    own weights (panel half-length times Gauss-Legendre weight), to which the caller applies
+    the pdf, and can apply another law's pdf at the same nodes."""
+
+    def __init__(self, law: JitterLaw) -> None:
+        self.law = law
+        self.support, self.std = law.support, law.std
+
+    def breakpoints(self) -> FloatArray:
+        return np.asarray(self.law.breakpoints(), dtype=float)
+
+    def pdf(self, tau: ArrayLike) -> FloatArray:
+        return np.ones(np.shape(tau))
 
 
 @dataclass(frozen=True, eq=False)
@@ -440,10 +495,20 @@ class ExactLikelihood:
         resp = tf.response(self.u)
         assert self._cuts is not None
         breaks = np.concatenate([resp.breaks, self._cuts])
+        lo, hi = law.support
+        # With shape parameters (differenced by moving the weights alone, see _terms) the
+        # rule's weights are kept apart from the pdf.
+        split = self.n_jitter > (self._scale_index(True) is not None) and hi > lo
+        rule = _UnitDensity(law) if split else law
         for ch in jitter_nodes(
-            law, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK, shared_pdf=True
+            rule, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK,  # type: ignore[arg-type]
+            shared_pdf=True,
         ):
-            keep = ch.w > 0
+            w = ch.w
+            if split:  # the pdf at tau clipped into the support, as jitter_nodes takes it
+                tau = ch.t - (ch.k0 + ch.owner) * self.T
+                w = ch.w * _density(law, np.clip(tau, lo, hi))
+            keep = w > 0
             owner = ch.owner[keep]
             starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
             if starts.size != ch.k1 - ch.k0:
@@ -452,7 +517,8 @@ class ExactLikelihood:
                     "that the jitter law has positive density inside its support"
                 )
             t = ch.t[keep]
-            yield _Nodes(ch.k0, ch.k1, t, np.log(ch.w[keep]), owner, starts, _NodeSignal(self.u, t))
+            logrule = np.log(ch.w[keep]) if split else None
+            yield _Nodes(ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(self.u, t), logrule)
 
     def _evals(self, x: FloatArray, y: FloatArray) -> list[_Eval]:
         law, tf, sigma = self.split(x)
@@ -583,12 +649,15 @@ class ExactLikelihood:
         # panels end at the law's knots, which move by O(h), where the pdf is continuous).
         shapes = [(i, *shifted[i]) for i in range(nj) if i in shifted]
         if shapes:
+            lo, hi = law.support
             with np.errstate(divide="ignore"):
                 for nd, s, ev in kept:
-                    tau = nd.t - (nd.k0 + nd.owner) * self.T
-                    base = nd.logw - np.log(law.pdf(tau))
+                    tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
+                    rule = nd.logrule
+                    if rule is None:
+                        rule = nd.logw - np.log(_density(law, tau))
                     for i, xi, h in shapes:
-                        logw = base + np.log(self.split(xi)[0].pdf(tau))
+                        logw = rule + np.log(_density(self.split(xi)[0], tau))
                         moved = _evaluate(nd, s, y, sigma, logw).logp
                         G[nd.k0 : nd.k1, i] = (moved - ev.logp) / h
         return logp, G, G.T @ G + C
