@@ -109,3 +109,25 @@ def test_every_family_gets_several_scored_starts(at_zero):
         assert scores == sorted(scores)
         stds = [problem.likelihood.split(c)[0].std for _, c in starts]
         assert max(stds) > 0.01  # some start is far from zero jitter
+
+
+class _MyUniformFamily(ji.UniformFamily):
+    """A subclass: no analytic scale score (it might change the law), so differences."""
+
+
+@pytest.mark.parametrize("family", [ji.UniformFamily(), _MyUniformFamily()])
+def test_scale_scores_match_differences_whether_analytic_or_not(family):
+    """The analytic scale score (tau / a) s'(t) includes the moving support edges of the
+    uniform law; a family the likelihood does not know is differenced with new nodes."""
+    data = _data(2, ji.Uniform(0.3))
+    n = 60
+    lik = ji.ExactLikelihood(ji.PolePairGain(), family, data.u, T, n, NOISE)
+    x = np.r_[0.3, TRUTH]
+    y = data.y[:n]
+    _, G = lik.scores(x, y)
+    h = 1e-5 * x[0]
+    up, down = x.copy(), x.copy()
+    up[0] += h
+    down[0] -= h
+    fd = (lik.logpdf(up, y) - lik.logpdf(down, y)) / (2 * h)
+    np.testing.assert_allclose(G[:, 0], fd, rtol=1e-4, atol=1e-4 * np.max(np.abs(fd)))

@@ -28,9 +28,11 @@ With posterior weights pi_j = w_j N(y; s_j, sigma_v^2) / p(y) (sum 1 per sample)
 
 ds/dtheta at the (fixed) nodes from the modal form of the response, with the same
 exponentials as s (:class:`_NodeSignal`; forward differences of s for inputs that are not
-piecewise constant); the jitter-family parameters move the nodes, and their score is a
-forward difference of ln p itself. :meth:`ExactLikelihood.maximise` uses these scores with
-a Gauss-Newton observed information. The Fisher information of one record is
+piecewise constant). A jitter family's scale a (the law of a xi) moves the nodes only:
+ds/da = (tau / a) s'(t), s' from the same modal form; its shape parameters (n) move the
+weights only: a forward difference of ln p with the shifted law's pdf at the same nodes.
+:meth:`ExactLikelihood.maximise` uses these scores with a Gauss-Newton observed information
+in :func:`jitterid.estimation.search.newton_search`. The Fisher information of one record is
 
     I(theta) = sum_k int p_k(y) g_k(y) g_k(y)^T dy,   g_k = grad_theta ln p_k(y),        (L3)
 
@@ -54,7 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
+from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms, SumOfUniformsFamily
 from ..moments.quadrature import jitter_nodes
 from ..moments.sample import sample_moments
 from ..systems.structures import ModelStructure, as_structure
@@ -498,7 +500,7 @@ class ExactLikelihood:
         lo, hi = law.support
         # With shape parameters (differenced by moving the weights alone, see _terms) the
         # rule's weights are kept apart from the pdf.
-        split = self.n_jitter > (self._scale_index(True) is not None) and hi > lo
+        split = bool(self._weight_params()) and hi > lo
         rule = _UnitDensity(law) if split else law
         for ch in jitter_nodes(
             rule, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK,  # type: ignore[arg-type]
@@ -572,6 +574,13 @@ class ExactLikelihood:
             return None
         return _jacobians._SCALE.get(type(self.jitter))  # exact type: a subclass may differ
 
+    def _weight_params(self) -> tuple[int, ...]:
+        """Jitter-family parameters that move the pdf inside a fixed support (n of
+        SumOfUniformsFamily: support [-a, a] whatever n), differenced at the same nodes.
+        Any other parameter of a family without an analytic score is differenced with new
+        nodes (it may move the support, whose edges then carry part of the derivative)."""
+        return (0,) if type(self.jitter) is SumOfUniformsFamily else ()
+
     def _terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -644,10 +653,14 @@ class ExactLikelihood:
                     C[gn, -1] += cross
                     C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
-        # The shape parameters by differences of ln p with the weights alone moved: the pdf
-        # of the shifted law at the same nodes (the derivative of the integral: the rule's
-        # panels end at the law's knots, which move by O(h), where the pdf is continuous).
-        shapes = [(i, *shifted[i]) for i in range(nj) if i in shifted]
+        # The shape (n) by differences of ln p with the weights alone moved: the pdf of the
+        # shifted law at the same nodes (the derivative of the integral: the rule's panels
+        # end at the law's knots, which move by O(h), where the pdf is continuous).
+        moving = [i for i in range(nj) if i in shifted and i not in self._weight_params()]
+        for i in moving:  # parameters that may move the support: new nodes
+            xi, h = shifted[i]
+            G[:, i] = (self.logpdf(xi, y) - logp) / h
+        shapes = [(i, *shifted[i]) for i in self._weight_params() if i in shifted]
         if shapes:
             lo, hi = law.support
             with np.errstate(divide="ignore"):
