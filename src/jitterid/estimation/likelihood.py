@@ -706,6 +706,9 @@ class ExactLikelihood:
         def negloglik(x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
             logp, G, M = self._terms(x, y, information=True)
             values[x.tobytes()] = v = -float(np.sum(logp))
+            if not _positive_definite(M):  # far from the optimum: centred score products
+                Gc = G - G.mean(axis=0)
+                M = Gc.T @ Gc
             return v, -G.sum(axis=0), M
 
         smooth = None
@@ -758,6 +761,18 @@ class ExactLikelihood:
                 g = (L[1::2] - L[2::2]) / steps[:, None]
                 info += (g * (np.exp(L[0]) * dy)) @ g.T
         return 0.5 * (info + info.T)
+
+
+def _positive_definite(M: FloatArray) -> bool:
+    """Whether the (diagonally scaled) matrix has a Cholesky factor."""
+    d = np.sqrt(np.abs(np.diag(M)))
+    if np.any(d == 0) or not np.all(np.isfinite(M)):
+        return False
+    try:
+        np.linalg.cholesky(M / np.outer(d, d) + 1e-12 * np.eye(d.size))
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def _segment(nd: _Nodes, k: int) -> tuple[int, int]:
