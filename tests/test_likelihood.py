@@ -67,6 +67,19 @@ def test_default_rule_matches_a_high_resolution_rule(name):
         assert abs(fast.sum() - ref.sum()) <= 1e-6 * abs(ref.sum())
 
 
+@pytest.mark.parametrize("n", [0.0, 0.3, 1.0, 1.0 + 1e-7, 2.0 - 1e-7, 2.3, 7.69, 20.0, 49.5])
+def test_piecewise_polynomial_density_matches_the_law(n):
+    """The likelihood's Chebyshev form of the SumOfUniforms density (O(m) per point) against
+    the law's own B-spline evaluation, including the narrow windows just above an integer."""
+    law = ji.SumOfUniforms(n, 0.4)
+    tau = np.r_[np.random.default_rng(1).uniform(-0.45, 0.45, 5000), -0.4, 0.4, 0.0, 0.39999]
+    ref, fast = law.pdf(tau), lk._density(law, tau)
+    peak = ref.max()
+    np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-13 * peak)
+    bulk = ref > 1e-6 * peak
+    np.testing.assert_allclose(fast[bulk], ref[bulk], rtol=1e-9)
+
+
 def test_node_signal_and_its_parameter_gradient_match_the_simulator():
     """The likelihood's own evaluation of s and ds/dtheta at fixed instants against
     jitterid.systems.tf.Response and central differences of it."""

@@ -336,3 +336,17 @@ def test_a_new_estimator_is_one_class_and_one_registration(monkeypatch):
     se = np.sqrt(np.diag(ref.cov))
     assert np.all(np.abs(new.x - ref.x) < 0.5 * se), (new.x, ref.x, se)
     np.testing.assert_allclose(np.sqrt(np.diag(new.cov)), se, rtol=0.2)
+
+
+def test_bounds_take_a_dict_a_vector_or_a_fit_result_with_the_same_answer():
+    data = table2_data(16)
+    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
+    args = (ji.PolePairGain(), ji.Uniform(0.5), data.u, T, N, NOISE)
+    by_vector = ji.crb(*args, res.x)
+    np.testing.assert_array_equal(ji.crb(*args, res.params), by_vector)
+    np.testing.assert_array_equal(ji.crb(*args, res), by_vector)
+    g = ji.gaussian_bound(*args, res.x)
+    np.testing.assert_array_equal(ji.gaussian_bound(*args, dict(res.params)), g)
+    with pytest.raises(ValueError, match="did you mean 'pi'"):
+        ji.crb(*args, {"k0": 6.0, "pr": -1.5, "Pi": 2.0})
+    np.testing.assert_array_equal(ji.PolePairGain().system(res).den, res.system.den)

@@ -28,9 +28,11 @@ With posterior weights pi_j = w_j N(y; s_j, sigma_v^2) / p(y) (sum 1 per sample)
 
 ds/dtheta at the (fixed) nodes from the modal form of the response, with the same
 exponentials as s (:class:`_NodeSignal`; forward differences of s for inputs that are not
-piecewise constant); the jitter-family parameters move the nodes, and their score is a
-forward difference of ln p itself. :meth:`ExactLikelihood.maximise` uses these scores with
-a Gauss-Newton observed information. The Fisher information of one record is
+piecewise constant). A jitter family's scale a (the law of a xi) moves the nodes only:
+ds/da = (tau / a) s'(t), s' from the same modal form; its shape parameters (n) move the
+weights only: a forward difference of ln p with the shifted law's pdf at the same nodes.
+:meth:`ExactLikelihood.maximise` uses these scores with a Gauss-Newton observed information
+in :func:`jitterid.estimation.search.newton_search`. The Fisher information of one record is
 
     I(theta) = sum_k int p_k(y) g_k(y) g_k(y)^T dy,   g_k = grad_theta ln p_k(y),        (L3)
 
@@ -54,11 +56,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw
+from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import jitter_nodes
 from ..moments.sample import sample_moments
+from ..params import ParamLayout
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
+from .search import evaluator, newton_search
 
 __all__ = [
     "DEFAULT_ORDER",
@@ -210,20 +214,39 @@ class _NodeSignal:
     def gradient(
         self,
         tf: TransferFunction,
-        dmodal: tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]],
-        dX: NDArray[np.complex128],
-    ) -> tuple[FloatArray, FloatArray]:
+        dmodal: tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]] | None,
+        dX: NDArray[np.complex128] | None,
+        *,
+        slope: bool = False,
+    ) -> tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, FloatArray]:
         """s at the nodes and ds/dtheta, shape (n_params, n_nodes), given the modal gradient
-        (:func:`_modal_gradient`) and the switch-state pole sensitivity (:func:`_pole_sensitivity`)."""
+        (:func:`_modal_gradient`) and the switch-state pole sensitivity (:func:`_pole_sensitivity`);
+        ``dmodal = None``: no parameters (shape (0, n_nodes)). With ``slope``, also the time
+        derivative s'(t) = Re sum rho (p x + u) at the nodes, from the same exponentials (the
+        score of a jitter scale parameter, see :meth:`ExactLikelihood._terms`)."""
         assert isinstance(self.u, PiecewiseConstant)
-        dd, drho, dp = dmodal
         s = tf._modal[0] * self.level
-        D = dd[:, None] * self.level[None, :]
-        for k, (rk, _, xr, xi, zr, zi) in enumerate(self._pole_terms(tf, dX)):
+        ds = np.zeros(self.t.size)
+        if dmodal is None:
+            D = np.zeros((0, self.t.size))
+            terms = self._pole_terms(tf)
+        else:
+            assert dX is not None
+            dd, drho, dp = dmodal
+            D = dd[:, None] * self.level[None, :]
+            terms = self._pole_terms(tf, dX)
+        for k, (rk, p, xr, xi, zr, zi) in enumerate(terms):
             s = s + (rk.real * xr - rk.imag * xi)
-            for i in range(dd.size):
+            if slope:  # dx/dt = p x + u
+                vr, vi = p.real * xr - p.imag * xi + self.level, p.real * xi + p.imag * xr
+                ds += rk.real * vr - rk.imag * vi
+            if dmodal is None:
+                continue
+            for i in range(D.shape[0]):
                 c1, c2 = drho[i, k], rk * dp[i, k]  # ds = Re(drho x + rho dp dx/dp)
                 D[i] += c1.real * xr - c1.imag * xi + c2.real * zr - c2.imag * zi
+        if slope:
+            return np.asarray(s, dtype=float), D, ds
         return np.asarray(s, dtype=float), D
 
 
@@ -264,6 +287,61 @@ class _Nodes:
     owner: NDArray[np.int64]
     starts: NDArray[np.int64]
     signal: _NodeSignal
+    logrule: FloatArray | None = None  # ln of the weights without the pdf (shape families)
+
+
+def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
+    """law.pdf(tau); for :class:`SumOfUniforms` from its exact piecewise-polynomial form.
+
+    Between consecutive breakpoints that density is a polynomial of degree at most m (m
+    uniforms, plus the window of width 2c at non-integer n), which its Chebyshev interpolant
+    at m + 1 points of ``law.pdf`` reproduces to rounding (Clenshaw, per interval): O(m)
+    operations per point where the B-spline evaluation of ``law.pdf`` costs O(m^2) and more
+    (and a Gauss-Legendre window per point just above an integer n). Like ``law.pdf`` it is
+    evaluated at -|tau| (exactly symmetric).
+    """
+    if not isinstance(law, SumOfUniforms):
+        return np.asarray(law.pdf(tau), dtype=float)
+    m, _, c = law.components
+    deg = m if c > 0 else max(m - 1, 0)
+    bp = np.asarray(law.breakpoints(), dtype=float)
+    bp = bp[bp <= 0.0]
+    if bp[-1] < 0.0:
+        bp = np.r_[bp, 0.0]
+    x = -np.abs(np.asarray(tau, dtype=float))
+    inside = x >= -law.a
+    left, right = bp[:-1], bp[1:]
+    cheb = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # first-kind points
+    pts = 0.5 * (left + right)[:, None] + 0.5 * (right - left)[:, None] * cheb[None, :]
+    vals = law.pdf(pts)
+    # Chebyshev coefficients of each interval's interpolant (discrete cosine transform)
+    k = np.arange(deg + 1)
+    T = np.cos(np.outer(k, np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1)))
+    coef = vals @ T.T * (2.0 / (deg + 1))
+    coef[:, 0] *= 0.5
+    i = np.clip(np.searchsorted(bp, x, side="right") - 1, 0, left.size - 1)
+    u = np.clip((2.0 * x - (left[i] + right[i])) / (right[i] - left[i]), -1.0, 1.0)
+    b1, b2 = np.zeros_like(u), np.zeros_like(u)
+    for j in range(deg, 0, -1):
+        b1, b2 = coef[i, j] + 2.0 * u * b1 - b2, b1
+    out = coef[i, 0] + u * b1 - b2
+    return np.where(inside, np.maximum(out, 0.0), 0.0)
+
+
+class _UnitDensity:
+    """A jitter law with its pdf replaced by 1: :func:`jitter_nodes` then returns the rule's
+    own weights (panel half-length times Gauss-Legendre weight), to which the caller applies
+    the pdf, and can apply another law's pdf at the same nodes."""
+
+    def __init__(self, law: JitterLaw) -> None:
+        self.law = law
+        self.support, self.std = law.support, law.std
+
+    def breakpoints(self) -> FloatArray:
+        return np.asarray(self.law.breakpoints(), dtype=float)
+
+    def pdf(self, tau: ArrayLike) -> FloatArray:
+        return np.ones(np.shape(tau))
 
 
 @dataclass(frozen=True, eq=False)
@@ -277,9 +355,13 @@ class _Eval:
     post: FloatArray
 
 
-def _evaluate(nodes: _Nodes, s: FloatArray, y: FloatArray, sigma: float) -> _Eval:
+def _evaluate(
+    nodes: _Nodes, s: FloatArray, y: FloatArray, sigma: float, logw: FloatArray | None = None
+) -> _Eval:
+    """ln p per sample and the posterior weights at the nodes (with other ln weights ``logw``
+    if given)."""
     e = (y[nodes.k0 + nodes.owner] - s) / sigma
-    z = nodes.logw - 0.5 * e * e
+    z = (nodes.logw if logw is None else logw) - 0.5 * e * e
     top = np.maximum.reduceat(z, nodes.starts)
     ez = np.exp(z - top[nodes.owner])
     total = np.add.reduceat(ez, nodes.starts)
@@ -415,10 +497,20 @@ class ExactLikelihood:
         resp = tf.response(self.u)
         assert self._cuts is not None
         breaks = np.concatenate([resp.breaks, self._cuts])
+        lo, hi = law.support
+        # With shape parameters (differenced by moving the weights alone, see _terms) the
+        # rule's weights are kept apart from the pdf.
+        split = bool(self._weight_params()) and hi > lo
+        rule = _UnitDensity(law) if split else law
         for ch in jitter_nodes(
-            law, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK
+            rule, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK,  # type: ignore[arg-type]
+            shared_pdf=True,
         ):
-            keep = ch.w > 0
+            w = ch.w
+            if split:  # the pdf at tau clipped into the support, as jitter_nodes takes it
+                tau = ch.t - (ch.k0 + ch.owner) * self.T
+                w = ch.w * _density(law, np.clip(tau, lo, hi))
+            keep = w > 0
             owner = ch.owner[keep]
             starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
             if starts.size != ch.k1 - ch.k0:
@@ -427,7 +519,8 @@ class ExactLikelihood:
                     "that the jitter law has positive density inside its support"
                 )
             t = ch.t[keep]
-            yield _Nodes(ch.k0, ch.k1, t, np.log(ch.w[keep]), owner, starts, _NodeSignal(self.u, t))
+            logrule = np.log(ch.w[keep]) if split else None
+            yield _Nodes(ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(self.u, t), logrule)
 
     def _evals(self, x: FloatArray, y: FloatArray) -> list[_Eval]:
         law, tf, sigma = self.split(x)
@@ -473,78 +566,132 @@ class ExactLikelihood:
         logp, G, _ = self._terms(x, y, information=False)
         return logp, G
 
+    def _scale_index(self, analytic: bool) -> int | None:
+        """Index of the jitter family's scale parameter a (the law of a xi, xi fixed), whose
+        score is analytic (:meth:`_terms`); None if there is none or the input is not
+        piecewise constant (then it is differenced like the shape parameters)."""
+        if not (analytic and self.n_jitter):
+            return None
+        return self.jitter.scale_index  # type: ignore[union-attr]
+
+    def _weight_params(self) -> tuple[int, ...]:
+        """Jitter-family parameters that move the pdf inside a fixed support (the family's
+        ``fixed_support_params``: n of SumOfUniformsFamily), differenced at the same nodes.
+        Any other parameter of a family without an analytic score is differenced with new
+        nodes (it may move the support, whose edges then carry part of the derivative)."""
+        return tuple(getattr(self.jitter, "fixed_support_params", ()))
+
     def _terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """ln p per sample, per-sample scores and (optionally) the observed information.
 
         The information -d^2 ln L is sum_k [g_k g_k^T - E_post(a a^T + da)] with a_j the
-        gradient of ln(w_j N(y_k; s_j, sigma_v^2)); for the parameters that leave the nodes in
-        place (system, noise) the second term is kept, without d^2 s / d theta^2 (whose
-        posterior mean is zero-mean noise: Gauss-Newton); for jitter-family parameters only
-        the outer products remain (BHHH).
+        gradient of ln(w_j N(y_k; s_j, sigma_v^2)); for the system and noise parameters the
+        second term is kept, without d^2 s / d theta^2 (whose posterior mean is zero-mean
+        noise: Gauss-Newton); for the jitter-family parameters only the outer products remain
+        (BHHH).
+
+        The jitter scale a of a family whose law is that of a xi (Uniform, Gaussian,
+        SumOfUniforms at fixed n) enters p(y_k) = int p(xi) N(y_k; s(kT + a xi)) dxi through
+        the signal only, so ds/da = xi s'(kT + a xi) = (tau / a) s'(t): its score is (L2)
+        with that derivative at the same nodes, exact for the integral, with s' from the
+        modal form. The shape parameters (n) move the weights: forward differences of ln p.
         """
         law, tf, sigma = self.split(x)
         nj, p = self.n_jitter, x.size
         ns = len(self.model.param_names)
         noise = self.noise_std is None
-        shifted = [_shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj + ns)]
+        nodes = self._nodes(x, law, tf)
+        analytic = nodes[0].signal.analytic
+        scale = self._scale_index(analytic)
+        # parameters whose score comes from ds at the nodes: the scale, then the system
+        inner = ([scale] if scale is not None else []) + list(range(nj, nj + ns))
         dX: NDArray[np.complex128] | None = None
         logp, G, C = np.empty(self.N), np.empty((self.N, p)), np.zeros((p, p))
-        nodes = self._nodes(x, law, tf)
+        kept: list[tuple[_Nodes, FloatArray, _Eval]] = []
         dmodal = None
-        if ns and nodes[0].signal.analytic:
+        if ns and analytic:
             assert isinstance(self.u, PiecewiseConstant)
             dmodal = _modal_gradient(self.model, x[nj : nj + ns], tf)
             dX = _pole_sensitivity(tf, self.u) if dmodal is not None else None
+        shifted = {i: _shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj + ns) if i not in inner}
+        if dmodal is None:  # system parameters by differences of s (then not in `shifted`)
+            shifted.update({i: _shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj, nj + ns)})
         for nd in nodes:
-            if dmodal is not None:
-                assert dX is not None
-                s, D = nd.signal.gradient(tf, dmodal, dX)
+            if analytic and (dmodal is not None or not ns):
+                s, D, ds = nd.signal.gradient(tf, dmodal, dX, slope=True)  # type: ignore[misc]
             else:
                 s, D = nd.signal(tf), np.empty((ns, nd.t.size))
-                for i, (xi, h) in enumerate(shifted[nj:]):
+                for i in range(ns):
+                    xi, h = shifted[nj + i]
                     D[i] = (nd.signal(self.split(xi)[1]) - s) / h
+                if scale is not None:
+                    ds = nd.signal.gradient(tf, None, None, slope=True)[2]  # type: ignore[misc]
+            if scale is not None:
+                tau = nd.t - (nd.k0 + nd.owner) * self.T
+                D = np.vstack([ds * (tau / x[scale]), D])
             ev = _evaluate(nd, s, y, sigma)
+            kept.append((nd, s, ev))
             rows = slice(nd.k0, nd.k1)
             logp[rows] = ev.logp
             A = D * (ev.e / sigma)
             if noise:
                 A = np.vstack([A, (ev.e**2 - 1) / sigma])
+            cols = inner + ([p - 1] if noise else [])
             if A.shape[0]:
-                G[rows, nj:] = np.add.reduceat(A * ev.post, nd.starts, axis=1).T
+                G[rows, cols] = np.add.reduceat(A * ev.post, nd.starts, axis=1).T
             if information:
                 e2, pi = ev.e**2, ev.post
-                C[nj : nj + ns, nj : nj + ns] += (D * (pi * (1 - e2))) @ D.T / sigma**2
+                # the Gauss-Newton term over the system parameters only: the jitter scale's
+                # stays BHHH, as before its score was analytic (the profile in n has a local
+                # maximum at each integer, and this keeps the search on the same path)
+                Dg, gn = (D[1:], inner[1:]) if scale is not None else (D, inner)
+                C[np.ix_(gn, gn)] += (Dg * (pi * (1 - e2))) @ Dg.T / sigma**2
                 if noise:
-                    cross = D @ (pi * ev.e * (3 - e2)) / sigma**2
-                    C[nj : nj + ns, -1] += cross
-                    C[-1, nj : nj + ns] += cross
+                    cross = Dg @ (pi * ev.e * (3 - e2)) / sigma**2
+                    C[gn, -1] += cross
+                    C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
-        for i in range(nj):
+        # The shape (n) by differences of ln p with the weights alone moved: the pdf of the
+        # shifted law at the same nodes (the derivative of the integral: the rule's panels
+        # end at the law's knots, which move by O(h), where the pdf is continuous).
+        moving = [i for i in range(nj) if i in shifted and i not in self._weight_params()]
+        for i in moving:  # parameters that may move the support: new nodes
             xi, h = shifted[i]
             G[:, i] = (self.logpdf(xi, y) - logp) / h
+        shapes = [(i, *shifted[i]) for i in self._weight_params() if i in shifted]
+        if shapes:
+            lo, hi = law.support
+            with np.errstate(divide="ignore"):
+                for nd, s, ev in kept:
+                    tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
+                    rule = nd.logrule
+                    if rule is None:
+                        rule = nd.logw - np.log(_density(law, tau))
+                    for i, xi, h in shapes:
+                        logw = rule + np.log(_density(self.split(xi)[0], tau))
+                        moved = _evaluate(nd, s, y, sigma, logw).logp
+                        G[nd.k0 : nd.k1, i] = (moved - ev.logp) / h
         return logp, G, G.T @ G + C
 
     def maximise(
         self, y: ArrayLike, x0: ArrayLike, *, max_evaluations: int = 200, tol: float = 1e-8
     ) -> tuple[FloatArray, float, bool, str, int]:
-        """Maximise ln L from ``x0`` inside the bounds (Levenberg-Marquardt-damped Newton).
+        """Maximise ln L from ``x0`` inside the bounds: :func:`jitterid.estimation.search.newton_search`
+        on V = -ln L (so that its Newton decrement g^T M^{-1} g, twice the remaining gain in
+        ln L, is compared with ``tol``).
 
         The Newton matrix M is the observed information of :meth:`_terms` (Gauss-Newton for
-        the system and noise parameters: within ~1% of the exact Hessian at the optimum on
-        the paper's experiments); the step solves (M + lam diag M) d = g, and lam is divided
-        by 4 after a step that gains at least 3/4 of the predicted gain g.d - d.M.d / 2 and
-        multiplied by 4 (at least to 1e-3) after one that gains less than 1/4 of it; a step
-        gaining less than 1e-4 of the prediction is rejected. Parameters on
-        a bound whose gradient points outwards are held there. Converged when the Newton
-        decrement g^T M^{-1} g (twice the remaining gain in ln L) is below ``tol``.
+        the system, noise and jitter-scale parameters: within ~1% of the exact Hessian at the
+        optimum on the paper's experiments; BHHH for the jitter shape).
 
-        The likelihood need not be differentiable in the jitter-family parameters (the
-        non-integer extension of :class:`SumOfUniforms` has a kink at every integer n). After
-        a rejected step, a Newton step in the system/noise parameters alone is tried; a point
-        where that block is stationary and the damped full step keeps failing (lam > 1e6) is
-        reported as converged, with a message saying so.
+        The likelihood need not be differentiable in the jitter shape parameters (the
+        non-integer extension of :class:`SumOfUniforms` has a kink at every integer n): those
+        are passed to the search as not smooth, so that after a rejected step it tries a
+        Newton step in the other parameters alone, and a point where those are stationary
+        and a step in the shape predicted to gain little loses instead is reported as
+        converged, with a message saying so.
 
         Returns
         -------
@@ -552,55 +699,32 @@ class ExactLikelihood:
         """
         y = self._data(y)
         lo, hi = np.array(self.bounds, dtype=float).reshape(-1, 2).T
-        x = np.clip(np.atleast_1d(real_array(x0, "x0")), lo, hi)
-        logp, G, M = self._terms(x, y, information=True)
-        f, n, lam = float(np.sum(logp)), 1, 0.0
-        inner = np.arange(x.size) >= self.n_jitter  # parameters that leave the nodes in place
-        while n < max_evaluations:
-            g = G.sum(axis=0)
-            free = ~(((x <= lo) & (g < 0)) | ((x >= hi) & (g > 0)))
-            dec = float(g @ _newton_step(M, G, g, free))
-            if dec <= tol:
-                return x, f, True, f"converged: Newton decrement {dec:.2g} <= {tol:g}", n
-            trials = [(free, lam)]
-            if lam > 0 and self.n_jitter:
-                trials.append((free & inner, 0.0))
-            accepted = False
-            for block, damping in trials:
-                step = _newton_step(M, G, g, block, damping)
-                xn = np.clip(x + step, lo, hi)
-                d = xn - x
-                pred = float(g @ d - 0.5 * d @ M @ d)
-                gain = -np.inf
-                if pred > 0:
-                    n += 1
-                    try:
-                        # With jitter parameters the scores cost several likelihoods: try
-                        # the value first, so that a rejected step costs only one.
-                        if self.n_jitter:
-                            gain = self.loglik(xn, y) - f
-                        if not self.n_jitter or gain >= 1e-4 * pred:
-                            logp_n, G_n, M_n = self._terms(xn, y, information=True)
-                            gain = float(np.sum(logp_n)) - f
-                    except ValueError:  # e.g. an unstable system
-                        pass
-                if block is free:  # trust-region rule on the ratio gain / predicted gain
-                    lam = lam / 4 if gain >= 0.75 * pred else lam
-                    lam = lam if gain >= 0.25 * pred else max(4 * lam, 1e-3)
-                if gain >= 1e-4 * pred:
-                    x, f, G, M, accepted = xn, f + gain, G_n, M_n, True
-                    break
-            if not accepted and lam > 1e6:
-                inner_dec = float(g @ _newton_step(M, G, g, free & inner))
-                if self.n_jitter and inner_dec <= tol:
-                    msg = (
-                        f"converged: stationary in the system/noise parameters (decrement "
-                        f"{inner_dec:.2g}) and no ascent in the jitter parameters, where the "
-                        "likelihood is not differentiable (e.g. SumOfUniformsFamily at integer n)"
-                    )
-                    return x, f, True, msg, n
-                return x, f, False, "no step increases the likelihood (damping exhausted)", n
-        return x, f, False, f"evaluation budget ({max_evaluations}) used up", n
+        x0 = np.clip(np.atleast_1d(real_array(x0, "x0")), lo, hi)
+
+        values: dict[bytes, float] = {}
+
+        def negloglik(x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+            logp, G, M = self._terms(x, y, information=True)
+            values[x.tobytes()] = v = -float(np.sum(logp))
+            if not _positive_definite(M):  # far from the optimum: centred score products
+                Gc = G - G.mean(axis=0)
+                M = Gc.T @ Gc
+            return v, -G.sum(axis=0), M
+
+        smooth = None
+        nj = self.n_jitter
+        if nj:
+            scale = self._scale_index(isinstance(self.u, PiecewiseConstant))
+            smooth = np.arange(x0.size) >= nj
+            if scale is not None:
+                smooth[scale] = True
+            if smooth.all():
+                smooth = None
+        x, ok, msg, n = newton_search(
+            evaluator(negloglik), x0, lo, hi, max_evaluations, tol=tol, smooth=smooth
+        )
+        loglik = -values[x.tobytes()] if x.tobytes() in values else self.loglik(x, y)
+        return x, loglik, ok, msg, n
 
     def fisher(self, x: ArrayLike) -> FloatArray:
         """Fisher information (L3) of the N samples at ``x``, in :attr:`names` order."""
@@ -639,30 +763,16 @@ class ExactLikelihood:
         return 0.5 * (info + info.T)
 
 
-def _newton_step(
-    M: FloatArray, G: FloatArray, g: FloatArray, free: NDArray[np.bool_], damping: float = 0.0
-) -> FloatArray:
-    """Solve (M + damping diag M) d = g on the free parameters (zero elsewhere); the centred
-    score outer products replace M where it is not positive definite."""
-    step = np.zeros_like(g)
-    idx = np.flatnonzero(free)
-    if idx.size == 0:
-        return step
-    Gc = G[:, idx] - G[:, idx].mean(axis=0)
-    for mat in (M[np.ix_(idx, idx)], Gc.T @ Gc):
-        d = np.sqrt(np.abs(np.diag(mat)))
-        if np.any(d == 0) or not np.all(np.isfinite(mat)):
-            continue
-        scaled = mat / np.outer(d, d) + (damping + 1e-12) * np.eye(idx.size)
-        try:
-            L = np.linalg.cholesky(scaled)
-        except np.linalg.LinAlgError:
-            continue
-        step[idx] = np.linalg.solve(L.T, np.linalg.solve(L, g[idx] / d)) / d
-        return step
-    scale = np.sum(G[:, idx] ** 2, axis=0)  # last resort: scaled steepest ascent
-    step[idx] = g[idx] / np.where(scale > 0, scale, 1.0) / (1.0 + damping)
-    return step
+def _positive_definite(M: FloatArray) -> bool:
+    """Whether the (diagonally scaled) matrix has a Cholesky factor."""
+    d = np.sqrt(np.abs(np.diag(M)))
+    if np.any(d == 0) or not np.all(np.isfinite(M)):
+        return False
+    try:
+        np.linalg.cholesky(M / np.outer(d, d) + 1e-12 * np.eye(d.size))
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def _segment(nd: _Nodes, k: int) -> tuple[int, int]:
@@ -751,15 +861,9 @@ def _problem_setup(
     true_params: ArrayLike,
 ) -> tuple[ModelStructure, FloatArray]:
     structure = as_structure(system_structure)
-    x = np.atleast_1d(real_array(true_params, "true_params"))
-    nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
-    want = nj + len(structure.param_names)
-    if x.shape != (want,):
-        names = (jitter.param_names if nj else ()) + structure.param_names  # type: ignore[union-attr]
-        raise ValueError(
-            f"true_params must hold {want} values {tuple(names)} (jitter-family parameters, "
-            f"then system parameters; noise_std is passed separately); got shape {x.shape}"
-        )
+    # a dict by name, a vector (jitter-family then system parameters; noise_std is passed
+    # separately) or a FitResult, whose entries are taken by name
+    x = ParamLayout.build(jitter, structure).vector(true_params, "true_params")
     positive(T, "T")
     count(N, "N", minimum=1)
     positive(noise_std, "noise_std")
@@ -805,9 +909,10 @@ def crb(
         Number of samples.
     noise_std : float
         The measurement-noise std (> 0).
-    true_params : array_like
-        The point of evaluation, in :func:`jitterid.fit`'s order: jitter-family parameters
-        (if ``jitter`` is a family), then the system parameters. Without ``noise_std``.
+    true_params : dict, array_like or FitResult
+        The point of evaluation: a dict by name, a vector in :func:`jitterid.fit`'s order
+        (jitter-family parameters if ``jitter`` is a family, then the system parameters;
+        without ``noise_std``), or a FitResult (its values taken by name).
     estimate_noise : bool
         Default False: the noise std is known (as in the paper's experiments). True adds it
         as a last parameter (the bound of an estimator that also estimates it).

@@ -1,6 +1,7 @@
-"""The exact-likelihood estimator's search (``method="ml"``): its start for a jitter family
-with shape parameters, and the maximisation with the quadrature rule re-designed at the
-optimum. The likelihood itself is :mod:`jitterid.estimation.likelihood`."""
+"""The exact-likelihood estimator's search (``method="ml"``): its scored starts, the
+maximisation with the quadrature rule re-designed at the optimum, and the restart that keeps
+a stop at zero jitter from being reported as the optimum. The likelihood itself is
+:mod:`jitterid.estimation.likelihood`."""
 
 from __future__ import annotations
 
@@ -15,68 +16,157 @@ __all__ = ["run_ml"]
 
 FloatArray = NDArray[np.float64]
 
+#: A jitter std below this fraction of another scored start's counts as zero jitter (where
+#: the likelihood, even in the scale, has a vanishing gradient).
+_DEGENERATE = 1e-3
 
-def _ml_start(problem: Problem, x0: FloatArray) -> tuple[FloatArray, int]:
-    """The ML search's start for a jitter family with shape parameters (n of (26)).
+
+def _residual_std(problem: Problem, x0: FloatArray) -> float:
+    """The jitter std that explains the output-error residual variance at x0's system:
+    Var(y_k - s(kT)) ~ E[s'(kT)^2] sigma_tau^2 + sigma_v^2 (first order in the jitter)."""
+    lik = problem.likelihood
+    assert lik is not None
+    d = problem.data
+    _, tf, sigma = lik.split(x0)
+    resp = tf.response(d.u)
+    t = d.t_nominal
+    h = 1e-6 * d.T
+    lo, hi = d.u.start, np.nextafter(resp.end, -np.inf)
+    tp, tm = np.clip(t + h, lo, hi), np.clip(t - h, lo, hi)
+    slope = (resp(tp) - resp(tm)) / np.where(tp > tm, tp - tm, 1.0)
+    excess = float(np.mean((d.y - resp(np.clip(t, lo, hi))) ** 2)) - sigma**2
+    power = float(np.mean(slope**2))
+    return float(np.sqrt(excess / power)) if excess > 0 and power > 0 else 0.0
+
+
+def _candidates(problem: Problem, x0: FloatArray) -> list[FloatArray]:
+    """Starts for a jitter family: x0 (the BCLS point), the family's default starts (the
+    shapes at the scale that keeps x0's jitter std; a one-parameter family's default scales
+    as they are), and every shape at the scale whose std explains the output-error residual
+    variance (:func:`_residual_std`), all with x0's system and noise parameters."""
+    jitter = problem.jitter
+    assert isinstance(jitter, JitterFamily)
+    nj = problem.n_jitter
+    scale = jitter.scale_index
+    out = [x0]
+
+    def add(params: FloatArray) -> None:
+        cand = x0.copy()
+        cand[:nj] = np.clip(params, lo[:nj], hi[:nj])
+        if not any(np.allclose(cand, c, rtol=1e-9, atol=0) for c in out):
+            out.append(cand)
+
+    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    defaults = [np.asarray(js, float) for js in jitter.default_starts(problem.data.T)]
+    if scale is None:
+        for js in defaults:
+            add(js)
+        return out
+    std0 = jitter.law(x0[:nj].tolist()).std
+    std_r = _residual_std(problem, x0)
+
+    def at_std(params: FloatArray, std: float) -> FloatArray:  # the law is that of a xi
+        out = params.copy()
+        out[scale] *= std / jitter.law(params.tolist()).std
+        return out
+
+    if nj == 1:
+        for js in defaults:
+            add(js)
+    else:  # the shapes at x0's std
+        for js in defaults:
+            add(at_std(js, std0))
+    if std_r > 0 and not 0.5 < std0 / std_r < 2:  # BCLS's std is not that of the residuals
+        for js in [x0[:nj], *defaults]:
+            add(at_std(js, std_r))
+    return out
+
+
+def _ml_start(problem: Problem, x0: FloatArray) -> tuple[list[tuple[float, FloatArray]], int]:
+    """The ML search's scored starts, best first: ``[(-2 ln L, x), ...]``, and the number of
+    likelihood evaluations used.
 
     BCLS fixes the jitter's scale well (through the variances) but hardly its shape: on the
     paper's Table 3 data its criterion differs by 2e-4 (relative) between n = 0 and n = 8,
     and the n it returns is whatever the search stopped at. The likelihood does tell shapes
     apart, and is multimodal in n (with kinks at the integers), so the search from that n
-    lands in a mode that depends on the BCLS iterate's last digits. Each shape of the
-    family's default starts, at the scale that keeps the BCLS jitter std, is scored by one
-    likelihood evaluation, and the search starts from the best (the BCLS point included).
-    Returns the start and the number of evaluations used.
+    lands in a mode that depends on the BCLS iterate's last digits. And BCLS may stop at a
+    jitter scale of zero (a legitimate minimum of its criterion in about one realization in
+    64 on Table 2's system with Gaussian jitter), where the likelihood, even in the scale,
+    has a vanishing gradient: a search from there never leaves. So every start of
+    :func:`_candidates` is scored by one likelihood evaluation, and the search starts from the
+    best (the BCLS point included).
     """
-    jitter, lik = problem.jitter, problem.likelihood
+    lik = problem.likelihood
     assert lik is not None
-    if not isinstance(jitter, JitterFamily) or problem.n_jitter < 2:
-        return x0, 0
-    scale = jitter.scale_index
-    if scale is None:
-        return x0, 0
-    nj = problem.n_jitter
-    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
-    std = problem.split(x0)[0].std
-    candidates = [x0]
-    for js in jitter.default_starts(problem.data.T):
-        cand = x0.copy()
-        shape = np.asarray(js, float)
-        cand[:nj] = np.where(np.arange(nj) == scale, x0[scale], shape)
-        # the law is that of a xi: its std is proportional to a
-        cand[scale] = np.clip(x0[scale] * std / jitter.law(cand[:nj].tolist()).std, lo[scale], hi[scale])
-        if not any(np.array_equal(cand, c) for c in candidates):
-            candidates.append(cand)
+    if not isinstance(problem.jitter, JitterFamily):
+        return [(np.nan, x0)], 0
     y = problem.data.y
-    scores = []
-    for cand in candidates:
+    scored = []
+    cands = _candidates(problem, x0)
+    for i, cand in enumerate(cands):
         try:
-            scores.append(lik.loglik(cand, y))
+            v = -2 * lik.loglik(cand, y)
         except ValueError:
-            scores.append(-np.inf)
-    return candidates[int(np.argmax(scores))], len(candidates)
+            v = np.inf
+        scored.append((v if np.isfinite(v) else np.inf, i, cand))
+    scored.sort(key=lambda item: (item[0], item[1]))
+    return [(v, c) for v, _, c in scored], len(cands)
 
 
-def run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
-    """Maximise the exact likelihood; the quadrature rule, designed at the start, is
+def _search(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, bool, str, int]:
+    """Maximise the exact likelihood from x0; the quadrature rule, designed at the start, is
     re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6."""
     lik, y = problem.likelihood, problem.data.y
     assert lik is not None
-    x0, scored = _ml_start(problem, x0)
-    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev - scored, 2))
-    nfev += scored
+    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev, 2))
     for _ in range(3):
         lik.design(x)
         fresh = lik.loglik(x, y)
         nfev += 1
         if abs(fresh - loglik) <= 1e-6 * max(1.0, abs(fresh)):
+            loglik = fresh
             break
         x, loglik, ok, msg, n = lik.maximise(y, x, max_evaluations=max(max_nfev - nfev, 2))
         nfev += n
+    return x, -2 * loglik, ok, msg, nfev
+
+
+def run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
+    """Maximise the exact likelihood from the best scored start (:func:`_ml_start`).
+
+    A stop that another scored start beats is not the optimum: the search is restarted from
+    the best start whose score is better than the stop's -2 ln L by more than 1e-6
+    (relative), and, where the stop has zero jitter (std below 1e-3 of a scored start's),
+    from the best-scored start with a jitter std that is not zero; the best end is kept.
+    """
+    lik = problem.likelihood
+    assert lik is not None
+    starts, nfev = _ml_start(problem, x0)
+    x, cost, ok, msg, n = _search(problem, starts[0][1], max_nfev - nfev)
+    nfev += n
+    tried, widened = {0}, False
+    while isinstance(problem.jitter, JitterFamily) and nfev < max_nfev:
+        tol = 1e-6 * max(1.0, abs(cost))
+        std = lik.split(x)[0].std
+        rest = [i for i in range(len(starts)) if i not in tried]
+        better = [i for i in rest if starts[i][0] < cost - tol]
+        wider = [i for i in rest if std < _DEGENERATE * lik.split(starts[i][1])[0].std]
+        if better:
+            i = better[0]
+        elif wider and not widened:  # one restart away from zero jitter
+            i, widened = wider[0], True
+        else:
+            break
+        tried.add(i)
+        out = _search(problem, starts[i][1], max_nfev - nfev)
+        nfev += out[4]
+        if out[1] < cost - tol:
+            x, cost, ok = out[0], out[1], out[2]
+            msg = f"{out[3]} (after a restart from a scored start)"
     status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
     if not ok and nfev >= max_nfev:
         status = FitStatus.MAX_EVALUATIONS
-    cost = -2 * lik.loglik(x, y)
     if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
     lik._cache.clear()  # the nodes (MBs) are rebuilt from the kept design if cov is asked for

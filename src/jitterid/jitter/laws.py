@@ -849,6 +849,10 @@ class JitterFamily(abc.ABC):
     #: parameter's derivative then goes through the finite-difference route. A subclass
     #: that maps its parameters otherwise must set it again.
     scale_index: ClassVar[int | None] = None
+    #: Indices of parameters that change the density inside a support that does not move
+    #: with them (n of (26): support [-a, a] whatever n): the likelihood differences their
+    #: score at the same quadrature nodes. Others move the nodes.
+    fixed_support_params: ClassVar[tuple[int, ...]] = ()
 
     @property
     @abc.abstractmethod
@@ -1016,6 +1020,7 @@ class SumOfUniformsFamily(JitterFamily):
     a_min: float = _SCALE_FLOOR
     param_names: ClassVar[tuple[str, ...]] = ("n", "a")
     scale_index: ClassVar[int | None] = 1
+    fixed_support_params: ClassVar[tuple[int, ...]] = (0,)
 
     def __post_init__(self) -> None:
         n_max = _checks.positive(self.n_max, "n_max", allow_zero=True)
