@@ -134,8 +134,8 @@ class PieceChunk:
     pdt : ndarray
         Per piece, kT minus the start of its segment (0 before the input starts).
     sp_piece, sp_dt, sp_m : ndarray
-        Per standard panel: its piece, its midpoint minus the start of its segment (0
-        before the input starts) and its number m in the table.
+        Per standard panel: its piece, its midpoint minus the start of its segment (its half
+        width before the input starts) and its number m in the table.
     cn_piece, cn_dt, cn_w : ndarray
         Per node of the other panels: its piece, its instant minus the start of its segment
         (0 before the input starts) and its weight (pdf included).
@@ -240,7 +240,9 @@ def _pieces(
     pdt = np.where(row > 0, kt - tseg[starts], 0.0)
     is_std = pch.m >= 0
     sp_piece = piece[is_std]
-    sp_dt = np.where(inside, mid - tseg, 0.0)[is_std]
+    # before the input starts s = 0 and dt is arbitrary: there a panel's dt_mid is its half
+    # width, so that its nodes' dt >= 0 (no overflow of e^{p dt} for a fast pole)
+    sp_dt = np.where(inside, mid - tseg, 0.5 * (pch.b - pch.a))[is_std]
     sp_m = pch.m[is_std]
     cut = ~is_std
     x, wx = _gauss_legendre(order)
@@ -709,9 +711,12 @@ def _scale_terms(
     return delta, jm, jv
 
 
-#: A pole is summed over the standard panels by the factorisation e^{p dt} =
-#: e^{p (kT - t_j)} e^{p mid_m} when |Re p| times the window's half-width stays below this
-#: (no overflow of e^{p mid_m}); faster poles take one phasor per panel.
+#: A pole is summed over the standard panels from tables of e^{p h x_i} (offsets from the
+#: panel's midpoint) when |Re p| h stays below _TABLE_LIMIT, and with the factorisation
+#: e^{p dt_mid} = e^{p (kT - t_j)} e^{p mid_m} when |Re p| times the window's half-width
+#: stays below _FACTOR_LIMIT (no overflow of either factor). A faster pole (over-fitted
+#: models) takes one phasor per node.
+_TABLE_LIMIT = 40.0
 _FACTOR_LIMIT = 200.0
 
 
@@ -719,25 +724,27 @@ _FACTOR_LIMIT = 200.0
 class _PoleTable:
     """One pole's sums over the standard panels' nodes (per panel number m):
     K = sum_i w_i e^{p h x_i}, K1 = sum_i w_i h x_i e^{p h x_i}, and with er = e^{p mid_m}
-    (when ``factor``) G = er K and H = er (mid_m K + K1), so that a piece's sums over its
-    standard panels are e^{p (kT - t_j)} sum G and e^{p (kT - t_j)} ((kT - t_j) sum G + sum H)."""
+    (when the factorisation is safe) G = er K and H = er (mid_m K + K1), so that a piece's
+    sums over its standard panels are e^{p (kT - t_j)} sum G and
+    e^{p (kT - t_j)} ((kT - t_j) sum G + sum H)."""
 
     p: complex
-    ep: ComplexArray  # e^{p h x_i}, (R, order)
-    K: ComplexArray
-    K1: ComplexArray
+    ep: ComplexArray | None  # e^{p h x_i}, (R, order); None: one phasor per node
+    K: ComplexArray | None
+    K1: ComplexArray | None
     er: ComplexArray | None
     G: ComplexArray | None
     H: ComplexArray | None
 
     @classmethod
     def make(cls, p: complex, std: StdTable) -> _PoleTable:
-        ep = np.exp(p * std.hx)
-        K, K1 = (std.w * ep).sum(axis=1), (std.w * std.hx * ep).sum(axis=1)
-        er = G = H = None
-        if std.mid.size and abs(p.real) * float(np.max(np.abs(std.mid))) < _FACTOR_LIMIT:
-            er = np.exp(p * std.mid)
-            G, H = er * K, er * (std.mid * K + K1)
+        ep = K = K1 = er = G = H = None
+        if not std.hx.size or abs(p.real) * float(np.max(np.abs(std.hx))) < _TABLE_LIMIT:
+            ep = np.exp(p * std.hx)
+            K, K1 = (std.w * ep).sum(axis=1), (std.w * std.hx * ep).sum(axis=1)
+            if std.mid.size and abs(p.real) * float(np.max(np.abs(std.mid))) < _FACTOR_LIMIT:
+                er = np.exp(p * std.mid)
+                G, H = er * K, er * (std.mid * K + K1)
         return cls(p, ep, K, K1, er, G, H)
 
     def _gsum(self, pc: PieceChunk, table: ComplexArray) -> ComplexArray:
@@ -751,14 +758,26 @@ class _PoleTable:
     def _piece_phasor(self, pc: PieceChunk) -> ComplexArray:
         return _complex(_phasors(self.p, pc.pdt))
 
+    def _node_sums(self, pc: PieceChunk, with_dt: bool) -> ComplexArray:
+        """Per piece sum over the standard panels' nodes of w e^{p dt} (times dt), node by node."""
+        W = np.take(pc.std.w.T, pc.sp_m, axis=1)
+        dt = pc.sp_dt[None, :] + np.take(pc.std.hx.T, pc.sp_m, axis=1)
+        if with_dt:
+            W = W * dt
+        E = _phasors(self.p, dt)
+        g = (W * E[0]).sum(axis=0), ((W * E[1]).sum(axis=0) if E[1] is not None else None)
+        return _complex(_psum(pc.sp_piece, g, pc.row.size))
+
     def s1(self, pc: PieceChunk, ce: Phasor) -> ComplexArray:
         """S1 = sum w e^{p dt} per piece."""
         npc = pc.row.size
         cut = _complex(_psum(pc.cn_piece, _scaled(pc.cn_w, ce), npc))
         if self.G is not None:
             return self._piece_phasor(pc) * self._gsum(pc, self.G) + cut
-        se = _phasors(self.p, pc.sp_dt)
-        return _complex(_psum(pc.sp_piece, _times(se, self.K[pc.sp_m]), npc)) + cut
+        if self.K is not None:
+            se = _phasors(self.p, pc.sp_dt)
+            return _complex(_psum(pc.sp_piece, _times(se, self.K[pc.sp_m]), npc)) + cut
+        return self._node_sums(pc, False) + cut
 
     def s2(self, pc: PieceChunk, ce: Phasor) -> ComplexArray:
         """S2 = sum w dt e^{p dt} per piece."""
@@ -766,49 +785,44 @@ class _PoleTable:
         cut = _complex(_psum(pc.cn_piece, _scaled(pc.cn_w * pc.cn_dt, ce), npc))
         if self.G is not None and self.H is not None:
             return self._piece_phasor(pc) * (pc.pdt * self._gsum(pc, self.G) + self._gsum(pc, self.H)) + cut
-        se = _phasors(self.p, pc.sp_dt)
-        return _complex(_psum(pc.sp_piece, _times(se, pc.sp_dt * self.K[pc.sp_m] + self.K1[pc.sp_m]), npc)) + cut
+        if self.K is not None and self.K1 is not None:
+            se = _phasors(self.p, pc.sp_dt)
+            return _complex(_psum(pc.sp_piece, _times(se, pc.sp_dt * self.K[pc.sp_m] + self.K1[pc.sp_m]), npc)) + cut
+        return self._node_sums(pc, True) + cut
 
-    def panel_phasors(self, pc: PieceChunk) -> Phasor:
-        """e^{p dt_mid} per standard panel."""
+    def node_phasors(self, pc: PieceChunk, dt: FloatArray) -> Phasor:
+        """e^{p dt} at the standard panels' nodes, (order, panels); ``dt`` those nodes' dt."""
+        if self.ep is None:
+            return _phasors(self.p, dt)
         if self.er is not None:
             e = self._piece_phasor(pc)[pc.sp_piece] * self.er[pc.sp_m]
-            return (e.real, e.imag) if self.p.imag != 0 else (e.real, None)
-        return _phasors(self.p, pc.sp_dt)
+        else:
+            e = _complex(_phasors(self.p, pc.sp_dt))
+        E = e[None, :] * np.take(self.ep.T, pc.sp_m, axis=1)
+        return (E.real, E.imag) if self.p.imag != 0 else (E.real, None)
 
 
 def _second_pass(
-    pc: PieceChunk, std: StdTable, tabs: list[_PoleTable],
-    sp_e: list[Phasor], cn_e: list[Phasor], a: FloatArray, beta: ComplexArray,
+    pc: PieceChunk, std: StdTable, tabs: list[_PoleTable], cn_e: list[Phasor], a: FloatArray,
+    beta: ComplexArray,
 ) -> tuple[FloatArray, FloatArray, list[ComplexArray], list[ComplexArray]]:
     """Var_k = sum w d^2 with d = s - m_k at every node, and per piece T0 = sum w d,
-    T1_p = sum w d e^{p dt}, T2_p = sum w d dt e^{p dt}; a = c - m_k per piece.
-
-    A standard panel's nodes are a row of its table: d = a + Re sum_p B_p e^{p h x_i} with
-    B_p = beta_p e^{p dt_mid}, so the work is (panels, order) arrays without gathers of
-    per-node coefficients."""
+    T1_p = sum w d e^{p dt}, T2_p = sum w d dt e^{p dt}; a = c - m_k per piece. The
+    standard panels' nodes are laid out as (order, panels) arrays, so that the sums over a
+    panel run over the short first axis."""
     npc, n = pc.row.size, pc.k1 - pc.k0
-    # (order, panels) arrays: the sums over a panel's nodes run over the short first axis
     W = np.take(std.w.T, pc.sp_m, axis=1)
+    DT = pc.sp_dt[None, :] + np.take(std.hx.T, pc.sp_m, axis=1)
     d = np.repeat(a[pc.sp_piece][None, :], W.shape[0], axis=0)
-    EP: list[Phasor] = []
-    for i, (se, pt) in enumerate(zip(sp_e, tabs, strict=True)):
-        ep = pt.ep
-        B = _times(se, beta[pc.sp_piece, i])
-        epr = np.take(ep.real.T, pc.sp_m, axis=1)
-        d += B[0] * epr
-        if B[1] is not None:
-            epi = np.take(ep.imag.T, pc.sp_m, axis=1)
-            d -= B[1] * epi
-            EP.append((epr, epi))
-        else:
-            EP.append((epr, None))
+    Es = [pt.node_phasors(pc, DT) for pt in tabs]
+    for i, E in enumerate(Es):
+        d += _recomb(beta[pc.sp_piece, i], E)
     wd = W * d
     var = np.zeros(n)
     var += np.bincount(pc.owner[pc.sp_piece], (wd * d).sum(axis=0), minlength=n)
     t0 = np.zeros(npc)
     t0 += np.bincount(pc.sp_piece, wd.sum(axis=0), minlength=npc)
-    wdh = wd * np.take(std.hx.T, pc.sp_m, axis=1)
+    wddt = wd * DT
     # the other panels' nodes one by one
     dc = a[pc.cn_piece]
     for i, ce in enumerate(cn_e):
@@ -817,20 +831,14 @@ def _second_pass(
     var += np.bincount(pc.owner[pc.cn_piece], wdc * dc, minlength=n)
     t0 += np.bincount(pc.cn_piece, wdc, minlength=npc)
     T1, T2 = [], []
-    for se, ce, (fr, fi) in zip(sp_e, cn_e, EP, strict=True):
-        # sum_i wd_i e^{p h x_i} and sum_i wd_i h x_i e^{p h x_i} per panel
-        g1 = (wd * fr).sum(axis=0), ((wd * fi).sum(axis=0) if fi is not None else None)
-        g2 = (wdh * fr).sum(axis=0), ((wdh * fi).sum(axis=0) if fi is not None else None)
-        p1 = _times(se, _complex(g1))
-        p2 = _times(se, _complex(g2))
-        t1 = _padd(_psum(pc.sp_piece, p1, npc), _psum(pc.cn_piece, _scaled(wdc, ce), npc))
-        t2 = _padd(
-            _psum(pc.sp_piece, _padd(_scaled(pc.sp_dt, p1), p2), npc),
-            _psum(pc.cn_piece, _scaled(wdc * pc.cn_dt, ce), npc),
-        )
+    for E, ce in zip(Es, cn_e, strict=True):
+        g1 = (wd * E[0]).sum(axis=0), ((wd * E[1]).sum(axis=0) if E[1] is not None else None)
+        g2 = (wddt * E[0]).sum(axis=0), ((wddt * E[1]).sum(axis=0) if E[1] is not None else None)
+        t1 = _padd(_psum(pc.sp_piece, g1, npc), _psum(pc.cn_piece, _scaled(wdc, ce), npc))
+        t2 = _padd(_psum(pc.sp_piece, g2, npc), _psum(pc.cn_piece, _scaled(wdc * pc.cn_dt, ce), npc))
         T1.append(_complex(t1))
         T2.append(_complex(t2))
-    return np.asarray(var, dtype=np.float64), np.asarray(t0, dtype=np.float64), T1, T2
+    return var, t0, T1, T2
 
 
 def _complex(e: Phasor) -> ComplexArray:
@@ -908,8 +916,7 @@ def modal_moments(
         mean[sl] = m
         node = None
         if var is not None:
-            sp_e = [pt.panel_phasors(pc) for pt in tabs]
-            node = _second_pass(pc, std, tabs, sp_e, cn_e, c - m[pc.owner], beta)
+            node = _second_pass(pc, std, tabs, cn_e, c - m[pc.owner], beta)
             var[sl] = node[0]
         if not rows:
             continue

@@ -52,14 +52,28 @@ def _gauss_legendre(order: int) -> tuple[FloatArray, FloatArray]:
     return x, w
 
 
-def _relative_cuts(law: JitterLaw, max_panel: float, knots: FloatArray | None = None) -> FloatArray:
-    """The pdf's knots (or ``knots``), subdivided so that no gap exceeds ``max_panel``."""
-    knots = np.unique(np.asarray(law.breakpoints() if knots is None else knots, dtype=float))
+def _relative_cuts(
+    law: JitterLaw, max_panel: float, knots: FloatArray | None = None, limits: FloatArray | None = None
+) -> FloatArray:
+    """The pdf's knots (or ``knots``), subdivided so that no gap exceeds ``max_panel`` (nor
+    ``limits[i]`` between knots i and i + 1)."""
+    knots = np.asarray(law.breakpoints() if knots is None else knots, dtype=float)
+    if limits is None:
+        knots = np.unique(knots)
     pieces = [knots[:1]]
-    for a, b in itertools.pairwise(knots):
-        n = max(1, int(np.ceil((b - a) / max_panel)))
+    for i, (a, b) in enumerate(itertools.pairwise(knots)):
+        lim = max_panel if limits is None else min(max_panel, float(limits[i]))
+        n = max(1, int(np.ceil((b - a) / lim)))
         pieces.append(np.linspace(a, b, n + 1)[1:])
     return np.concatenate(pieces)
+
+
+#: Zones of a Gaussian rule in units of sigma_b and the longest panel in each: the 5-point
+#: rule's error on a panel of length h near the mode scales as pdf h^10, so panels are
+#: shorter where the density is large (0.6 sigma within 3 sigma: ~1e-13 per panel) and
+#: longer in the tails, where the density is small.
+_GAUSS_ZONES = np.array([3.0, 6.0])
+_GAUSS_ZONE_PANELS = np.array([1.7, 0.9, 0.6, 0.9, 1.7])
 
 
 #: Gaussian rules are laid out for a band of sigma, [sigma_b, sigma_b * 2**(1/8)) with
@@ -84,7 +98,8 @@ def rule_frame(law: JitterLaw) -> tuple[FloatArray, float, tuple[float, float]]:
     if type(law) is Gaussian:
         sb = gaussian_band(law.sigma)
         h = GAUSS_SUPPORT_SIGMAS * sb * 2.0 ** (1.0 / _GAUSS_BANDS_PER_OCTAVE)
-        return np.array([-h, h]), sb, (-np.inf, np.inf)
+        z = _GAUSS_ZONES * sb
+        return np.array([-h, -z[1], -z[0], z[0], z[1], h]), sb, (-np.inf, np.inf)
     lo, hi = (float(v) for v in law.support)
     return np.asarray(law.breakpoints(), dtype=float), float(law.std), (lo, hi)
 
@@ -93,8 +108,8 @@ def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -
     """Panel edges in tau (relative to kT) of the rule of :func:`jitter_nodes`.
 
     The pdf's knots, subdivided so that no panel exceeds the support width, ``1 / rate``, the
-    jitter's standard deviation or ``max_panel`` (for a Gaussian: the knots and standard
-    deviation of its band, :func:`rule_frame`). Two signals whose rates give the same edges
+    jitter's standard deviation or ``max_panel`` (for a Gaussian: the window of its band,
+    :func:`rule_frame`, with panels of 0.6 to 1.7 sigma_b by zone, ``_GAUSS_ZONES``). Two signals whose rates give the same edges
     get the same nodes, which lets a caller keep a rule across parameter values
     (:mod:`jitterid.moments.modal`). Empty for a point mass.
     """
@@ -105,10 +120,12 @@ def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -
     limit = float(knots[-1] - knots[0])
     if rate > 0:
         limit = min(limit, 1.0 / rate)
-    if scale > 0:
-        limit = min(limit, scale)
     if max_panel is not None:
         limit = min(limit, max_panel)
+    if type(law) is Gaussian:  # panel lengths by zone (_GAUSS_ZONES)
+        return _relative_cuts(law, limit, knots, _GAUSS_ZONE_PANELS * scale)
+    if scale > 0:
+        limit = min(limit, scale)
     return _relative_cuts(law, limit, knots)
 
 
