@@ -718,6 +718,11 @@ def _scale_terms(
 #: models) takes one phasor per node.
 _TABLE_LIMIT = 40.0
 _FACTOR_LIMIT = 200.0
+#: ... and when the pieces have this many standard panels on average: the factorisation
+#: trades a phasor per panel for a gather per panel and a phasor per piece, a gain only
+#: with several panels per piece (a Gaussian window over a few switches), none for the
+#: paper's U(-T/2, T/2) (two panels per piece).
+_FACTOR_PANELS = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -737,12 +742,12 @@ class _PoleTable:
     H: ComplexArray | None
 
     @classmethod
-    def make(cls, p: complex, std: StdTable) -> _PoleTable:
+    def make(cls, p: complex, std: StdTable, factor: bool = True) -> _PoleTable:
         ep = K = K1 = er = G = H = None
         if not std.hx.size or abs(p.real) * float(np.max(np.abs(std.hx))) < _TABLE_LIMIT:
             ep = np.exp(p * std.hx)
             K, K1 = (std.w * ep).sum(axis=1), (std.w * std.hx * ep).sum(axis=1)
-            if std.mid.size and abs(p.real) * float(np.max(np.abs(std.mid))) < _FACTOR_LIMIT:
+            if factor and std.mid.size and abs(p.real) * float(np.max(np.abs(std.mid))) < _FACTOR_LIMIT:
                 er = np.exp(p * std.mid)
                 G, H = er * K, er * (std.mid * K + K1)
         return cls(p, ep, K, K1, er, G, H)
@@ -904,7 +909,8 @@ def modal_moments(
         c, beta = tab.coefficients(pc.row)  # (pieces,), (pieces, n_kept)
         std = pc.std
         if id(std) not in tables_of:
-            tables_of = {id(std): [_PoleTable.make(complex(p), std) for p in tab.p]}
+            factor = pc.sp_m.size >= _FACTOR_PANELS * max(pc.row.size, 1)
+            tables_of = {id(std): [_PoleTable.make(complex(p), std, factor) for p in tab.p]}
         tabs = tables_of[id(std)]
         cn_e = [_phasors(complex(p), pc.cn_dt) for p in tab.p]
         s1 = [pt.s1(pc, ce) for pt, ce in zip(tabs, cn_e, strict=True)]

@@ -175,6 +175,9 @@ def panel_layout(law: JitterLaw, poles: ArrayLike, order: int = DEFAULT_ORDER) -
     width = float(knots[-1] - knots[0]) if knots.size > 1 else 0.0
     if width <= 0 or p.size == 0:
         return Layout(float(np.max(np.abs(p))) if p.size else 0.0, np.zeros(0))
+    # the longest panel the law's own rule has (rates below 1 / L0 change no edge)
+    if type(law) is Gaussian:
+        scale = scale * float(np.max(_GAUSS_ZONE_PANELS))
     L0 = min(width, scale) if scale > 0 else width
     mag, damp = np.abs(p), -p.real
     fast = (mag * L0 > _GRADE_FROM) & (damp >= _GRADE_DAMPING * mag)
