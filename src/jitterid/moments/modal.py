@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import sparse
 
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import Gaussian, JitterLaw
@@ -464,6 +465,11 @@ def cached_plan(
                 return plan.view(law)
     plan = SegmentPlan(law, T, N, u, rate, poles=poles)
     with _plans_lock:
+        if type(law) is Gaussian:
+            # A search over sigma leaves a band for good (or returns once): keep one
+            # Gaussian plan per data set, not one per band visited (~90 MB each at 1e5).
+            for key in [k for k, q in _plans.items() if type(q.law) is Gaussian and q.u is u]:
+                del _plans[key]
         _plans[id(plan)] = plan
     _trim_cache()
     return plan
@@ -773,23 +779,25 @@ class _PoleTable:
         g = (W * E[0]).sum(axis=0), ((W * E[1]).sum(axis=0) if E[1] is not None else None)
         return _complex(_psum(pc.sp_piece, g, pc.row.size))
 
-    def s1(self, pc: PieceChunk, ce: Phasor) -> ComplexArray:
-        """S1 = sum w e^{p dt} per piece."""
+    def s1(self, pc: PieceChunk, ce: Phasor, gh: tuple[ComplexArray, ComplexArray] | None = None) -> ComplexArray:
+        """S1 = sum w e^{p dt} per piece (``gh``: sum G and sum H per piece, if known)."""
         npc = pc.row.size
         cut = _complex(_psum(pc.cn_piece, _scaled(pc.cn_w, ce), npc))
         if self.G is not None:
-            return self._piece_phasor(pc) * self._gsum(pc, self.G) + cut
+            g = gh[0] if gh is not None else self._gsum(pc, self.G)
+            return self._piece_phasor(pc) * g + cut
         if self.K is not None:
             se = _phasors(self.p, pc.sp_dt)
             return _complex(_psum(pc.sp_piece, _times(se, self.K[pc.sp_m]), npc)) + cut
         return self._node_sums(pc, False) + cut
 
-    def s2(self, pc: PieceChunk, ce: Phasor) -> ComplexArray:
+    def s2(self, pc: PieceChunk, ce: Phasor, gh: tuple[ComplexArray, ComplexArray] | None = None) -> ComplexArray:
         """S2 = sum w dt e^{p dt} per piece."""
         npc = pc.row.size
         cut = _complex(_psum(pc.cn_piece, _scaled(pc.cn_w * pc.cn_dt, ce), npc))
         if self.G is not None and self.H is not None:
-            return self._piece_phasor(pc) * (pc.pdt * self._gsum(pc, self.G) + self._gsum(pc, self.H)) + cut
+            g, h = gh if gh is not None else (self._gsum(pc, self.G), self._gsum(pc, self.H))
+            return self._piece_phasor(pc) * (pc.pdt * g + h) + cut
         if self.K is not None and self.K1 is not None:
             se = _phasors(self.p, pc.sp_dt)
             return _complex(_psum(pc.sp_piece, _times(se, pc.sp_dt * self.K[pc.sp_m] + self.K1[pc.sp_m]), npc)) + cut
@@ -805,6 +813,32 @@ class _PoleTable:
             e = _complex(_phasors(self.p, pc.sp_dt))
         E = e[None, :] * np.take(self.ep.T, pc.sp_m, axis=1)
         return (E.real, E.imag) if self.p.imag != 0 else (E.real, None)
+
+
+def _table_sums(
+    pc: PieceChunk, tabs: list[_PoleTable], std: StdTable
+) -> list[tuple[ComplexArray, ComplexArray] | None]:
+    """sum G and sum H over each piece's standard panels for every factorised pole, as one
+    sparse (pieces x panel numbers) product: the counts of each panel number per piece
+    times the tables."""
+    cols = [(pt.G, pt.H) for pt in tabs if pt.G is not None and pt.H is not None]
+    if not cols:
+        return [None] * len(tabs)
+    npc, R = pc.row.size, std.mid.size
+    counts = sparse.csr_matrix(
+        (np.ones(pc.sp_m.size), pc.sp_m, np.r_[0, np.cumsum(np.bincount(pc.sp_piece, minlength=npc))]),
+        shape=(npc, R),
+    )
+    sums = counts @ np.column_stack([c for pair in cols for c in pair])
+    out: list[tuple[ComplexArray, ComplexArray] | None] = []
+    j = 0
+    for pt in tabs:
+        if pt.G is not None and pt.H is not None:
+            out.append((sums[:, 2 * j], sums[:, 2 * j + 1]))
+            j += 1
+        else:
+            out.append(None)
+    return out
 
 
 def _second_pass(
@@ -913,7 +947,8 @@ def modal_moments(
             tables_of = {id(std): [_PoleTable.make(complex(p), std, factor) for p in tab.p]}
         tabs = tables_of[id(std)]
         cn_e = [_phasors(complex(p), pc.cn_dt) for p in tab.p]
-        s1 = [pt.s1(pc, ce) for pt, ce in zip(tabs, cn_e, strict=True)]
+        gh = _table_sums(pc, tabs, std)
+        s1 = [pt.s1(pc, ce, g) for pt, ce, g in zip(tabs, cn_e, gh, strict=True)]
         m_piece = c * pc.mass
         for i, s1i in enumerate(s1):
             m_piece += (beta[:, i] * s1i).real
@@ -933,7 +968,7 @@ def modal_moments(
         #   L = sum u_j S0, Z_p = sum z_p S1_p, V_p = sum (v_p S1_p + beta_p S2_p)
         # over the pieces of sample k: the pieces are summed before the parameters enter.
         S1 = s1
-        S2 = [pt.s2(pc, ce) for pt, ce in zip(tabs, cn_e, strict=True)]
+        S2 = [pt.s2(pc, ce, g) for pt, ce, g in zip(tabs, cn_e, gh, strict=True)]
         sys_parts = None
         if dtab is not None:
             lev, z, v = _zv(tab, dtab, pc.row)
