@@ -37,11 +37,16 @@ jitter law tau = a xi (xi free of a), s' = Re sum_p beta_jp p e_p on each segmen
 tau_j = t_j - kT for the switches in the window (s jumps there when the model has a
 feedthrough D): the same sums with dbeta = beta p (t_j - kT) / a and dp = p / a, no node moved.
 
-The node geometry (dt, w, pieces) depends on the jitter law and on the panel edges only, not on
-the system, so a :class:`SegmentPlan` built once is reused for every parameter value with the
-same edges (:func:`jitterid.moments.quadrature.relative_cuts`), from a small process-wide cache
-(:func:`cached_plan`). It is kept in memory up to ``_PLAN_BYTES`` (16 bytes per node) and
-otherwise rebuilt chunk by chunk at every evaluation, so memory stays bounded whatever N.
+The node geometry (pieces, standard panels, the other panels' nodes) depends on the jitter
+law and on the panel layout only, not on the system, so a :class:`SegmentPlan` built once is
+reused for every parameter value with the same layout
+(:func:`jitterid.moments.quadrature.panel_layout`), from a small process-wide cache
+(:func:`cached_plan`); a Gaussian plan serves every sigma of its band (only the weights
+change). A standard panel (one no switch cuts) has the same offsets and weights in every
+sample, so its node sums are a phasor times a per-law table (:class:`StdTable`). A plan is
+kept in memory up to ``_PLAN_BYTES`` (~1 kB per sample for a Gaussian window over a few
+switches) and otherwise rebuilt chunk by chunk at every evaluation, so memory stays bounded
+whatever N. Runs of equal input levels are one segment (:func:`merged_input`).
 """
 
 from __future__ import annotations
@@ -83,9 +88,8 @@ ComplexArray = NDArray[np.complex128]
 IntArray = NDArray[np.intp]
 IdxArray = NDArray[np.signedinteger[Any]]  # int32 or intp index arrays
 
-# Node geometry kept in memory at most this size over all plans (16 bytes per node); a
-# plan beyond it is rebuilt at every evaluation (about a third of an evaluation's cost)
-# rather than hold GBs.
+# Node geometry kept in memory at most this size over all plans; a plan beyond it is
+# rebuilt at every evaluation (about a third of an evaluation's cost) rather than hold GBs.
 _PLAN_BYTES = 800_000_000
 _PLANS_KEPT = 4  # the current jitter law and its shifts for a one-sided difference (JOE)
 _plans: OrderedDict[int, SegmentPlan] = OrderedDict()
