@@ -305,7 +305,7 @@ def test_crb_options_and_bad_input():
         ji.crb(structure, family, data.u, T, 40, NOISE, TRUTH)
     with pytest.raises(ValueError, match="noise_std"):
         ji.crb(structure, LAWS["uniform"], data.u, T, 40, 0.0, TRUTH)
-    with pytest.raises(TypeError, match="true_params"):
+    with pytest.raises(ValueError, match="true_params must be a dict by name"):
         ji.crb(structure, LAWS["uniform"], data.u, T, 40, NOISE, "abc")
     with pytest.raises(ValueError, match="not identifiable"):  # k0 = 0: the poles have no effect
         ji.crb(structure, LAWS["uniform"], data.u, T, 40, NOISE, [0.0, -1.5, 2.0])

@@ -129,7 +129,9 @@ class BJProblem:
         self.names = jn + self.structure.param_names + nn
         self.bounds = jb + tuple(self.structure.bounds) + nb
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
-        self._oe = Problem(self.data, self.structure, self.jitter, "bcls", self.freqs, None)
+        self._oe = Problem(
+            self.data, self.structure, self.jitter, "bcls", self.freqs, None, with_variances=True
+        )
 
     @property
     def n_jitter(self) -> int:

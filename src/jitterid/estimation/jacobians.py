@@ -28,6 +28,7 @@ e^{-i 2 pi (f - psi) kT} from :meth:`Problem.dmu` and :meth:`Problem.dR`.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -37,13 +38,15 @@ from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterLaw
 from ..moments.modal import (
     SegmentPlan,
+    Tables,
     cached_plan,
     derivative_tables,
     modal_moments,
     modal_sensitivity,
     tables,
 )
-from ..moments.sample import SampleMoments, sample_moments
+from ..moments.quadrature import panel_layout
+from ..moments.sample import LazyMoments, SampleMoments, sample_moments
 from ..systems.tf import TransferFunction
 
 if TYPE_CHECKING:
@@ -60,24 +63,22 @@ _CD_REL = 1e-6  # central differences (inputs that are not piecewise constant)
 
 # ---------------------------------------------------------------------------- moments
 def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> SegmentPlan:
-    """The node plan for ``law``: rebuilt only when the law or the panel edges change.
+    """The node plan for ``law``: rebuilt only when the law or the panel layout changes.
 
-    The edges depend on the system only through min(1 / rate, ...) (see
-    :func:`jitterid.moments.quadrature.relative_cuts`); the problem remembers the last plan with
-    its jitter parameters and that limit, so that the search, which changes the system at
+    The layout depends on the system only through its poles' rates, rounded
+    (:func:`jitterid.moments.quadrature.panel_layout`); the problem remembers the last plan with
+    its jitter parameters and that layout, so that the search, which changes the system at
     every step, skips even the cache lookup.
     """
     d = problem.data
     assert isinstance(d.u, PiecewiseConstant)
     p = tf._modal[2]
     rate = float(np.max(np.abs(p))) if p.size else 0.0  # Response.rate for this input
-    lo, hi = law.support
-    limit = min(hi - lo, 1.0 / rate if rate > 0 else np.inf, law.std if law.std > 0 else np.inf)
-    key = (np.asarray(x[: problem.n_jitter], float).tobytes(), limit)
+    key = (np.asarray(x[: problem.n_jitter], float).tobytes() + panel_layout(law, p).key, rate)
     memo = problem._plan_memo
-    if memo is not None and memo[0] == key and memo[1].law == law:
+    if memo is not None and memo[0][0] == key[0] and memo[1].law == law:
         return memo[1]
-    plan = cached_plan(law, d.T, d.N, d.u, rate)
+    plan = cached_plan(law, d.T, d.N, d.u, rate, p)
     problem._plan_memo = (key, plan)
     return plan
 
@@ -90,6 +91,7 @@ def moments(problem: Problem, x: FloatArray) -> SampleMoments:
         return sample_moments(tf.response(d.u), law, d.T, d.N)
     d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
     mean, var, _, _ = modal_moments(_plan(problem, x, law, tf), tables(tf, d.u))
+    assert var is not None
     return SampleMoments(mean, var)
 
 
@@ -111,6 +113,12 @@ def _floored(problem: Problem, x: FloatArray, var: FloatArray) -> tuple[FloatArr
     return np.maximum(w, floor), w < floor
 
 
+def _variances(plan: SegmentPlan, tab: Tables) -> FloatArray:
+    var = modal_moments(plan, tab)[1]
+    assert var is not None
+    return var
+
+
 def moment_derivatives(
     problem: Problem, x: FloatArray
 ) -> tuple[SampleMoments, FloatArray, FloatArray, FloatArray]:
@@ -118,6 +126,8 @@ def moment_derivatives(
 
     w are the floored variances of :meth:`Problem.variances`; dw is zero where the floor acts.
     Cached for the last ``x`` (least_squares asks for the Jacobian where it just evaluated).
+    The ``ls`` and ``bcls`` criteria use neither: for them the variances are computed only
+    if asked for (``moments.var``), and w, dw are empty, shape (0,) and (P, 0).
     """
     x = np.asarray(x, float)
     key = x.tobytes()
@@ -132,18 +142,26 @@ def moment_derivatives(
     theta = x[nj : nj + ns]
     scale = problem.jitter.scale_index if nj else None  # type: ignore[union-attr]
     modal = isinstance(d.u, PiecewiseConstant) and (ns > 0 or scale is not None)
+    need_var = problem.needs_variances
     if modal:
         assert isinstance(d.u, PiecewiseConstant)
         d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
         dtab = derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf)) if ns else None
         a = float(x[scale]) if scale is not None else None
-        mean, var, dms, dvs = modal_moments(_plan(problem, x, law, tf), tables(tf, d.u), dtab, scale=a)
+        plan, tab = _plan(problem, x, law, tf), tables(tf, d.u)
+        mean, var, dms, dvs = modal_moments(plan, tab, dtab, scale=a, variance=need_var)
         assert dms is not None
-        assert dvs is not None
-        mom = SampleMoments(mean, var)
-        dm[nj : nj + ns], dv[nj : nj + ns] = dms[:ns], dvs[:ns]
+        if var is None:
+            mom: SampleMoments = LazyMoments(mean, partial(_variances, plan, tab))
+        else:
+            mom = SampleMoments(mean, var)
+        dm[nj : nj + ns] = dms[:ns]
         if scale is not None:
-            dm[scale], dv[scale] = dms[ns], dvs[ns]
+            dm[scale] = dms[ns]
+        if dvs is not None:
+            dv[nj : nj + ns] = dvs[:ns]
+            if scale is not None:
+                dv[scale] = dvs[ns]
     else:
         mom = moments(problem, x)
         lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
@@ -159,7 +177,15 @@ def moment_derivatives(
             continue
         xi, h = _shift(x, i, problem.bounds[i], _FD_REL)
         mi = moments(problem, xi)
-        dm[i], dv[i] = (mi.mean - mom.mean) / h, (mi.var - mom.var) / h
+        dm[i] = (mi.mean - mom.mean) / h
+        if need_var:
+            dv[i] = (mi.var - mom.var) / h
+    if not need_var:
+        out = (mom, np.empty(0), dm, np.empty((P, 0)))
+        problem._dcache = (key, out)
+        problem._cache.clear()
+        problem._cache[key] = mom
+        return out
     w, floored = _floored(problem, x, mom.var)
     dw = dv
     if problem.estimates_noise:

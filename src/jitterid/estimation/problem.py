@@ -80,6 +80,9 @@ class Problem:
     freqs: FloatArray
     noise_std: float | None
     weights_at: FloatArray | None = None  # wbcls: theta at which R is frozen (module doc)
+    # whether moment_derivatives computes Var_k and dVar: None = as the estimator needs
+    # (LS and BCLS skip them); the Box-Jenkins criteria, which read them, set True
+    with_variances: bool | None = None
     layout: ParamLayout = field(init=False)
     Y: ComplexArray = field(init=False)
     likelihood: ExactLikelihood | None = field(init=False, default=None)
@@ -179,6 +182,13 @@ class Problem:
         return np.maximum(w, 1e-300 + 1e-12 * float(np.max(w, initial=0.0)))
 
     # ------------------------------------------------------------------ for the criteria
+    @property
+    def needs_variances(self) -> bool:
+        """Whether the derivative pass computes Var_k and dVar (see ``with_variances``)."""
+        if self.with_variances is not None:
+            return self.with_variances
+        return self.estimator.uses_variances
+
     @property
     def estimator(self) -> Estimator:
         """The estimator whose criterion this problem evaluates."""

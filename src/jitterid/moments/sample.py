@@ -13,6 +13,7 @@ check that both routes give the same numbers.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +55,25 @@ class SampleMoments:
     var: FloatArray
 
 
+class LazyMoments(SampleMoments):
+    """:class:`SampleMoments` whose ``var`` is computed on first use by ``var_fn`` (a
+    least-squares search needs only the means; its noise plug-in or covariance may later ask
+    for the variances)."""
+
+    _lazy: list[Callable[[], FloatArray] | FloatArray]
+
+    def __init__(self, mean: FloatArray, var_fn: Callable[[], FloatArray]) -> None:
+        object.__setattr__(self, "mean", mean)
+        object.__setattr__(self, "_lazy", [var_fn])
+
+    @property
+    def var(self) -> FloatArray:
+        held = self._lazy[0]
+        if callable(held):
+            held = self._lazy[0] = held()
+        return held
+
+
 def sample_moments(
     signal: Response,
     jitter: JitterLaw,
@@ -77,8 +97,9 @@ def sample_moments(
     if isinstance(signal.u, PiecewiseConstant) and hi > lo:
         # The same nodes, summed per input segment from the modal form (:mod:`._modal`):
         # a few times faster than evaluating s(t) node by node.
-        plan = SegmentPlan(jitter, T, N, signal.u, signal.rate, order=order)
+        plan = SegmentPlan(jitter, T, N, signal.u, signal.rate, order=order, poles=signal.system._modal[2])
         mean, var, _, _ = modal_moments(plan, tables(signal.system, signal.u), keep=False)
+        assert var is not None
         return SampleMoments(mean, var)
     mean = np.empty(N)
     var = np.empty(N)

@@ -81,6 +81,9 @@ class Estimator:
     full_covariance : bool
         The criterion weights by the full frequency covariance R_Y (its Cholesky factor is
         formed by the problem).
+    uses_variances : bool
+        The criterion (or its derivatives) reads the sample variances w_k; False lets the
+        problem skip their pass (LS, BCLS).
 
     A least-squares estimator implements :meth:`residuals` and :meth:`jacobian`; any other
     :meth:`objective_gradient`; every one :meth:`objective` and :meth:`grad_y` (dV/dy, for
@@ -95,6 +98,7 @@ class Estimator:
     cov_types: ClassVar[tuple[str, ...]] = ("sandwich", "robust", "none")
     ignores_jitter: ClassVar[bool] = False
     full_covariance: ClassVar[bool] = False
+    uses_variances: ClassVar[bool] = True
     rank: ClassVar[int] = 100  # position in listings (the paper's order first)
 
     # ------------------------------------------------------------------ the criterion

@@ -19,6 +19,7 @@ class _DFTResidual(Estimator):
     least_squares = True
     needs_noise = False
     estimates_noise = False
+    uses_variances = False
 
     def residuals(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
         r, _ = problem.weighted(x)
