@@ -50,10 +50,10 @@ def test_an_uncertain_standard_deviation_gets_no_negative_interval(gaussian_fit)
     lo, hi = wild.conf_int()["noise_std"]
     assert lo == 1e-12  # the bound: the data do not exclude (almost) no noise
     assert hi == pytest.approx(0.0157 + 1.959964 * 0.085, rel=1e-6)
-    assert "noise_std" in wild.interval_notes
-    assert "lower end at the bound 1e-12" in wild.interval_notes["noise_std"]
+    assert "noise_std" in wild.conf_int_notes()
+    assert "cut at its bound 1e-12" in wild.conf_int_notes(0.5)["noise_std"]
     text = wild.summary()
-    assert "noise_std: interval cut at its bounds" in text
+    assert "noise_std: interval cut at its bound 1e-12" in text
     assert "-0.1" not in text
     # The log scale: positive, asymmetric, centred on ln theta.
     llo, lhi = wild.conf_int(scale="log")["noise_std"]
@@ -68,7 +68,7 @@ def test_well_determined_intervals_are_unchanged_and_arguments_are_checked(gauss
     se = res.stderr
     for n, (lo, hi) in res.conf_int(0.9).items():
         assert (lo, hi) == pytest.approx((res.params[n] - 1.644854 * se[n], res.params[n] + 1.644854 * se[n]))
-    assert res.interval_notes == {}
+    assert res.conf_int_notes() == {}
     with pytest.raises(ValueError, match="scale must be 'linear' or 'log'"):
         res.conf_int(scale="logit")
     with pytest.raises(ValueError, match="level must be in"):

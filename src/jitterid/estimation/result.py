@@ -277,7 +277,7 @@ class FitResult:
             jitter scale ``a`` / ``sigma``) or any parameter with a lower bound >= 0
             therefore never gets a negative end: an interval that reached below 0 starts at
             the bound (``1e-12`` for a scale, ``0`` for the shape ``n``), which says that the
-            data do not exclude a value near zero. :attr:`interval_notes` names the
+            data do not exclude a value near zero. :meth:`conf_int_notes` names the
             parameters cut. ``"log"``: for a parameter with a positive lower bound, the
             delta-method interval of ``ln theta`` mapped back, ``theta exp(+-z se / theta)``
             (positive and asymmetric); the others as ``"linear"``. The log scale covers as
@@ -318,25 +318,23 @@ class FitResult:
             out[n] = (float(max(a, lo[i])), float(min(b, hi[i])))
         return out, cut
 
-    @property
-    def interval_notes(self) -> dict[str, str]:
-        """``{name: note}`` for the parameters whose 95% :meth:`conf_int` is cut at a bound
-        (e.g. a standard deviation whose symmetric interval would reach below 0)."""
+    def conf_int_notes(self, level: float = 0.95) -> dict[str, str]:
+        """``{name: note}`` for the parameters whose :meth:`conf_int` at ``level`` is cut at
+        a bound (e.g. a standard deviation whose symmetric interval would reach below 0)."""
+        if not 0 < level < 1:
+            raise ValueError(f"level must be in (0, 1); got {level}")
         if not self.x.size:
             return {}
-        ci, cut = self._intervals(0.95, "linear")
+        ci, cut = self._intervals(level, "linear")
         lo, hi = self.layout.lower_upper()
         notes: dict[str, str] = {}
         for n in cut:
             i = self.names.index(n)
-            side = [
-                f"lower end at the bound {lo[i]:g}" if ci[n][0] == lo[i] else "",
-                f"upper end at the bound {hi[i]:g}" if ci[n][1] == hi[i] else "",
-            ]
+            ends = [b for b, at in ((lo[i], ci[n][0] == lo[i]), (hi[i], ci[n][1] == hi[i])) if at]
+            where = " and ".join(f"{b:g}" for b in ends)
             notes[n] = (
-                "interval cut at its bounds (" + ", ".join(x for x in side if x) + "): "
-                "theta +- 1.96 se leaves the admissible set, so the data do not exclude the "
-                "bound"
+                f"interval cut at its bound {where}: the symmetric interval leaves the admissible "
+                "set, so the data do not exclude the bound"
             )
         return notes
 
@@ -379,7 +377,7 @@ class FitResult:
 
         Intervals are :meth:`conf_int`'s at 95%: symmetric and cut at the parameter's
         bounds, so a standard deviation's never goes negative; a line under the table names
-        every interval cut (:attr:`interval_notes`) and every parameter without a standard
+        every interval cut (:meth:`conf_int_notes`) and every parameter without a standard
         error, with the reason (:attr:`stderr_notes`). The jitter law's std is given with its
         standard error (:attr:`jitter_std_stderr`).
         """
@@ -395,7 +393,7 @@ class FitResult:
             lines.append(
                 f"  {n:<10} {v:>12.6g} {se[n]:>12.4g}   [{ci[n][0]:>11.5g}, {ci[n][1]:>11.5g}]"
             )
-        lines += [f"  {n}: {why}" for n, why in self.interval_notes.items()]
+        lines += [f"  {n}: {why}" for n, why in self.conf_int_notes().items()]
         if self.cov_type != "none":
             lines += [f"  {n}: {why}" for n, why in self.stderr_notes.items()]
         if isinstance(self.jitter_model, JitterFamily):
