@@ -203,3 +203,18 @@ def test_jitter_std_stderr_matches_the_monte_carlo_spread(table2_monte_carlo):
     ratio = np.mean(se) / np.std(std, ddof=1)
     assert 0.75 < ratio < 1.4, ratio
     assert np.mean(np.abs(std - 0.5 / math.sqrt(3)) <= 1.96 * se) >= 0.85
+
+
+def test_jitter_std_stderr_agrees_with_parameter_sampling():
+    """The sum-of-uniforms family, (n, a) correlated: draws of (n, a) from N(x, C) give a
+    spread of the law's std equal to the delta method's standard error."""
+    data = table2_data(4, known_noise=False)
+    res = ji.fit(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), "bcls", start=[0.5, 0.45, 6.25, -1.5, 2.0])
+    x = np.array(res.x)
+    x[:2] = 2.0, 0.6
+    C = np.eye(len(res.names)) * 1e-4
+    C[:2, :2] = [[0.04, 0.003], [0.003, 0.0004]]
+    r = dataclasses.replace(res, x=x, cov=C)
+    draws = np.random.default_rng(0).multivariate_normal(x[:2], C[:2, :2], size=20000)
+    stds = draws[:, 1] / np.sqrt(3 * (draws[:, 0] + 1))
+    assert r.jitter_std_stderr == pytest.approx(np.std(stds), rel=0.03)
