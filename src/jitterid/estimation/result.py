@@ -251,8 +251,8 @@ class FitResult:
                     f"on its bound {b:g}: held fixed, so no standard error (the others are "
                     "conditional on it)"
                 )
-            elif v - 2 * step < lo[i] or v + 2 * step > hi[i]:
-                b = lo[i] if v - 2 * step < lo[i] else hi[i]
+            elif v - step < lo[i] or v + step > hi[i]:  # covariance.py's rule: x +- 2h inside
+                b = lo[i] if v - step < lo[i] else hi[i]
                 notes[n] = (
                     f"next to its bound {b:g}: held fixed, so no standard error (the others "
                     "are conditional on it)"
