@@ -96,6 +96,7 @@ def test_simulate_then_fit_recovers_the_truth(lab, tmp_path):
         "law": "Uniform",
         "params": {"a": 0.5},
         "std": pytest.approx(0.5 / np.sqrt(3)),
+        "std_stderr": 0.0,
     }
     # The report links figures that exist.
     report = (out / "report.md").read_text()
@@ -427,3 +428,125 @@ def test_a_failed_search_exits_3_and_says_so(lab, tmp_path, monkeypatch):
     assert res.exit_code == 3
     assert "did not converge" in res.output
     assert json.loads((out / "result.json").read_text())["success"] is False
+
+
+# ------------------------------------------------------------------------------ output (issue 15 F)
+
+
+class _FakeTTY:
+    """A text stream that says it is a terminal, to see the progress bar in a test."""
+
+    def __init__(self) -> None:
+        self.text = ""
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, s: str) -> int:
+        self.text += s
+        return len(s)
+
+    def flush(self) -> None:
+        pass
+
+
+def _fit_args(lab: Path, out: Path, *extra: str, jitter: str = "uniform") -> list[str | Path]:
+    return [
+        "fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
+        "--jitter", jitter, "--method", "bcls", "--out", out, "--no-plots", *extra,
+    ]  # fmt: skip
+
+
+def test_progress_bar_on_a_terminal_only_on_stderr_and_off_with_quiet(lab, tmp_path, monkeypatch):
+    from jitterid.cli import data as cli_data
+
+    # Not a terminal (CliRunner's stderr, a pipe, a log file): no bar at all.
+    res = CliRunner().invoke(main, [str(a) for a in _fit_args(lab, tmp_path / "plain")])
+    assert res.exit_code == 0, res.output
+    assert "ordinary LS fit (" not in res.stderr
+    # A terminal: the stages, with the elapsed time, on stderr, cleared at the end; stdout
+    # and the result files never see it.
+    tty = _FakeTTY()
+    monkeypatch.setattr(cli_data, "PROGRESS_DELAY", 0.0)
+    monkeypatch.setattr(cli_data, "_progress_file", lambda: tty)
+    out = tmp_path / "tty"
+    res = CliRunner().invoke(main, [str(a) for a in _fit_args(lab, out)])
+    assert res.exit_code == 0, res.output
+    for stage in ("bcls fit (1/4)", "diagnostics (2/4)", "writing results (3/4)"):
+        assert f"jitterid: {stage}" in tty.text
+    assert re.search(r"\d\d:\d\d", tty.text)
+    assert tty.text.endswith("\r")  # the line is cleared
+    assert "jitterid: " not in res.stdout
+    for f in out.iterdir():
+        assert "bcls fit (" not in f.read_text(), f
+    # --quiet: nothing, even on a terminal.
+    tty.text = ""
+    res = CliRunner().invoke(main, [str(a) for a in _fit_args(lab, tmp_path / "quiet", "--quiet")])
+    assert res.exit_code == 0, res.output
+    assert tty.text == ""
+    assert "--quiet" in run("fit", "--help").output
+
+
+def test_a_short_fit_shows_no_bar_even_on_a_terminal(lab, tmp_path, monkeypatch):
+    from jitterid.cli import data as cli_data
+
+    tty = _FakeTTY()
+    monkeypatch.setattr(cli_data, "PROGRESS_DELAY", 60.0)
+    monkeypatch.setattr(cli_data, "_progress_file", lambda: tty)
+    res = CliRunner().invoke(main, [str(a) for a in _fit_args(lab, tmp_path / "f")])
+    assert res.exit_code == 0, res.output
+    assert tty.text == ""
+
+
+def test_noise_std_is_null_where_no_noise_was_used(lab, tmp_path):
+    """ls uses no noise level: null and "not used"; bcls records the residuals' plug-in its
+    covariance used, or the given value, and says which."""
+    ok("fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
+       "--jitter", "none", "--method", "ls", "--out", tmp_path / "ls", "--no-plots")  # fmt: skip
+    result = json.loads((tmp_path / "ls" / "result.json").read_text())
+    assert result["noise_std"] is None
+    assert result["noise_std_source"] is None
+    assert "- noise std: not used" in (tmp_path / "ls" / "report.md").read_text()
+    ok(*_fit_args(lab, tmp_path / "bcls"))
+    result = json.loads((tmp_path / "bcls" / "result.json").read_text())
+    assert result["noise_std"] > 0
+    assert result["noise_std_source"] == "residuals"
+    assert "the residuals' plug-in" in (tmp_path / "bcls" / "report.md").read_text()
+    ok(*_fit_args(lab, tmp_path / "given", "--noise-std", "0.01"))
+    result = json.loads((tmp_path / "given" / "result.json").read_text())
+    assert (result["noise_std"], result["noise_std_source"]) == (0.01, "given")
+    assert result["jitter"]["std_stderr"] > 0
+
+
+def test_a_parameter_on_its_bound_is_explained_in_result_json(lab, tmp_path, monkeypatch):
+    """The issue: "nan" unexplained. result.json's stderr is null there, and stderr_notes
+    says why; an interval cut at a bound is noted in conf_int_notes; both in the report."""
+    import dataclasses
+
+    from jitterid.cli import data as cli_data
+
+    real = cli_data.fit_model
+
+    def on_bound(data, structure, jitter, method, *args, **kwargs):
+        res = real(data, structure, jitter, method, *args, **kwargs)
+        if method == "ls":
+            return res
+        x, cov = np.array(res.x), np.array(res.cov)
+        x[0] = 0.0  # n on its lower bound: held fixed
+        cov[0, :] = cov[:, 0] = np.nan
+        cov[1, 1] = (x[1] / 1.5) ** 2  # a: a wide interval, cut at its floor
+        return dataclasses.replace(res, x=x, cov=cov)
+
+    monkeypatch.setattr(cli_data, "fit_model", on_bound)
+    out = tmp_path / "fit"
+    res = ok(*_fit_args(lab, out, jitter="sum-of-uniforms"))
+    result = json.loads((out / "result.json").read_text())
+    assert result["stderr"]["n"] is None
+    assert "on its bound 0" in result["stderr_notes"]["n"]
+    assert set(result["stderr_notes"]) == {"n"}
+    assert result["conf_int_95"]["a"][0] == 1e-12
+    assert "cut at its bound 1e-12" in result["conf_int_notes"]["a"]
+    report = (out / "report.md").read_text()
+    assert "- n: on its bound 0" in report
+    assert "- a: interval cut at its bound 1e-12" in report
+    assert "n: on its bound 0" in res.output

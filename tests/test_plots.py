@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
@@ -26,16 +28,57 @@ def band() -> BodeBand:
     return BodeBand(f, mag, 0.9 * mag, 1.1 * mag, ph, ph - 5, ph + 5, 0.95)
 
 
-def test_bode_draws_the_band_and_references(band):
+def db(x):
+    return 20 * np.log10(x)
+
+
+def test_bode_draws_the_band_and_references_in_db(band):
     ref = ji.TransferFunction([5.0], [1.0, 3.0, 5.0])
     art = plots.plot_bode(band, {"other": ref})
-    np.testing.assert_array_equal(art["magnitude"].get_ydata(), band.magnitude)
+    np.testing.assert_allclose(art["magnitude"].get_ydata(), db(band.magnitude))
     np.testing.assert_array_equal(art["phase"].get_xdata(), band.f)
-    np.testing.assert_allclose(art["other magnitude"].get_ydata(), np.abs(ref.frequency_response(band.f)))
+    np.testing.assert_allclose(art["other magnitude"].get_ydata(), db(np.abs(ref.frequency_response(band.f))))
     verts = art["magnitude_band"].get_paths()[0].vertices
-    assert verts[:, 1].min() == pytest.approx(band.magnitude_lo.min())
-    assert verts[:, 1].max() == pytest.approx(band.magnitude_hi.max())
+    assert verts[:, 1].min() == pytest.approx(db(band.magnitude_lo).min())
+    assert verts[:, 1].max() == pytest.approx(db(band.magnitude_hi).max())
     assert art["magnitude"].axes is not art["phase"].axes
+    # A small object out, python-control style: the artists by name, the figure and axes.
+    assert isinstance(art, plots.Plot)
+    assert art.axes == (art["magnitude"].axes, art["phase"].axes)
+    assert art.figure is art["magnitude"].figure
+    assert art.legend is art.axes[0].get_legend()
+    assert "dB" in art.axes[0].get_ylabel()
+
+
+def _tick_labels(ax, which):
+    ax.figure.canvas.draw()
+    axis = ax.yaxis if which == "y" else ax.xaxis
+    return [t for t in axis.get_ticklabels(which="both") if t.get_visible() and t.get_text()]
+
+
+@pytest.mark.parametrize("f", [np.geomspace(0.01, 0.5, 50), np.geomspace(1e-3, 50, 200), np.geomspace(0.2, 0.3, 40)])
+def test_bode_ticks_are_round_and_do_not_overlap(f):
+    """The issue: a linear magnitude with every minor tick labelled, overlapping. Now dB
+    ticks at multiples of 1, 2, 2.5 or 5 x 10^k, phase at multiples of 15 degrees, and no
+    two labels on an axis overlap, over a narrow and a wide range."""
+    g = ji.TransferFunction([1.0, 2.0], [1.0, 0.6, 9.0, 1.0]).frequency_response(f)
+    mag, ph = np.abs(g), np.degrees(np.unwrap(np.angle(g)))
+    art = plots.plot_bode(BodeBand(f, mag, 0.0 * mag, 2 * mag, ph, ph - 5, ph + 5, 0.95))
+    ax_mag, ax_ph = art.axes
+    step = np.diff(ax_mag.get_yticks())[0]
+    mant = step / 10 ** np.floor(np.log10(step))
+    assert min(abs(mant - m) for m in (1, 2, 2.5, 5)) < 1e-9
+    assert np.allclose(np.mod(ax_ph.get_yticks(), 15), 0) or np.allclose(np.mod(ax_ph.get_yticks(), 1.5), 0)
+    # The -inf dB lower edge (|G| = 0) does not set the range: the curve fills the axes.
+    lo, _ = ax_mag.get_ylim()
+    assert np.isfinite(lo)
+    assert lo > db(mag).min() - 30
+    renderer = art.figure.canvas.get_renderer()
+    for ax, which in ((ax_mag, "y"), (ax_ph, "y"), (ax_ph, "x")):
+        boxes = [t.get_window_extent(renderer) for t in _tick_labels(ax, which)]
+        assert len(boxes) >= 2
+        for a, b in itertools.pairwise(boxes):
+            assert not a.overlaps(b), (which, [t.get_text() for t in _tick_labels(ax, which)])
 
 
 def test_bode_uses_the_given_axes(band):
@@ -73,6 +116,7 @@ def test_residual_panels_and_envelope():
     )
     _, axes = plt.subplots(1, 2)
     art = plots.plot_residuals(det, ax=axes)
+    assert art.axes == tuple(axes)
     np.testing.assert_array_equal(art["time"].get_offsets(), np.c_[t, r])
     np.testing.assert_array_equal(art["slope"].get_offsets(), np.c_[slopes, r])
     upper = art["envelope"][0]

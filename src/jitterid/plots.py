@@ -1,7 +1,8 @@
 """Matplotlib figures for the diagnostics; computing lives in :mod:`jitterid.analysis.diagnostics`.
 
 Every function takes ``ax=None`` (new axes are created) or the axes to draw on, and returns
-a dict of the artists it made, in the style of python-control. Frequencies are in Hz.
+a :class:`Plot`: the artists it made by name (a dict), with ``figure``, ``axes`` and
+``legend``, in the style of python-control's ``ControlPlot``. Frequencies are in Hz.
 """
 
 from __future__ import annotations
@@ -17,9 +18,32 @@ from .analysis.uncertainty import BodeBand, PdfBand
 from .jitter.laws import JitterLaw
 from .systems.tf import TransferFunction
 
-__all__ = ["plot_bode", "plot_gain_factor", "plot_jitter_pdf", "plot_residuals"]
+__all__ = ["Plot", "plot_bode", "plot_gain_factor", "plot_jitter_pdf", "plot_residuals"]
+
+
+class Plot(dict[str, Any]):
+    """What a plot function drew: its artists by name (a dict, e.g. ``plot["magnitude"]``),
+    and ``figure``, ``axes`` (a tuple) and ``legend`` (the first axes' legend, or None), as
+    python-control's ``ControlPlot``; ``plot.savefig(path)`` saves the figure."""
+
+    def __init__(self, artists: dict[str, Any], axes: Sequence[Any]) -> None:
+        super().__init__(artists)
+        self.axes: tuple[Any, ...] = tuple(axes)
+        self.figure: Any = self.axes[0].figure
+        self.legend: Any = self.axes[0].get_legend()
+
+    def savefig(self, *args: Any, **kwargs: Any) -> Any:
+        """``self.figure.savefig(...)``."""
+        return self.figure.savefig(*args, **kwargs)
+
 
 Artists = dict[str, Any]
+
+
+def _db(mag: ArrayLike) -> Any:
+    """20 log10 |G|; -inf for 0 (a band's lower edge that reaches 0)."""
+    with np.errstate(divide="ignore"):
+        return 20.0 * np.log10(np.maximum(np.asarray(mag, float), 0.0))
 
 
 def _axes(ax: Any, n: int, **subplots: Any) -> Any:
@@ -43,8 +67,13 @@ def plot_bode(
     *,
     label: str = "jitter-aware estimate",
     ax: Any = None,
-) -> Artists:
-    """Bode magnitude and phase of an estimate with its confidence band.
+) -> Plot:
+    """Bode magnitude (dB) and phase (degrees) of an estimate with its confidence band.
+
+    The magnitude is 20 log10 |G(i 2 pi f)| on a linear dB axis, so its ticks are round
+    numbers of dB whatever the range; the phase ticks are multiples of 15, 30, 45 or 90
+    degrees; the frequency axis is logarithmic (Hz). The vertical range follows the curves:
+    a band edge far below them (a lower edge at |G| = 0, -inf dB) leaves the axes.
 
     Parameters
     ----------
@@ -56,48 +85,78 @@ def plot_bode(
     label : str
         Legend label of the estimate.
     ax : pair of Axes, optional
-        (magnitude axes, phase axes); new ones if None.
+        (magnitude axes, phase axes); new ones (a new figure) if None.
 
     Returns
     -------
-    dict
+    Plot
         ``magnitude``, ``magnitude_band``, ``phase``, ``phase_band`` and, per reference,
-        ``"<name> magnitude"`` / ``"<name> phase"``.
+        ``"<name> magnitude"`` / ``"<name> phase"``; magnitudes are drawn in dB.
     """
     if not isinstance(band, BodeBand):
         raise TypeError(f"band must be a BodeBand; got {type(band).__name__}")
+    from matplotlib.ticker import MaxNLocator
+
     ax_mag, ax_ph = _axes(ax, 2, sharex=True, figsize=(6.4, 6.0))
     pct = f"{100 * band.level:g}% band"
+    mag_db = _db(band.magnitude)
+    lo_db, hi_db = _db(band.magnitude_lo), _db(band.magnitude_hi)
+    finite = mag_db[np.isfinite(mag_db)]
+    # A lower edge at |G| = 0 is -inf dB: draw it far below the axes, not as a gap.
+    floor = (float(finite.min()) if finite.size else 0.0) - 1000.0
+    lo_fill = np.where(np.isneginf(lo_db), floor, lo_db)
     out: Artists = {
-        "magnitude": ax_mag.loglog(band.f, band.magnitude, color="C0", lw=2, label=label)[0],
+        "magnitude": ax_mag.semilogx(band.f, mag_db, color="C0", lw=2, label=label)[0],
         "magnitude_band": ax_mag.fill_between(
-            band.f, band.magnitude_lo, band.magnitude_hi, color="C0", alpha=0.25, lw=0, label=pct
+            band.f,
+            lo_fill,
+            hi_db,
+            color="C0",
+            alpha=0.25,
+            lw=0,
+            label=pct,
         ),
         "phase": ax_ph.semilogx(band.f, band.phase, color="C0", lw=2, label=label)[0],
         "phase_band": ax_ph.fill_between(
             band.f, band.phase_lo, band.phase_hi, color="C0", alpha=0.25, lw=0, label=pct
         ),
     }
+    curves = [mag_db]
     styles = ["--", ":", "-."]
     for i, (name, tf) in enumerate((references or {}).items()):
         g = tf.frequency_response(band.f)
         style = {"color": f"C{i + 1}", "ls": styles[i % len(styles)], "lw": 1.5, "label": name}
-        out[f"{name} magnitude"] = ax_mag.loglog(band.f, np.abs(g), **style)[0]
-        out[f"{name} phase"] = ax_ph.semilogx(band.f, np.degrees(np.unwrap(np.angle(g))), **style)[
-            0
-        ]
-    from matplotlib.ticker import FuncFormatter
-
-    plain = FuncFormatter(lambda v, _: f"{v:g}")  # 0.8, not 8 x 10^-1, on narrow log ranges
-    ax_mag.yaxis.set_major_formatter(plain)
-    ax_mag.yaxis.set_minor_formatter(plain)
-    ax_mag.set_ylabel("|G(i 2π f)|")
+        curves.append(_db(np.abs(g)))
+        out[f"{name} magnitude"] = ax_mag.semilogx(band.f, curves[-1], **style)[0]
+        out[f"{name} phase"] = ax_ph.semilogx(
+            band.f, np.degrees(np.unwrap(np.angle(g))), **style
+        )[0]
+    _db_limits(ax_mag, curves, lo_db, hi_db)
+    ax_mag.yaxis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]))
+    ax_ph.yaxis.set_major_locator(MaxNLocator(nbins=7, steps=[1, 1.5, 3, 4.5, 9, 10]))
+    ax_mag.set_ylabel("|G(i 2π f)| (dB)")
     ax_ph.set_ylabel("phase (deg)")
     ax_ph.set_xlabel("frequency f (Hz)")
-    ax_mag.legend(loc="lower left", fontsize="small")
+    ax_mag.legend(loc="best", fontsize="small")
     for a in (ax_mag, ax_ph):
-        a.grid(True, which="both", alpha=0.3)
-    return out
+        a.grid(True, which="major", alpha=0.4)
+        a.grid(True, which="minor", axis="x", alpha=0.15)
+    return Plot(out, (ax_mag, ax_ph))
+
+
+def _db_limits(ax: Any, curves: list[Any], lo: Any, hi: Any) -> None:
+    """Fit the dB axis to the curves and the band, but no more than 20 dB beyond the curves
+    (a band edge at -inf dB would otherwise squash them)."""
+    vals = np.concatenate([np.asarray(c)[np.isfinite(c)] for c in curves])
+    if not vals.size:
+        return
+    c_lo, c_hi = float(vals.min()), float(vals.max())
+    b_lo = np.asarray(lo)[~np.isnan(lo)]  # -inf (|G| = 0) kept: the band runs off the bottom
+    b_hi = np.asarray(hi)[~np.isnan(hi)]
+    bottom = max(min(c_lo, float(b_lo.min()) if b_lo.size else c_lo), c_lo - 20.0)
+    top = min(max(c_hi, float(b_hi.max()) if b_hi.size else c_hi), c_hi + 20.0)
+    pad = max(0.05 * (top - bottom), 0.5)
+    ax.set_ylim(bottom - pad, top + pad)
 
 
 def plot_jitter_pdf(
@@ -106,7 +165,7 @@ def plot_jitter_pdf(
     *,
     label: str = "estimated pdf",
     ax: Any = None,
-) -> Artists:
+) -> Plot:
     """The estimated jitter density with its band (and the true one, if known).
 
     Parameters
@@ -121,7 +180,7 @@ def plot_jitter_pdf(
 
     Returns
     -------
-    dict
+    Plot
         ``pdf``, ``band`` (absent for a known law, whose band is empty) and ``truth``.
     """
     if not isinstance(band, PdfBand):
@@ -151,10 +210,10 @@ def plot_jitter_pdf(
     ax.set_ylim(bottom=0, top=min(top, 1.15 * max(float(np.max(band.hi)), float(np.max(band.pdf)))))
     ax.legend(loc="upper right", fontsize="small")
     ax.grid(True, alpha=0.3)
-    return out
+    return Plot(out, (ax,))
 
 
-def plot_residuals(detection: JitterDetection, *, ax: Any = None) -> Artists:
+def plot_residuals(detection: JitterDetection, *, ax: Any = None) -> Plot:
     """Residuals of an ordinary fit against time and against the model slope.
 
     With jitter the residual spread grows with |s'(kT)|: a funnel in the right panel. The
@@ -169,7 +228,7 @@ def plot_residuals(detection: JitterDetection, *, ax: Any = None) -> Artists:
 
     Returns
     -------
-    dict
+    Plot
         ``time``, ``slope`` (scatter collections) and ``envelope`` (two lines).
     """
     if not isinstance(detection, JitterDetection):
@@ -198,7 +257,7 @@ def plot_residuals(detection: JitterDetection, *, ax: Any = None) -> Artists:
     ax_s.legend(loc="upper right", fontsize="small")
     for a in (ax_t, ax_s):
         a.grid(True, alpha=0.3)
-    return out
+    return Plot(out, (ax_t, ax_s))
 
 
 def plot_gain_factor(
@@ -208,7 +267,7 @@ def plot_gain_factor(
     label: str = "|φ(f)|",
     tol: float | None = 0.01,
     ax: Any = None,
-) -> Artists:
+) -> Plot:
     """The LS gain factor |phi(f)| over frequency (see :func:`~jitterid.ls_gain_factor`).
 
     Parameters
@@ -223,7 +282,7 @@ def plot_gain_factor(
 
     Returns
     -------
-    dict
+    Plot
         ``factor`` and, with ``tol``, ``tolerance``.
     """
     ax = _axes(ax, 1)
@@ -237,4 +296,4 @@ def plot_gain_factor(
     ax.set_ylim(bottom=0, top=1.05)
     ax.legend(loc="lower left", fontsize="small")
     ax.grid(True, alpha=0.3)
-    return out
+    return Plot(out, (ax,))

@@ -94,12 +94,46 @@ def _system_dict(tf: TransferFunction) -> dict[str, Any]:
     }
 
 
+def noise_source(rep: FitReport) -> str | None:
+    """Where the result's noise_std came from: ``"estimated"`` (a parameter of the fit),
+    ``"given"`` (``--noise-std`` or the data file), ``"residuals"`` (not used by the
+    criterion; its plug-in from the residuals, for the covariance) or None (not used)."""
+    res = rep.result
+    if res.noise_std is None:
+        return None
+    if "noise_std" in res.names:
+        return "estimated"
+    return "given" if rep.dataset.data.noise_std is not None else "residuals"
+
+
+def _noise_line(rep: FitReport) -> str:
+    res = rep.result
+    how = {
+        None: "",
+        "estimated": " (estimated)",
+        "given": " (given)",
+        "residuals": (
+            f" (not used by `{res.method}`: the residuals' plug-in, used for the standard errors)"
+        ),
+    }[noise_source(rep)]
+    return "- noise std: not used" if res.noise_std is None else f"- noise std: {res.noise_std:.4g}{how}"
+
+
 def result_json(rep: FitReport) -> dict[str, Any]:
-    """The content of result.json."""
+    """The content of result.json.
+
+    ``noise_std`` is null where the fit used no noise level (``noise_std_source`` says where
+    a value came from); ``stderr_notes`` says why a standard error is null (a parameter on
+    or next to its bound, a singular information matrix), ``conf_int_notes`` which interval
+    was cut at a bound (see :meth:`FitResult.conf_int`).
+    """
     res, ds = rep.result, rep.dataset
     det = rep.detection
     stderr, why = _try(lambda: res.stderr)
     ci, why_ci = _try(lambda: res.conf_int(rep.level))
+    se_notes, _ = _try(lambda: res.stderr_notes)
+    ci_notes, _ = _try(lambda: res.conf_int_notes(rep.level))
+    std_se, _ = _try(lambda: res.jitter_std_stderr)
     cov, _ = _try(lambda: res.cov)
     ls_se, _ = _try(lambda: rep.ordinary.stderr)
     skipped = dict(rep.skipped)
@@ -145,11 +179,15 @@ def result_json(rep: FitReport) -> dict[str, Any]:
                 "spec": rep.jitter_spec,
                 "estimated": isinstance(rep.jitter, JitterFamily),
                 **_law_dict(res.jitter_law),
+                "std_stderr": std_se,
             },
             "noise_std": res.noise_std,
+            "noise_std_source": noise_source(rep),
             "parameters": res.params,
             "stderr": stderr,
+            "stderr_notes": se_notes or {},
             f"conf_int_{round(100 * rep.level)}": ci,
+            "conf_int_notes": ci_notes or {},
             "covariance": {"names": list(res.names), "matrix": cov},
             "system": _system_dict(res.system),
             "ordinary_ls": {
@@ -262,7 +300,22 @@ def _table(rep: FitReport) -> list[str]:
         lines.append(f"| {md_text(n)} | {v:.5g} | {sev} | {civ} | {lsv} | {lse} |")
     if why or why_ci:
         lines += ["", f"No standard errors: {md_text(why or why_ci)}."]
+    notes = [
+        *(f"- {md_text(n)}: {md_text(w)}" for n, w in (_try(lambda: res.stderr_notes)[0] or {}).items()),
+        *(f"- {md_text(n)}: {md_text(w)}" for n, w in (_try(lambda: res.conf_int_notes(rep.level))[0] or {}).items()),
+    ]
+    if notes:
+        lines += ["", *notes]
     return lines
+
+
+def _jitter_std_line(rep: FitReport) -> str:
+    res = rep.result
+    if not isinstance(rep.jitter, JitterFamily):
+        return f"- jitter std: {res.jitter_std:.4g} s (known)"
+    se, _ = _try(lambda: res.jitter_std_stderr)
+    tail = f" ± {se:.2g} s (delta method)" if se is not None and math.isfinite(se) else " (no standard error)"
+    return f"- jitter std: {res.jitter_std:.4g} s{tail}"
 
 
 def _image(alt: str, name: str | None) -> list[str]:
@@ -330,12 +383,8 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
             f"- jitter law: {md_text(law)} "
             f"({'estimated' if isinstance(rep.jitter, JitterFamily) else 'assumed'})"
         ),
-        (
-            "- noise std: not used"
-            if res.noise_std is None
-            else f"- noise std: {res.noise_std:.4g}"
-            + (" (estimated)" if "noise_std" in res.names else " (given, or from the residuals)")
-        ),
+        _jitter_std_line(rep),
+        _noise_line(rep),
         (
             f"- G(s) numerator {np.array2string(res.system.num, precision=5)}, denominator "
             f"{np.array2string(res.system.den, precision=5)} (s in rad/s)"

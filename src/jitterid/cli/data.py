@@ -17,10 +17,13 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import click
 import numpy as np
@@ -175,6 +178,76 @@ def _check_out_dir(out: Path, option: str = "'--out'") -> None:
             f"cannot write into {str(out)!r} ({exc.strerror or exc}); choose a writable folder",
             param_hint=option,
         ) from None
+
+
+# ------------------------------------------------------------------------------ progress
+
+#: Seconds a command runs before its progress bar appears (shorter commands stay silent).
+PROGRESS_DELAY = 2.0
+
+
+def _progress_file() -> TextIO:
+    return sys.stderr
+
+
+class _Progress:
+    """A tqdm bar over a command's stages, on stderr only (never in a result file or on
+    stdout). It appears once the command has run :data:`PROGRESS_DELAY` seconds, shows the
+    current stage and the elapsed time (ticking during a long stage), and is off with
+    ``--quiet`` or when stderr is not a terminal; it is cleared when the command ends."""
+
+    def __init__(self, stages: list[str], quiet: bool) -> None:
+        from tqdm import tqdm
+
+        self._stages = stages
+        self._bar = tqdm(
+            total=len(stages),
+            desc=stages[0],
+            file=_progress_file(),
+            disable=True if quiet else None,  # None: off when the file is not a TTY
+            delay=PROGRESS_DELAY,
+            leave=False,
+            bar_format="jitterid: {desc} ({n_fmt}/{total_fmt}) {bar:12} {elapsed}",
+        )
+        self._start = time.monotonic()
+        self._shown = False
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        if not self._bar.disable:
+            self._thread = threading.Thread(target=self._tick, daemon=True)
+            self._thread.start()
+
+    def _show(self) -> None:
+        if not self._bar.disable and time.monotonic() - self._start >= PROGRESS_DELAY:
+            self._shown = True
+            self._bar.refresh()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(0.5):
+            self._show()
+
+    def stage(self, name: str) -> None:
+        """The previous stage is done; ``name`` starts."""
+        self._bar.set_description_str(name, refresh=False)
+        self._bar.n += 1
+        self._show()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        if self._shown:
+            self._bar.clear()  # tqdm clears only bars it drew itself after the delay
+        self._bar.close()
+
+
+@contextmanager
+def _progress(stages: list[str], quiet: bool) -> Iterator[_Progress]:
+    bar = _Progress(stages, quiet)
+    try:
+        yield bar
+    finally:
+        bar.close()
 
 
 # ------------------------------------------------------------------------------ simulate
@@ -391,6 +464,13 @@ def _params_line(res: object) -> str:
     help="For the pdf band draws.",
 )
 @click.option("--plots/--no-plots", default=True, show_default=True)
+@click.option(
+    "--quiet",
+    "-q",
+    is_flag=True,
+    help="No progress bar. (The bar goes to stderr, only on a terminal, and only for a fit "
+    "that runs longer than 2 s; it never reaches the result files or stdout.)",
+)
 def fit(
     data_path: str,
     input_path: str | None,
@@ -403,6 +483,7 @@ def fit(
     level: float,
     seed: int,
     plots: bool,
+    quiet: bool,
 ) -> None:
     """Fit a continuous-time model to DATA, accounting for sampling jitter.
 
@@ -430,49 +511,65 @@ def fit(
     ds = _load(data_path, input_path, T, noise_std)
     with _param("'--jitter'"):
         jitter = parse_jitter(jitter_spec, time_unit=_file_unit(ds))
-    with _clean_errors("the fit failed"):
-        ls = fit_model(ds.data, structure, NoJitter(), "ls")
-        res = ls if method == "ls" else fit_model(ds.data, structure, jitter, method)
-    # The fit is done: from here on nothing may throw it away. A diagnostic that cannot
-    # run is reported as skipped, with its reason, and the results are written regardless.
-    skipped: list[tuple[str, str]] = []
-    det = _diagnostic(skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level))
-    checks: list[Any] = []
-    z = _diagnostic(skipped, "residual checks", lambda: standardized_residuals(ds.data, res))
-    if z is not None:
-        for name, make in (
-            ("Ljung-Box test", lambda: ljung_box(z)),
-            (
-                "input correlation test",
-                lambda: input_correlation_test(z, ds.data.u(ds.data.t_nominal)),
-            ),
-        ):
-            c = _diagnostic(skipped, name, make)
-            if c is not None:
-                checks.append(c)
-    rep = FitReport(
-        dataset=ds,
-        structure=structure,
-        model_spec=model_spec,
-        model_label=model_label(structure),
-        jitter_spec=jitter_spec,
-        jitter=jitter,
-        result=res,
-        ordinary=ls,
-        detection=det,
-        checks=tuple(checks),
-        level=level,
-        seed=seed,
-        version=__version__,
-        skipped=tuple(skipped),
-    )
-    try:
-        written = write_outputs(rep, out_dir, plots=plots)
-    except OSError as exc:
+    stages = ["ordinary LS fit", *([] if method == "ls" else [f"{method} fit"])]
+    stages += ["diagnostics", "writing results" + (" and figures" if plots else "")]
+
+    def run(bar: _Progress) -> tuple[list[Path], Any, Any, list[Any], list[tuple[str, str]], OSError | None]:
+        with _clean_errors("the fit failed"):
+            ls = fit_model(ds.data, structure, NoJitter(), "ls")
+            if method == "ls":
+                res = ls
+            else:
+                bar.stage(f"{method} fit")
+                res = fit_model(ds.data, structure, jitter, method)
+        bar.stage("diagnostics")
+        # The fit is done: from here on nothing may throw it away. A diagnostic that cannot
+        # run is reported as skipped, with its reason, and the results are written regardless.
+        skipped: list[tuple[str, str]] = []
+        det = _diagnostic(skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level))
+        checks: list[Any] = []
+        z = _diagnostic(skipped, "residual checks", lambda: standardized_residuals(ds.data, res))
+        if z is not None:
+            for name, make in (
+                ("Ljung-Box test", lambda: ljung_box(z)),
+                (
+                    "input correlation test",
+                    lambda: input_correlation_test(z, ds.data.u(ds.data.t_nominal)),
+                ),
+            ):
+                c = _diagnostic(skipped, name, make)
+                if c is not None:
+                    checks.append(c)
+        rep = FitReport(
+            dataset=ds,
+            structure=structure,
+            model_spec=model_spec,
+            model_label=model_label(structure),
+            jitter_spec=jitter_spec,
+            jitter=jitter,
+            result=res,
+            ordinary=ls,
+            detection=det,
+            checks=tuple(checks),
+            level=level,
+            seed=seed,
+            version=__version__,
+            skipped=tuple(skipped),
+        )
+        bar.stage(stages[-1])
+        try:
+            return write_outputs(rep, out_dir, plots=plots), res, det, checks, skipped, None
+        except OSError as exc:
+            return [], res, det, checks, skipped, exc
+
+    with _progress(stages, quiet) as bar:
+        written, res, det, checks, skipped, failed = run(bar)
+    # The bar is gone: stdout gets the summary alone.
+    if failed is not None:
         click.echo(_safe_summary(res))
         raise click.ClickException(
-            f"cannot write the results into {str(out_dir)!r} ({_one_line(exc)}); the fit above "
-            "was not saved: free some space or choose another --out and run again"
+            f"cannot write the results into {str(out_dir)!r} ({_one_line(failed)}); the fit "
+            "above was not saved: free some space or choose another --out and run again"
         ) from None
     click.echo(_safe_summary(res))
     if det is not None:
