@@ -26,6 +26,7 @@ from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
+from . import finite_diff
 
 __all__ = ["COV_TYPES", "FitResult", "FitStatus"]
 
@@ -53,27 +54,17 @@ class FitStatus(enum.Enum):
 
 
 def _jitter_std_gradient(family: JitterFamily, theta: FloatArray) -> FloatArray:
-    """d std / d theta of ``family.law(theta).std`` by central differences (second-order
-    one-sided at a bound); the laws' std is closed-form, so a relative step of 1e-6 (absolute
-    at 0) is accurate."""
+    """d std / d theta of ``family.law(theta).std`` by the one finite-difference rule
+    (:mod:`jitterid.estimation.finite_diff`; second-order one-sided at a bound); the laws'
+    std is closed-form, so a relative step of 1e-6 is accurate."""
     theta = np.asarray(theta, float)
-    g = np.zeros(theta.size)
 
-    def std(i: int, v: float) -> float:
-        t = theta.copy()
-        t[i] = v
-        return float(family.law(t).std)
+    def std(t: FloatArray) -> FloatArray:
+        return np.asarray(family.law(t).std, dtype=float)
 
-    for i, (lo, hi) in enumerate(family.bounds):
-        v = float(theta[i])
-        h = 1e-6 * (abs(v) if v != 0 else 1.0)
-        if lo <= v - h and v + h <= hi:
-            g[i] = (std(i, v + h) - std(i, v - h)) / (2 * h)
-        elif v + 2 * h <= hi:  # second-order one-sided differences at the lower bound
-            g[i] = (-3 * std(i, v) + 4 * std(i, v + h) - std(i, v + 2 * h)) / (2 * h)
-        elif lo <= v - 2 * h:
-            g[i] = (3 * std(i, v) - 4 * std(i, v - h) + std(i, v - 2 * h)) / (2 * h)
-    return g
+    return np.array(
+        [float(finite_diff.derivative(std, theta, i, b, rel=1e-6)) for i, b in enumerate(family.bounds)]
+    )
 
 
 @dataclass(frozen=True, eq=False)
