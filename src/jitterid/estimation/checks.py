@@ -221,6 +221,7 @@ class PostContext:
     model_mean: Callable[[FloatArray], FloatArray]  # E y_k at x
     oe_system: Callable[[], FloatArray | None]  # theta of the ordinary OE fit (lazy)
     starts: Callable[[], list[FloatArray]]  # the default starts of this criterion (lazy)
+    cov_error: str | None = None  # why the covariance could not be computed
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
@@ -256,6 +257,16 @@ def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:
         return FitStatus.UNSTABLE_MODEL, (
             f"the fitted system is unstable: poles {np.round(bad, 6).tolist()} have Re >= 0; "
             "use fewer poles (a lower den_order), another start, or a longer record"
+        )
+    # A (nearly) undamped resonance whose decay outlasts the record: the criterion cannot
+    # tell it from an unstable one, and the covariance's steps cross the boundary.
+    record = ctx.data.N * ctx.data.T
+    edge = poles[(poles.imag != 0) & (-poles.real < 1e-3 * np.abs(poles)) & (-poles.real * record < 1)]
+    if edge.size:
+        return FitStatus.UNSTABLE_MODEL, (
+            f"the fitted system is on the edge of instability: poles {np.round(edge, 6).tolist()} "
+            f"are undamped (damping ratio < 1e-3, decay time longer than the record of "
+            f"{record:g}); use fewer poles (a lower den_order) or another start"
         )
     return None
 
@@ -303,6 +314,11 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
 
 
 def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    if ctx.cov_error is not None:
+        return FitStatus.UNIDENTIFIABLE, (
+            f"the covariance cannot be computed ({ctx.cov_error}), so the estimate has no "
+            "error bars; try another start or a structure with fewer parameters"
+        )
     cov = np.asarray(ctx.cov, float)
     p = ctx.x.size
     if p == 0 or np.all(np.isnan(cov)):  # "none" or nothing free

@@ -330,17 +330,22 @@ def _fit(
     x, cost, status, msg, _ = best
     x = np.asarray(x, float)
     assert cov_type is not None
-    noise_rec: float | None
-    if problem.uses_noise:
-        noise_rec = problem.split(x)[2]
-    elif noise is not None:
-        noise_rec = float(noise)
-    elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value given the residuals
-        mom = problem.moments(x)
-        noise_rec = float(np.sqrt(noise_variance_ml(data.y - mom.mean, mom.var)))
+    law, tf, _ = problem.split(x)
+    noise_rec: float | None = None
+    cov = np.full((x.size, x.size), np.nan)
+    try:
+        if problem.uses_noise:
+            noise_rec = problem.split(x)[2]
+        elif noise is not None:
+            noise_rec = float(noise)
+        elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value given the residuals
+            mom = problem.moments(x)
+            noise_rec = float(np.sqrt(noise_variance_ml(data.y - mom.mean, mom.var)))
+        cov = covariance(problem, x, cov_type, noise_rec)
+    except ValueError as exc:  # e.g. an unstable model: the checks below say why
+        cov_error = str(exc)
     else:
-        noise_rec = None
-    cov = covariance(problem, x, cov_type, noise_rec)
+        cov_error = None
 
     def oe_system() -> FloatArray | None:
         if not theta_oe:
@@ -366,13 +371,12 @@ def _fit(
             data=data, structure=structure, jitter=jitter, names=problem.names,
             bounds=problem.bounds, x=x, cost=float(cost), cov=cov, objective=problem.objective,
             model_mean=lambda v: problem.moments(v).mean, oe_system=oe_system, starts=default_starts,
+            cov_error=cov_error,
         ),
         status,
         msg,
     )
-    if scaling.identity:
-        law, tf, _ = problem.split(x)
-    else:  # back to the data's units, exactly; the criterion is re-evaluated there
+    if not scaling.identity:  # back to the data's units, exactly; the criterion is re-evaluated there
         x = scaling.to_original(x)
         cov = scaling.cov_to_original(cov)
         noise_rec = None if noise_rec is None else noise_rec * scaling.sy
@@ -383,11 +387,12 @@ def _fit(
             None if problem.noise_std is None else problem.noise_std * scaling.sy,
             weights_at=None if w is None else scaling.to_original(w),
         )
-        law, tf, _ = problem.split(x)
         try:
             cost = problem.objective(x)
         except ValueError:
             cost = np.inf
+        problem.release()  # a fresh system for the result, without the criterion's caches
+        law, tf, _ = problem.split(x)
     problem.release()
     return FitResult(
         method=method,
