@@ -232,7 +232,7 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
     """The status and message after the checks; only a CONVERGED search is re-examined."""
     if status is not FitStatus.CONVERGED:
         return status, message
-    for check in (_unstable, _at_bound, _unidentifiable, _local_optimum, _not_significant):
+    for check in (_at_bound, _unstable, _unidentifiable, _local_optimum, _not_significant):
         out = check(ctx)
         if out is not None:
             return out[0], f"{out[1]} (search: {message})"
@@ -326,6 +326,9 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     on = np.array(
         [_near(v, lo) or _near(v, hi) for v, (lo, hi) in zip(ctx.x, ctx.bounds, strict=True)]
     )
+    k = ctx.jitter.scale_index if isinstance(ctx.jitter, JitterFamily) else None
+    if k is not None and ctx.x[k] <= SCALE_COLLAPSE * ctx.data.T:
+        on[k] = True  # no jitter (checked by _at_bound): its scale has no finite variance
     free = ~on
     c = cov[np.ix_(free, free)]
     names = [n for n, f in zip(ctx.names, free, strict=True) if f]
