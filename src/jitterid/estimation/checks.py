@@ -307,9 +307,11 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
     name = ctx.names[k]
     return FitStatus.AT_BOUND, (
         f"the jitter scale collapsed: {name} = {scale:.3g} (below {SCALE_COLLAPSE:g} T) while "
-        f"detect_jitter finds jitter (p = {det.pvalue:.2g}, implied std {det.jitter_std:.3g}); "
-        f"the fit is at a spurious optimum and its standard errors are too small. Try a start "
-        f"with {name} near the detected std, method 'asml' or 'ml', or a known jitter law"
+        f"detect_jitter finds jitter (p = {det.pvalue:.2g}, implied std {det.jitter_std:.3g}), "
+        "so the estimate and its standard errors cannot be trusted (a mean-based criterion "
+        "such as bcls can trade a small jitter for the system's coefficients). Use a criterion "
+        "that sees the jitter's variance (method 'asml', 'gaussian' or 'ml'), a known jitter "
+        f"law, or a start with {name} near the detected std"
     )
 
 

@@ -200,7 +200,27 @@ def fit(
     Returns
     -------
     FitResult
-        Check ``success``: a failed search is reported as failed, never as a good fit.
+        Check ``success``: a failed search is reported as failed, never as a good fit. A
+        search that converged to an answer that cannot be trusted gets its own status
+        (:mod:`jitterid.estimation.checks`): ``AT_BOUND`` (a system parameter on its bound,
+        or the jitter scale collapsed while :func:`jitterid.detect_jitter` finds jitter),
+        ``UNIDENTIFIABLE`` (near-singular information), ``UNSTABLE_MODEL``,
+        ``LOCAL_OPTIMUM`` (a default start has a lower criterion) or ``NOT_SIGNIFICANT``
+        (the model explains no significant part of y); ``message`` gives the numbers and
+        what to try.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: ``noise_std`` negative or not finite, ``max_nfev`` not a
+        positive whole number, an input that ends before the samples or is zero at every
+        sampling instant, a constant ``y``, or fewer than 2 P + 4 samples for P parameters.
+
+    Notes
+    -----
+    The search runs on y and u divided by powers of two near their rms, so its convergence
+    tests do not depend on the data's units; estimates, criterion and covariance are
+    reported in the data's units (exactly: the maps are powers of two).
     """
     # Small complex BLAS calls (Cholesky, matmul) run ~100x slower multi-threaded here;
     # one thread is faster, and parallelism belongs to the Monte Carlo level.
