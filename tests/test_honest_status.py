@@ -222,3 +222,19 @@ def test_new_statuses_are_failures_that_say_what_to_try():
         assert not status.success
         assert status.value.startswith("failed: ")
         assert ";" in status.value  # the cause, then what to try
+
+
+@pytest.mark.slow
+def test_monte_carlo_pure_noise_never_succeeds_and_the_paper_setting_always_does():
+    # was: 40 of 40 pure-noise fits "converged" (median |k0|/se = 36)
+    for seed in range(40):
+        rng = np.random.default_rng(5000 + seed)
+        u = ji.telegraph_input(N * T + 5.0, rng)
+        d = ji.SampledData(0.02 * rng.standard_normal(N), T, u, None)
+        res = ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
+        assert not res.success, (seed, res.message)
+    # and the checks raise no false alarm in the paper's setting (Table 2)
+    for seed in range(40):
+        for method in ("bcls", "asml-diag"):
+            res = ji.fit(_paper(seed=6000 + seed), ji.PolePairGain(), ji.Uniform(0.5), method)
+            assert res.status is ji.FitStatus.CONVERGED, (seed, method, res.message)
