@@ -65,6 +65,13 @@ def test_zero_input_is_refused(data, method):
         ji.fit(zero, ji.PolePairGain(), law, method)
 
 
+def test_zero_input_is_refused_with_coloured_noise_too(data):
+    u = ji.PiecewiseConstant(data.u.times, np.zeros_like(data.u.levels))
+    zero = ji.SampledData(data.y, T, u, 0.01)
+    with pytest.raises(ValueError, match=r"data\.u: the input is zero"):
+        ji.fit(zero, ji.PolePairGain(), ji.Uniform(0.5), "bcls", noise=ji.RationalNoise(0, 1))
+
+
 @pytest.mark.parametrize("level", [0.0, 3.5])
 def test_constant_output_is_refused(data, level):
     # was: y = 0 CONVERGED

@@ -248,6 +248,9 @@ def _fit(
     method = est.name
     cov_type = est.check_cov_type(cov_type)
     noise_std, max_nfev = check_arguments(noise_std, max_nfev)
+    if noise_model is not None and isinstance(data, SampledData):  # Box-Jenkins: the data checks
+        n_sys = len(system.param_names) if isinstance(system, ModelStructure) else 0
+        check_data(data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0))
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         return fit_bj(data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev)
     prefit = start if isinstance(start, FitResult) else None
