@@ -40,7 +40,6 @@ says what to try:
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -72,24 +71,30 @@ MAX_CONDITION = 1e10
 
 
 # ------------------------------------------------------------------------ before the search
+def _real(x: object) -> float | None:
+    """``x`` as a float if it is a real number (not a string or a bool), else None."""
+    if isinstance(x, (str, bytes, bool, np.bool_)):
+        return None
+    try:
+        return float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return None
+
+
 def check_arguments(noise_std: object, max_nfev: object) -> tuple[float | None, int]:
     """``noise_std`` as a float >= 0 (or None) and ``max_nfev`` as a positive int, or a
-    ValueError naming the argument."""
+    ValueError naming the argument (never a TypeError: every argument error of fit() is a
+    ValueError)."""
     if noise_std is not None:
-        if isinstance(noise_std, bool) or not isinstance(noise_std, numbers.Real):
-            raise ValueError(f"noise_std must be a real number >= 0 or None; got {noise_std!r}")
-        val = float(noise_std)
-        if not math.isfinite(val) or val < 0:
+        val = _real(noise_std)
+        if val is None or not math.isfinite(val) or val < 0:
             raise ValueError(
-                f"noise_std must be finite and >= 0 (a standard deviation); got {noise_std!r}. "
-                "Pass the measurement-noise std, or None to estimate it"
+                f"noise_std must be a finite number >= 0 (a standard deviation) or None; got "
+                f"{noise_std!r}. Pass the measurement-noise std, or None to estimate it"
             )
         noise_std = val
-    if isinstance(max_nfev, bool) or not isinstance(max_nfev, numbers.Real):
-        # ValueError (not TypeError) by design: every argument error of fit() is a ValueError
-        raise ValueError(f"max_nfev must be a positive whole number, e.g. 2000; got {max_nfev!r}")  # noqa: TRY004
-    m = float(max_nfev)
-    if not math.isfinite(m) or m < 1 or m != math.floor(m):
+    m = _real(max_nfev)
+    if m is None or not math.isfinite(m) or m < 1 or m != math.floor(m):
         raise ValueError(f"max_nfev must be a positive whole number, e.g. 2000; got {max_nfev!r}")
     return noise_std, int(m)
 
@@ -406,6 +411,7 @@ def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
         f"the fitted model explains no significant part of y (F test against the zero model: "
         f"F = {fstat:.3g}, p = {pval:.2g} >= {SIGNIFICANCE:g}): the data show no detectable "
         "response to the input. Check that u is the input that drove y (columns, delays), "
-        "use a stronger or longer excitation, or reduce the noise"
+        "remove an offset or trend from y, use a stronger or longer excitation, or reduce "
+        "the noise"
     )
 
