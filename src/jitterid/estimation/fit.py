@@ -356,6 +356,7 @@ def _fit(
     law, tf, _ = problem.split(x)
     noise_rec: float | None = None
     cov = np.full((x.size, x.size), np.nan)
+    cov_error: str | None = None
     try:
         if problem.uses_noise:
             noise_rec = problem.split(x)[2]
@@ -367,8 +368,6 @@ def _fit(
         cov = covariance(problem, x, cov_type, noise_rec)
     except ValueError as exc:  # e.g. an unstable model: the checks below say why
         cov_error = str(exc)
-    else:
-        cov_error = None
 
     def oe_system() -> FloatArray | None:
         if not theta_oe:
