@@ -213,6 +213,10 @@ def test_a_collapsed_jitter_scale_with_detected_jitter_is_at_bound():
     assert res.params["sigma"] < 1e-3 * d.T
     assert "jitter scale collapsed" in res.message
     assert "detect_jitter" in res.message
+    # the advice works: a criterion that sees the variance finds the jitter (0.073 +- 0.005)
+    better = ji.fit(d, ji.RationalModel(1, 3), ji.GaussianFamily(), "gaussian")
+    assert better.success, better.message
+    assert 0.05 < better.params["sigma"] < 0.11
 
 
 def test_a_collapsed_jitter_scale_without_jitter_is_its_natural_home():
