@@ -72,7 +72,9 @@ def test_joint_problem_names_follow_table_3_order():
     data = table2_data(4)
     res = ji.fit(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), method="bcls")
     assert res.names == ("n", "a", "k0", "pr", "pi")
-    assert res.success
+    # On these 200 samples the family's shape is not identified (n = 1.0 +- 8e3, a = 0.87
+    # +- 2e3): reported as such since issue 15 A, no longer as a success.
+    assert res.status is ji.FitStatus.UNIDENTIFIABLE
 
 
 def test_unknown_noise_is_estimated_by_likelihood_criteria():

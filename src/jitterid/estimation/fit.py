@@ -28,6 +28,7 @@ from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
+from .checks import PostContext, Scaling, check_arguments, check_data, post_checks
 from .covariance import covariance, noise_variance_ml
 from .estimators import Estimator, as_estimator
 from .ml import run_ml
@@ -199,7 +200,27 @@ def fit(
     Returns
     -------
     FitResult
-        Check ``success``: a failed search is reported as failed, never as a good fit.
+        Check ``success``: a failed search is reported as failed, never as a good fit. A
+        search that converged to an answer that cannot be trusted gets its own status
+        (:mod:`jitterid.estimation.checks`): ``AT_BOUND`` (a system parameter on its bound,
+        or the jitter scale collapsed while :func:`jitterid.detect_jitter` finds jitter),
+        ``UNIDENTIFIABLE`` (near-singular information), ``UNSTABLE_MODEL``,
+        ``LOCAL_OPTIMUM`` (a default start has a lower criterion) or ``NOT_SIGNIFICANT``
+        (the model explains no significant part of y); ``message`` gives the numbers and
+        what to try.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: ``noise_std`` negative or not finite, ``max_nfev`` not a
+        positive whole number, an input that ends before the samples or is zero at every
+        sampling instant, a constant ``y``, or fewer than 2 P + 4 samples for P parameters.
+
+    Notes
+    -----
+    The search runs on y and u divided by powers of two near their rms, so its convergence
+    tests do not depend on the data's units; estimates, criterion and covariance are
+    reported in the data's units (exactly: the maps are powers of two).
     """
     # Small complex BLAS calls (Cholesky, matmul) run ~100x slower multi-threaded here;
     # one thread is faster, and parallelism belongs to the Monte Carlo level.
@@ -226,6 +247,10 @@ def _fit(
     est = as_estimator(method)
     method = est.name
     cov_type = est.check_cov_type(cov_type)
+    noise_std, max_nfev = check_arguments(noise_std, max_nfev)
+    if noise_model is not None and isinstance(data, SampledData):  # Box-Jenkins: the data checks
+        n_sys = len(system.param_names) if isinstance(system, ModelStructure) else 0
+        check_data(data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0))
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         return fit_bj(
             data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
@@ -249,6 +274,8 @@ def _fit(
         )
     if method == "ls" and not structure.param_names:
         raise ValueError("method 'ls' with a known system has nothing to estimate")
+    n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    check_data(data, n_jit + len(structure.param_names))
     f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
     if f.size < 1:
         raise ValueError("freqs must hold at least one frequency")
@@ -258,7 +285,16 @@ def _fit(
             "method 'ml' needs measurement noise: the exact likelihood of noise-free samples "
             f"is singular (noise_std = {noise!r}); pass a positive noise_std"
         )
+    # The search runs on y / sy and u / su (powers of two near their rms; checks.Scaling) so
+    # that the optimisers' absolute tolerances do not depend on the data's units; every
+    # parameter, the criterion and the covariance map back exactly.
+    orig_data = data
+    scaling = Scaling.build(data, structure, n_jit)
+    data = scaling.data(data)
+    if noise is not None:
+        noise = noise / scaling.sy
     make = partial(Problem, data, structure, jitter, freqs=f)
+    theta_oe: list[tuple[FloatArray, float]] = []  # the ordinary OE fit, computed once if needed
 
     jstarts: Sequence[Sequence[float]] = (
         jitter.default_starts(data.T) if isinstance(jitter, JitterFamily) else [()]
@@ -268,11 +304,13 @@ def _fit(
     if start is not None:
         problem = make(method=method, noise_std=noise if est.needs_noise else None)
         if method == "wbcls" and noise is None:
-            theta_sys = _oe_start(data, structure)[0]
+            theta_oe.append(_oe_start(data, structure))
+            theta_sys = theta_oe[-1][0]
             problem = make(method=method, noise_std=_plugin_noise(make, theta_sys, jstarts, max_nfev))
         x0 = np.atleast_1d(real_array(start, "start"))  # type: ignore[arg-type]  # FitResult handled above
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
+        x0 = scaling.to_scaled(x0)
         if method == "wbcls":
             problem, best = _run_wbcls(make, est, problem.noise_std, np.clip(x0, *np.array(problem.bounds).T), max_nfev)
         else:
@@ -283,11 +321,12 @@ def _fit(
         pre = make(method=first, noise_std=None)
         best = None
         if prefit is not None:
-            _check_prefit(prefit, pre)
-            best = (prefit.x, prefit.cost, prefit.status, prefit.message, prefit.nfev)
+            _check_prefit(prefit, pre if scaling.identity else Problem(orig_data, structure, jitter, first, f, None))
+            best = (scaling.to_scaled(prefit.x), prefit.cost, prefit.status, prefit.message, prefit.nfev)
             nfev = prefit.nfev
         else:
             theta_sys, rms = _oe_start(data, structure)
+            theta_oe.append((theta_sys, rms))
             for js in jstarts:
                 out = _run(pre, np.r_[np.asarray(js, float), theta_sys], max_nfev)
                 nfev += out[4]
@@ -300,7 +339,8 @@ def _fit(
                 noise = _noise_from_residuals(pre, x_pre)
             problem = make(method=method, noise_std=noise if est.needs_noise else None)
             if problem.estimates_noise and rms is None:
-                rms = _oe_start(data, structure)[1]
+                theta_sys, rms = _oe_start(data, structure)
+                theta_oe.append((theta_sys, rms))
             noise0 = max(rms or 0.0, 1e-6)
             if method == "ml":  # the likelihood's cost grows like 1/noise: start close
                 noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * (rms or 0.0), 1e-12)
@@ -316,18 +356,68 @@ def _fit(
     x, cost, status, msg, _ = best
     x = np.asarray(x, float)
     assert cov_type is not None
-    law, tf, noise_used = problem.split(x)
-    noise_rec: float | None
-    if problem.uses_noise:
-        noise_rec = noise_used
-    elif noise is not None:
-        noise_rec = float(noise)
-    elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value given the residuals
-        mom = problem.moments(x)
-        noise_rec = float(np.sqrt(noise_variance_ml(data.y - mom.mean, mom.var)))
-    else:
-        noise_rec = None
-    cov = covariance(problem, x, cov_type, noise_rec)
+    law, tf, _ = problem.split(x)
+    noise_rec: float | None = None
+    cov = np.full((x.size, x.size), np.nan)
+    cov_error: str | None = None
+    try:
+        if problem.uses_noise:
+            noise_rec = problem.split(x)[2]
+        elif noise is not None:
+            noise_rec = float(noise)
+        elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value given the residuals
+            mom = problem.moments(x)
+            noise_rec = float(np.sqrt(noise_variance_ml(data.y - mom.mean, mom.var)))
+        cov = covariance(problem, x, cov_type, noise_rec)
+    except ValueError as exc:  # e.g. an unstable model: the checks below say why
+        cov_error = str(exc)
+
+    def oe_system() -> FloatArray | None:
+        if not theta_oe:
+            theta_oe.append(_oe_start(data, structure))
+        return theta_oe[0][0]
+
+    def default_starts() -> list[FloatArray]:
+        # A search that already ran from every default start (the first stage) has nothing to
+        # compare; after a given start or a second stage, the criterion at the default starts
+        # must not be lower than at the estimate.
+        if (start is None and method in ("ls", "bcls")) or prefit is not None or not structure.param_names:
+            return []
+        th = oe_system()
+        assert th is not None
+        out = [np.r_[np.asarray(js, float), th] for js in jstarts]
+        if problem.estimates_noise:
+            out = [np.r_[v, max(theta_oe[0][1], 1e-6)] for v in out]
+        lo, hi = np.array(problem.bounds, float).reshape(-1, 2).T
+        return [np.clip(v, lo, hi) for v in out]
+
+    status, msg = post_checks(
+        PostContext(
+            data=data, structure=structure, jitter=jitter, names=problem.names,
+            bounds=problem.bounds, x=x, cost=float(cost), cov=cov, objective=problem.objective,
+            model_mean=lambda v: problem.moments(v).mean, oe_system=oe_system, starts=default_starts,
+            cov_error=cov_error,
+        ),
+        status,
+        msg,
+    )
+    if not scaling.identity:  # back to the data's units, exactly; the criterion is re-evaluated there
+        x = scaling.to_original(x)
+        cov = scaling.cov_to_original(cov)
+        noise_rec = None if noise_rec is None else noise_rec * scaling.sy
+        w = problem.weights_at
+        problem.release()
+        problem = Problem(
+            orig_data, structure, jitter, method, f,
+            None if problem.noise_std is None else problem.noise_std * scaling.sy,
+            weights_at=None if w is None else scaling.to_original(w),
+        )
+        try:
+            cost = problem.objective(x)
+        except ValueError:
+            cost = np.inf
+        problem.release()  # a fresh system for the result, without the criterion's caches
+        law, tf, _ = problem.split(x)
     problem.release()
     return FitResult(
         method=method,

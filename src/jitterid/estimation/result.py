@@ -47,6 +47,28 @@ class FitStatus(enum.Enum):
         "failed: the criterion was not finite at the end; check the data, bounds and start"
     )
     OPTIMISER_FAILED = "failed: the optimiser reported an error (see message)"
+    # Checks after a converged search (jitterid.estimation.checks): the search met its test,
+    # but the answer cannot be trusted. The message says which parameter and the numbers.
+    AT_BOUND = (
+        "failed: a parameter ended on or next to its bound, or the jitter scale collapsed "
+        "while the data show jitter (see message); try another start, structure or jitter law"
+    )
+    UNIDENTIFIABLE = (
+        "failed: the information matrix is (nearly) singular, so some parameters are not "
+        "identified (see message); fix some parameters, use fewer, or a richer input"
+    )
+    UNSTABLE_MODEL = (
+        "failed: the fitted model is unstable or improper (see message); use a lower model "
+        "order or another start"
+    )
+    LOCAL_OPTIMUM = (
+        "failed: the search stopped at a local optimum (another start reaches a lower "
+        "criterion, see message); fit without start or from a better start"
+    )
+    NOT_SIGNIFICANT = (
+        "failed: the fitted model explains no significant part of the output (see message); "
+        "check that u drove y, or use a stronger or longer excitation"
+    )
 
     @property
     def success(self) -> bool:

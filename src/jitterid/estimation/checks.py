@@ -1,0 +1,417 @@
+"""Checks around the search of :func:`jitterid.fit`, so that a fit is never reported as
+successful when it is not (issue 15, section A).
+
+Before the search (:func:`check_arguments`, :func:`check_data`) a problem that cannot give a
+meaningful estimate is refused with a :class:`ValueError` naming the argument and the fix:
+
+* ``noise_std`` negative or not finite, ``max_nfev`` not a positive whole number;
+* an input that ends before the last sampling instant, an input that is zero at every
+  sampling instant and half-way between them (nothing excites the system);
+* an output ``y`` that is constant (all zero included): there is no response to fit;
+* too few samples: N must be at least 2 P + 4 for P estimated parameters (the frequency
+  criteria see about N real numbers; with fewer the search "converges" to anything).
+
+These are errors of the call, not outcomes of a search, so they raise.
+
+:class:`Scaling` normalises y and u by powers of two near their rms (exact in floating
+point, so the parameters, criterion and covariance map back exactly), so that the
+optimisers' absolute tolerances do not depend on the units of the data.
+
+After the search (:func:`post_checks`) a converged search whose answer cannot be trusted
+gets its own non-success :class:`~jitterid.estimation.result.FitStatus`, and a message that
+says what to try:
+
+* ``UNSTABLE_MODEL``: the fitted system has a pole with Re >= 0 or non-finite coefficients;
+* ``AT_BOUND``: a system parameter on (or within a relative 1e-6 of) a finite bound, or the
+  jitter scale collapsed to its floor (below 1e-3 T) while :func:`jitterid.detect_jitter`
+  finds jitter at p < 1e-6. A scale at its floor on data without detectable jitter is the
+  natural home of the estimate (no jitter) and stays ``CONVERGED``; so does the shape ``n``
+  of the sum-of-uniforms family at 0 (the uniform law);
+* ``UNIDENTIFIABLE``: the covariance is not finite where no bound explains it, the
+  correlation matrix is numerically singular (condition > 1e10), or a bounded parameter's
+  standard error exceeds its whole admissible range;
+* ``LOCAL_OPTIMUM``: the criterion at one of the default (output-error) starts is already
+  lower than at the estimate: the search stopped at a local optimum;
+* ``NOT_SIGNIFICANT``: the fitted model does not explain significantly more of y than the
+  zero model (an F test of the residual sums of squares at the 1e-3 level): the data carry
+  no detectable response to the input (e.g. pure noise).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from ..data import SampledData
+from ..inputs import Input, Multisine, PiecewiseConstant
+from ..jitter.laws import JitterFamily, JitterLaw
+from ..systems.structures import ModelStructure
+from .result import FitStatus
+
+__all__: list[str] = []
+
+FloatArray = NDArray[np.float64]
+
+#: samples needed: at least MIN_SAMPLES_PER_PARAM * P + MIN_SAMPLES_EXTRA
+MIN_SAMPLES_PER_PARAM = 2
+MIN_SAMPLES_EXTRA = 4
+#: a jitter scale below this fraction of T counts as collapsed onto its floor
+SCALE_COLLAPSE = 1e-3
+#: detection p-value below which a collapsed jitter scale contradicts the data
+DETECT_P = 1e-6
+#: F-test level of the significance check against the zero model
+SIGNIFICANCE = 1e-3
+#: condition number of the correlation matrix above which the problem is unidentifiable
+MAX_CONDITION = 1e10
+
+
+# ------------------------------------------------------------------------ before the search
+def _real(x: object) -> float | None:
+    """``x`` as a float if it is a real number (not a string or a bool), else None."""
+    if isinstance(x, (str, bytes, bool, np.bool_)):
+        return None
+    try:
+        return float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return None
+
+
+def check_arguments(noise_std: object, max_nfev: object) -> tuple[float | None, int]:
+    """``noise_std`` as a float >= 0 (or None) and ``max_nfev`` as a positive int, or a
+    ValueError naming the argument (never a TypeError: every argument error of fit() is a
+    ValueError)."""
+    if noise_std is not None:
+        val = _real(noise_std)
+        if val is None or not math.isfinite(val) or val < 0:
+            raise ValueError(
+                f"noise_std must be a finite number >= 0 (a standard deviation) or None; got "
+                f"{noise_std!r}. Pass the measurement-noise std, or None to estimate it"
+            )
+        noise_std = val
+    m = _real(max_nfev)
+    if m is None or not math.isfinite(m) or m < 1 or m != math.floor(m):
+        raise ValueError(f"max_nfev must be a positive whole number, e.g. 2000; got {max_nfev!r}")
+    return noise_std, int(m)
+
+
+def check_data(data: SampledData, n_params: int) -> None:
+    """Refuse data that cannot identify anything (module docstring)."""
+    t = data.t_nominal
+    u = data.u
+    if t[-1] >= u.end:
+        raise ValueError(
+            f"data.u: the input ends at t = {u.end:g} but the samples reach t = {t[-1]:g} "
+            f"(N = {data.N}, T = {data.T:g}); after its end the input is taken as zero, so "
+            "the fit would be wrong. Give the input over the whole record or use fewer samples"
+        )
+    mid = np.minimum(t + 0.5 * data.T, np.nextafter(u.end, -np.inf))
+    if not (np.any(u(t) != 0) or np.any(u(mid) != 0)):
+        raise ValueError(
+            "data.u: the input is zero at every sampling instant: nothing excites the system, "
+            "so it cannot be identified. Check the input column/units, or use an input that "
+            "switches (telegraph_input, zoh_input of a random sequence) or a multisine"
+        )
+    y = data.y
+    if np.ptp(y) == 0:
+        raise ValueError(
+            f"data.y: the output is constant (every sample = {y[0]:g}): there is no response "
+            "to identify. Check the output column, its units and the sensor"
+        )
+    need = MIN_SAMPLES_PER_PARAM * n_params + MIN_SAMPLES_EXTRA
+    if need > data.N:
+        raise ValueError(
+            f"data: N = {data.N} samples are too few for {n_params} parameters (need at least "
+            f"{need} = {MIN_SAMPLES_PER_PARAM} per parameter + {MIN_SAMPLES_EXTRA}); record "
+            "more samples, fix the jitter law, or use a structure with fewer parameters"
+        )
+
+
+# ------------------------------------------------------------------------ scaling
+def _pow2(rms: float) -> float:
+    if not (np.isfinite(rms) and rms > 0):
+        return 1.0
+    return float(2.0 ** round(math.log2(rms)))
+
+
+def _scaled_input(u: Input, c: float) -> Input | None:
+    """``c u`` for the input types the criteria support, else None."""
+    if isinstance(u, PiecewiseConstant):
+        return PiecewiseConstant(u.times, u.levels * c)
+    if isinstance(u, Multisine):
+        return Multisine(
+            u.freqs, u.amplitudes * c, u.end, u.phases, 0.0 if u.steady_state else u.start,
+            u.steady_state,
+        )
+    return None
+
+
+@dataclass(frozen=True)
+class Scaling:
+    """The data scaled to y / sy and u / su with sy, su powers of two near their rms.
+
+    The system's gain parameters (``structure.gain_params``) then scale by su / sy and the
+    noise std by 1 / sy; every other parameter (poles, jitter) is unchanged. Powers of two
+    make every map exact, so a problem already in unit scale is solved bit-identically.
+    """
+
+    sy: float
+    su: float
+    factors: FloatArray  # x_scaled = x * factors
+
+    @staticmethod
+    def build(data: SampledData, structure: ModelStructure, n_jitter: int) -> Scaling:
+        """The scaling for ``data``; the identity when the structure cannot absorb it."""
+        n = n_jitter + len(structure.param_names)
+        one = Scaling(1.0, 1.0, np.ones(n))
+        gains = list(structure.gain_params)
+        if not gains:
+            return one
+        bounds = np.array(structure.bounds, float).reshape(-1, 2)
+        if not np.all(np.isinf(bounds[gains])):  # a finite bound on a gain would move
+            return one
+        sy = _pow2(float(np.sqrt(np.mean(data.y**2))))
+        su = _pow2(float(np.sqrt(np.mean(data.u(data.t_nominal) ** 2))))
+        if _scaled_input(data.u, 1.0) is None:
+            su = 1.0
+        f = np.ones(n)
+        f[[n_jitter + g for g in gains]] = su / sy
+        return Scaling(sy, su, f)
+
+    @property
+    def identity(self) -> bool:
+        return self.sy == 1.0 and self.su == 1.0
+
+    def data(self, data: SampledData) -> SampledData:
+        if self.identity:
+            return data
+        u = _scaled_input(data.u, 1.0 / self.su)
+        assert u is not None
+        noise = None if data.noise_std is None else data.noise_std / self.sy
+        return SampledData(data.y / self.sy, data.T, u, noise, data.instants)
+
+    def _f(self, size: int) -> FloatArray:
+        """Factors for a vector of ``size``: jitter and system, then (if one more) noise_std."""
+        return np.r_[self.factors, 1.0 / self.sy][:size]
+
+    def to_scaled(self, x: FloatArray) -> FloatArray:
+        return np.asarray(x, float) * self._f(np.size(x))
+
+    def to_original(self, x: FloatArray) -> FloatArray:
+        return np.asarray(x, float) / self._f(np.size(x))
+
+    def cov_to_original(self, cov: FloatArray) -> FloatArray:
+        f = self._f(cov.shape[0])
+        return np.asarray(cov, float) / np.outer(f, f)
+
+
+# ------------------------------------------------------------------------ after the search
+@dataclass
+class PostContext:
+    """What the checks after the search need, in the scaled units of the search."""
+
+    data: SampledData
+    structure: ModelStructure
+    jitter: JitterLaw | JitterFamily
+    names: tuple[str, ...]
+    bounds: Sequence[tuple[float, float]]
+    x: FloatArray
+    cost: float
+    cov: FloatArray  # in the units of x
+    objective: Callable[[FloatArray], float]
+    model_mean: Callable[[FloatArray], FloatArray]  # E y_k at x
+    oe_system: Callable[[], FloatArray | None]  # theta of the ordinary OE fit (lazy)
+    starts: Callable[[], list[FloatArray]]  # the default starts of this criterion (lazy)
+    cov_error: str | None = None  # why the covariance could not be computed
+
+
+def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
+    return len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+
+
+def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitStatus, str]:
+    """The status and message after the checks; only a CONVERGED search is re-examined."""
+    if status is not FitStatus.CONVERGED:
+        return status, message
+    for check in (_at_bound, _unstable, _unidentifiable, _local_optimum, _not_significant):
+        out = check(ctx)
+        if out is not None:
+            return out[0], f"{out[1]} (search: {message})"
+    return status, message
+
+
+def _theta(ctx: PostContext) -> FloatArray:
+    nj = _n_jitter(ctx.jitter)
+    return ctx.x[nj : nj + len(ctx.structure.param_names)]
+
+
+def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    if not ctx.structure.param_names:
+        return None
+    tf = ctx.structure.system(_theta(ctx))
+    coef = np.r_[tf.num, tf.den]
+    if not np.all(np.isfinite(coef)):
+        return FitStatus.UNSTABLE_MODEL, "the fitted system has non-finite coefficients"
+    poles = np.roots(tf.den)
+    bad = poles[poles.real >= 0]
+    if bad.size:
+        return FitStatus.UNSTABLE_MODEL, (
+            f"the fitted system is unstable: poles {np.round(bad, 6).tolist()} have Re >= 0; "
+            "use fewer poles (a lower den_order), another start, or a longer record"
+        )
+    # A (nearly) undamped resonance whose decay outlasts the record: the criterion cannot
+    # tell it from an unstable one, and the covariance's steps cross the boundary.
+    record = ctx.data.N * ctx.data.T
+    edge = poles[(poles.imag != 0) & (-poles.real < 1e-3 * np.abs(poles)) & (-poles.real * record < 1)]
+    if edge.size:
+        return FitStatus.UNSTABLE_MODEL, (
+            f"the fitted system is on the edge of instability: poles {np.round(edge, 6).tolist()} "
+            f"are undamped (damping ratio < 1e-3, decay time longer than the record of "
+            f"{record:g}); use fewer poles (a lower den_order) or another start"
+        )
+    return None
+
+
+def _near(v: float, b: float) -> bool:
+    return bool(np.isfinite(b) and abs(v - b) <= 1e-6 * max(1.0, abs(b)))
+
+
+def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    theta = _theta(ctx)
+    for i, (name, v) in enumerate(zip(ctx.structure.param_names, theta, strict=True)):
+        lo, hi = ctx.structure.bounds[i]
+        if _near(v, lo) or _near(v, hi):
+            b = lo if _near(v, lo) else hi
+            return FitStatus.AT_BOUND, (
+                f"the system parameter {name} = {v:.6g} is on its bound {b:g}: the optimum lies "
+                "outside the structure's admissible set (e.g. a real pole pair for PolePairGain, "
+                "a pole on the stability boundary); try another structure (RationalModel) or "
+                "another start"
+            )
+    k = ctx.jitter.scale_index if isinstance(ctx.jitter, JitterFamily) else None
+    if k is None:
+        return None
+    scale = float(ctx.x[k])
+    if scale > SCALE_COLLAPSE * ctx.data.T:
+        return None
+    theta_oe = ctx.oe_system()
+    if theta_oe is None:
+        return None
+    from ..analysis.diagnostics import detect_jitter  # diagnostics imports estimation
+
+    try:
+        det = detect_jitter(ctx.data, ctx.structure.system(theta_oe))
+    except ValueError:
+        return None
+    if det.pvalue >= DETECT_P:
+        return None  # no detectable jitter: a scale at the floor is the natural estimate
+    name = ctx.names[k]
+    return FitStatus.AT_BOUND, (
+        f"the jitter scale collapsed: {name} = {scale:.3g} (below {SCALE_COLLAPSE:g} T) while "
+        f"detect_jitter finds jitter (p = {det.pvalue:.2g}, implied std {det.jitter_std:.3g}), "
+        "so the estimate and its standard errors cannot be trusted (a mean-based criterion "
+        "such as bcls can trade a small jitter for the system's coefficients). Use a criterion "
+        "that sees the jitter's variance (method 'asml', 'gaussian' or 'ml'), a known jitter "
+        f"law, or a start with {name} near the detected std"
+    )
+
+
+def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    if ctx.cov_error is not None:
+        return FitStatus.UNIDENTIFIABLE, (
+            f"the covariance cannot be computed ({ctx.cov_error}), so the estimate has no "
+            "error bars; try another start or a structure with fewer parameters"
+        )
+    cov = np.asarray(ctx.cov, float)
+    p = ctx.x.size
+    if p == 0 or np.all(np.isnan(cov)):  # "none" or nothing free
+        return None
+    on = np.array(
+        [_near(v, lo) or _near(v, hi) for v, (lo, hi) in zip(ctx.x, ctx.bounds, strict=True)]
+    )
+    k = ctx.jitter.scale_index if isinstance(ctx.jitter, JitterFamily) else None
+    if k is not None and ctx.x[k] <= SCALE_COLLAPSE * ctx.data.T:
+        on[k] = True  # no jitter (checked by _at_bound): its scale has no finite variance
+    free = ~on
+    c = cov[np.ix_(free, free)]
+    names = [n for n, f in zip(ctx.names, free, strict=True) if f]
+    if c.size == 0:
+        return None
+    d = np.diag(c)
+    if not np.all(np.isfinite(c)) or np.any(d <= 0):
+        return FitStatus.UNIDENTIFIABLE, (
+            "the information matrix is singular (no finite covariance for "
+            f"{[n for n, v in zip(names, d, strict=True) if not (np.isfinite(v) and v > 0)] or names}); "
+            "fix some parameters (a known jitter law), use a structure with fewer parameters, "
+            "or a richer input"
+        )
+    se = np.sqrt(d)
+    bnd = np.array(ctx.bounds, float).reshape(-1, 2)[free]
+    width = bnd[:, 1] - bnd[:, 0]
+    wide = np.isfinite(width) & (se > width)
+    if np.any(wide):
+        j = int(np.flatnonzero(wide)[0])
+        return FitStatus.UNIDENTIFIABLE, (
+            f"{names[j]} is not identified: its standard error {se[j]:.3g} exceeds its whole "
+            f"admissible range [{bnd[j, 0]:g}, {bnd[j, 1]:g}]; fix it (e.g. a known jitter law "
+            "or a one-parameter family), or collect more or more informative data"
+        )
+    corr = c / np.outer(se, se)
+    ev = np.linalg.eigvalsh(0.5 * (corr + corr.T))
+    if ev[0] <= ev[-1] / MAX_CONDITION:
+        return FitStatus.UNIDENTIFIABLE, (
+            f"the information matrix is nearly singular (correlation condition number "
+            f"{ev[-1] / max(ev[0], 1e-300):.2g}): some combination of {names} is not identified; "
+            "use a structure with fewer parameters, a known jitter law, or a richer input"
+        )
+    return None
+
+
+def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    best, where = ctx.cost, None
+    for x0 in ctx.starts():
+        try:
+            v = ctx.objective(x0)
+        except ValueError:
+            continue
+        if np.isfinite(v) and v < best:
+            best, where = v, x0
+    if where is None or not best < ctx.cost - 1e-6 * max(abs(ctx.cost), 1e-300):
+        return None
+    return FitStatus.LOCAL_OPTIMUM, (
+        f"the search stopped at a local optimum: the criterion is {ctx.cost:.6g} here but "
+        f"{best:.6g} at the default start {np.round(where, 6).tolist()}; fit again without "
+        "start (the default multi-start) or from a better start"
+    )
+
+
+def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    if not ctx.structure.param_names or not ctx.structure.gain_params:
+        return None
+    y = ctx.data.y
+    try:
+        m = np.asarray(ctx.model_mean(ctx.x), float)
+    except ValueError:
+        return None
+    rss0 = float(y @ y)
+    rss1 = float(np.sum((y - m) ** 2))
+    p = len(ctx.structure.param_names)
+    dof = y.size - ctx.x.size
+    if dof <= 0 or rss1 <= 0:
+        return None
+    fstat = max(rss0 - rss1, 0.0) / p / (rss1 / dof)
+    pval = float(stats.f.sf(fstat, p, dof))
+    if pval < SIGNIFICANCE:
+        return None
+    return FitStatus.NOT_SIGNIFICANT, (
+        f"the fitted model explains no significant part of y (F test against the zero model: "
+        f"F = {fstat:.3g}, p = {pval:.2g} >= {SIGNIFICANCE:g}): the data show no detectable "
+        "response to the input. Check that u is the input that drove y (columns, delays), "
+        "remove an offset or trend from y, use a stronger or longer excitation, or reduce "
+        "the noise"
+    )
+
