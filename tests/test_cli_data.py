@@ -535,7 +535,7 @@ def test_a_parameter_on_its_bound_is_explained_in_result_json(lab, tmp_path, mon
         x[0] = 0.0  # n on its lower bound: held fixed
         cov[0, :] = cov[:, 0] = np.nan
         cov[1, 1] = (x[1] / 1.5) ** 2  # a: a wide interval, cut at its floor
-        return dataclasses.replace(res, x=x, cov=cov)
+        return dataclasses.replace(res, x=x, cov=cov, status=ji.FitStatus.CONVERGED)  # notes only
 
     monkeypatch.setattr(cli_data, "fit_model", on_bound)
     out = tmp_path / "fit"

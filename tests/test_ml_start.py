@@ -29,7 +29,8 @@ def at_zero():
     """Seed 61: BCLS with the Gaussian family stops at sigma ~ 4e-11 (a boundary minimum)."""
     data = _data(61, ji.Gaussian(0.1))
     bcls = ji.fit(data, ji.PolePairGain(), ji.GaussianFamily(), method="bcls")
-    assert bcls.success
+    # the search ended at the boundary minimum, which the checks flag (jitter is detected)
+    assert bcls.status in (ji.FitStatus.CONVERGED, ji.FitStatus.AT_BOUND), bcls.message
     assert bcls.x[0] < 1e-9, bcls.x  # the premise of the test
     best = ji.fit(data, ji.PolePairGain(), ji.GaussianFamily(), method="ml", start=np.r_[0.1, TRUTH])
     assert best.success

@@ -345,6 +345,9 @@ def _fit(
             if method == "ml":  # the likelihood's cost grows like 1/noise: start close
                 noise0 = max(_noise_from_residuals(pre, x_pre), 0.05 * (rms or 0.0), 1e-12)
             x0 = np.r_[x_pre, noise0] if problem.estimates_noise else x_pre
+            if not est.least_squares and method != "ml":  # ml scores its own starts (ml.py)
+                x0, scored = _off_zero_jitter(problem, x0, jstarts)
+                nfev += scored
             if method == "wbcls":
                 problem, best = _run_wbcls(make, est, problem.noise_std, x0, max_nfev)
             else:
@@ -452,6 +455,32 @@ def _run_wbcls(
     return problem, (*out[:4], nfev)
 
 
+def _off_zero_jitter(
+    problem: Problem, x0: FloatArray, jstarts: Sequence[Sequence[float]]
+) -> tuple[FloatArray, int]:
+    """The Newton-searched criteria are even in a jitter family's scale, so their gradient
+    vanishes where the BCLS stage collapsed the scale onto zero (its boundary minimum): a
+    search from there never leaves. In that case each of the family's default starts (with
+    the BCLS system) is scored by one criterion value and the best start searched. Elsewhere
+    the BCLS point is kept as it is. Returns the start and the evaluations used."""
+    jitter = problem.jitter
+    scale = getattr(jitter, "scale_index", None)
+    if not problem.n_jitter or scale is None or x0[scale] >= 1e-3 * problem.data.T:
+        return x0, 0
+    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    best, best_v, n = x0, np.inf, 0
+    for cand in [x0] + [np.r_[np.asarray(js, float), x0[problem.n_jitter :]] for js in jstarts]:
+        cand = np.clip(cand, lo, hi)
+        n += 1
+        try:
+            v = problem.objective(cand)
+        except ValueError:
+            continue
+        if np.isfinite(v) and v < best_v:
+            best, best_v = cand, v
+    return best, n
+
+
 def _check_prefit(prefit: FitResult, pre: Problem) -> None:
     """A ``start`` FitResult must be the BCLS fit of this very problem (same data, structure,
     jitter model and frequencies): its cost, re-evaluated here, must match."""
@@ -460,7 +489,10 @@ def _check_prefit(prefit: FitResult, pre: Problem) -> None:
             f"start: a FitResult passed as start must come from fit(..., method={pre.method!r}) "
             f"with parameters {pre.names}; got method {prefit.method!r} with {prefit.names}"
         )
-    if not prefit.success:
+    # A search that ended (converged, then flagged by the checks after it: a jitter scale
+    # collapsed onto its bound, an unidentified shape, ...) is a valid start: the next stage
+    # is what repairs it. A search that did not end is not.
+    if prefit.status in (FitStatus.MAX_EVALUATIONS, FitStatus.NOT_FINITE, FitStatus.OPTIMISER_FAILED):
         raise ValueError(
             f"start: the {pre.method} fit passed as start did not converge ({prefit.status.name}); "
             "fit without it, or from a parameter vector"
