@@ -350,3 +350,35 @@ def test_bounds_take_a_dict_a_vector_or_a_fit_result_with_the_same_answer():
     with pytest.raises(ValueError, match="did you mean 'pi'"):
         ji.crb(*args, {"k0": 6.0, "pr": -1.5, "Pi": 2.0})
     np.testing.assert_array_equal(ji.PolePairGain().system(res).den, res.system.den)
+
+
+@pytest.mark.parametrize(
+    ("method", "jitter"),
+    [
+        ("ls", ji.NoJitter()),
+        ("bcls", ji.UniformFamily()),
+        ("wbcls", ji.Uniform(0.5)),
+        ("asml-diag", ji.UniformFamily()),
+        ("gaussian", ji.GaussianFamily()),
+    ],
+)
+def test_closed_form_d2v_dx_dy_against_differences_of_grad_y(method, jitter):
+    """The covariance's G = d^2 V / dx dy^T in closed form, against central differences of
+    the criterion's dV/dy (the route it replaces), at a point off the optimum."""
+    from jitterid.estimation import finite_diff
+    from jitterid.estimation.problem import Problem
+
+    data = table2_data(17, known_noise=False)
+    f = ji.default_frequencies(N, T)
+    noise = 0.02 if method == "wbcls" else None
+    problem = Problem(data, ji.PolePairGain(), jitter, method, f, noise)
+    x = {"ls": [6.0, -1.4, 2.1], "wbcls": [6.0, -1.4, 2.1], "gaussian": [0.1, 6.0, -1.4, 2.1]}.get(
+        method, [0.4, 6.0, -1.4, 2.1]
+    )
+    x = np.r_[x, 0.015] if problem.estimates_noise else np.asarray(x, float)
+    if method == "wbcls":
+        problem = Problem(data, ji.PolePairGain(), jitter, method, f, noise, weights_at=x * 1.01)
+    G = problem.estimator.grad_y_jacobian(problem, x)
+    assert G is not None
+    ref = np.array([finite_diff.derivative(problem.grad_y, x, i, problem.bounds[i]) for i in range(x.size)])
+    np.testing.assert_allclose(G, ref, rtol=1e-5, atol=1e-6 * np.max(np.abs(ref)))

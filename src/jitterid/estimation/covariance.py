@@ -105,7 +105,11 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
     if problem.method == "ml":
         return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov)
     bounds = problem.bounds
-    G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i], rel=_REL_STEP) for i in idx])
+    closed = problem.estimator.grad_y_jacobian(problem, x)
+    if closed is not None:
+        G = np.asarray(closed, float)[idx]
+    else:
+        G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i], rel=_REL_STEP) for i in idx])
     if problem.estimator.least_squares:
         J = problem.jacobian(x)[:, idx]  # analytic (jitterid.estimation.jacobians)
         H = 2 * J.T @ J

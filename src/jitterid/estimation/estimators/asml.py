@@ -90,3 +90,11 @@ class AsMLDiag(Estimator):
     def grad_y(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
         r, _ = problem.weighted(x)
         return 2 * problem.adjoint(r / float(np.sum(problem.variances(x))))
+
+    def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        _, w, dm, dw = problem.derivatives(x)  # d(2 F^H r / rho), rho = sum w
+        r, _ = problem.weighted(x)
+        rho, drho = float(np.sum(w)), dw.sum(axis=1)
+        base = 2 * problem.adjoint(r)
+        dmu = problem.dmu(dm)
+        return np.array([-2 * problem.adjoint(row) / rho - base * dr / rho**2 for row, dr in zip(dmu, drho, strict=True)])

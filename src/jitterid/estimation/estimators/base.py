@@ -126,6 +126,11 @@ class Estimator:
         """dV/dy at the data."""
         raise NotImplementedError
 
+    def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        """d^2 V / dx dy^T, shape (P, N), in closed form, or None: the covariance then
+        differences :meth:`grad_y` (:mod:`jitterid.estimation.finite_diff`)."""
+        return None
+
     @property
     def default_cov_type(self) -> str:
         return self.cov_types[0]

@@ -41,3 +41,8 @@ class GaussianCriterion(Estimator):
 
     def grad_y(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
         return 2 * (problem.data.y - problem.moments(x).mean) / problem.variances(x)
+
+    def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        mom, w, dm, dw = problem.derivatives(x)  # d(2 e / w) = -2 dm / w - 2 e dw / w^2
+        e = problem.data.y - mom.mean
+        return -2 * dm / w - 2 * e * dw / w**2

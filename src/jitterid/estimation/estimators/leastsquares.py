@@ -33,6 +33,10 @@ class _DFTResidual(Estimator):
         r, _ = problem.weighted(x)
         return 2 * problem.adjoint(r)
 
+    def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        dmu = problem.dmu(problem.derivatives(x)[2])  # d(2 Re F^H (Y - mu)) = -2 Re F^H dmu
+        return np.array([-2 * problem.adjoint(row) for row in dmu])
+
 
 @register
 @dataclass(frozen=True)

@@ -65,3 +65,11 @@ class WBCLS(Estimator):
         r, chol = problem.weighted(x)
         assert chol is not None
         return 2 * problem.adjoint(cho_solve(chol, r))
+
+    def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        if not problem.frozen_weights:  # R(theta) moves too: differences
+            return None
+        _, chol = problem.weighted(x)
+        assert chol is not None
+        dmu = problem.dmu(problem.derivatives(x)[2])
+        return np.array([-2 * problem.adjoint(cho_solve(chol, row)) for row in dmu])
