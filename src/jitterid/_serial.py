@@ -38,7 +38,12 @@ def encode(obj: Any) -> Any:
         return {str(k): encode(v) for k, v in obj.items()}
     cls = type(obj)
     params = getattr(cls, "__dataclass_params__", None)
-    if dataclasses.is_dataclass(obj) and cls.__module__.startswith("jitterid.") and params.init:
+    if (
+        dataclasses.is_dataclass(obj)
+        and cls.__module__.startswith("jitterid.")
+        and params is not None
+        and params.init
+    ):
         out: dict[str, Any] = {_TAG: f"{cls.__module__}:{cls.__qualname__}"}
         for f in dataclasses.fields(obj):
             if f.init:
@@ -66,7 +71,7 @@ def decode(data: Any) -> Any:
     cls: Any = importlib.import_module(module)
     for part in name.split("."):
         cls = getattr(cls, part)
-    if not dataclasses.is_dataclass(cls):
+    if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
         raise ValueError(f"refusing to decode {data[_TAG]!r}: not a jitterid value object")
     kwargs = {k: decode(v) for k, v in data.items() if k != _TAG}
     return cls(**kwargs)

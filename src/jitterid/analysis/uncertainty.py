@@ -41,13 +41,20 @@ class _Fit(Protocol):
     """What a band needs of a :class:`~jitterid.FitResult` (a protocol, so that this module
     does not import the result, whose methods call it)."""
 
-    names: tuple[str, ...]
-    x: FloatArray
-    cov: FloatArray
-    system: Any
-    structure: Any
-    jitter_law: Any
-    jitter_model: Any
+    @property
+    def names(self) -> tuple[str, ...]: ...
+    @property
+    def x(self) -> FloatArray: ...
+    @property
+    def cov(self) -> FloatArray: ...
+    @property
+    def system(self) -> Any: ...
+    @property
+    def structure(self) -> Any: ...
+    @property
+    def jitter_law(self) -> Any: ...
+    @property
+    def jitter_model(self) -> Any: ...
 
 
 def _is_fit(obj: object) -> bool:

@@ -26,7 +26,7 @@ FloatArray = NDArray[np.float64]
 REL_STEP = 1e-5  # (eps)^(1/3) ~ 6e-6: balances the O(h^2) error against rounding
 
 
-def step(x: FloatArray, i: int, rel: float = REL_STEP, floor: float = 1e-2) -> float:
+def step(x: FloatArray, i: int | np.integer, rel: float = REL_STEP, floor: float = 1e-2) -> float:
     """The step for parameter ``i``: rel * max(|x_i|, floor)."""
     return rel * max(abs(float(x[i])), floor)
 
@@ -34,7 +34,7 @@ def step(x: FloatArray, i: int, rel: float = REL_STEP, floor: float = 1e-2) -> f
 def derivative(
     fun: Callable[[FloatArray], FloatArray],
     x: FloatArray,
-    i: int,
+    i: int | np.integer,
     bounds: tuple[float, float],
     f0: FloatArray | None = None,
     rel: float = REL_STEP,

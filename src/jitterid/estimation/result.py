@@ -82,7 +82,7 @@ def _jitter_std_gradient(family: JitterFamily, theta: FloatArray) -> FloatArray:
     theta = np.asarray(theta, float)
 
     def std(t: FloatArray) -> FloatArray:
-        return np.asarray(family.law(t).std, dtype=float)
+        return np.asarray(family.law(t.tolist()).std, dtype=np.float64)
 
     return np.array(
         [float(finite_diff.derivative(std, theta, i, b, rel=1e-6)) for i, b in enumerate(family.bounds)]

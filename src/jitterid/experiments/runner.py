@@ -197,7 +197,7 @@ def _fit_one(
         res.params,
         stderr,
         res.jitter_std,
-        res.noise_std,
+        float("nan") if res.noise_std is None else res.noise_std,  # ls: no noise used
         res.cost,
         res.success,
         res.status.name,

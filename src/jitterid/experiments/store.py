@@ -241,7 +241,7 @@ class Store:
         return {(str(c), int(r)) for c, r in rows}
 
     @contextlib.contextmanager
-    def _errors(self, what: str):  # type: ignore[no-untyped-def]
+    def _errors(self, what: str):
         """SQLite errors while working -> StoreError saying what is kept and how to go on."""
         try:
             yield

@@ -79,6 +79,7 @@ _SCALE_FLOOR = 1e-12
 
 def _size(size: int | Sequence[int]) -> tuple[int, ...]:
     """Validate a numpy-style ``size`` (int or tuple of ints >= 0) against the memory budget."""
+    shape: tuple[int, ...] | None
     if isinstance(size, (int, np.integer)) and not isinstance(size, bool):
         shape = (_checks.count(size, "size", minimum=0),)
     elif isinstance(size, (tuple, list)):
