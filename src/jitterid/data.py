@@ -25,8 +25,9 @@ class SampledData:
         The measured samples.
     T : float
         Nominal sampling interval (s).
-    u : Input
-        The known continuous-time input that drove the system.
+    u : Input or None
+        The known continuous-time input that drove the system; None for a signal model with
+        no input (:class:`jitterid.SignalModel`).
     noise_std : float or None
         Standard deviation of the white measurement noise v_k, if known; ``None`` lets
         the estimators that need it estimate it.
@@ -37,7 +38,7 @@ class SampledData:
 
     y: FloatArray
     T: float
-    u: Input
+    u: Input | None = None
     noise_std: float | None = None
     instants: FloatArray | None = field(default=None, repr=False)
 
@@ -46,8 +47,8 @@ class SampledData:
         if y.size < 4:
             raise ValueError(f"y must hold at least 4 samples; got {y.size}")
         T = positive(self.T, "T")
-        if not isinstance(self.u, Input):
-            raise TypeError(f"u must be a jitterid input; got {type(self.u).__name__}")
+        if self.u is not None and not isinstance(self.u, Input):
+            raise TypeError(f"u must be a jitterid input or None; got {type(self.u).__name__}")
         if self.noise_std is not None:
             object.__setattr__(
                 self, "noise_std", positive(self.noise_std, "noise_std", allow_zero=True)

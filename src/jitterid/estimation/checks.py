@@ -50,6 +50,7 @@ from scipy import stats
 from ..data import SampledData
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
+from ..systems.model import Model
 from ..systems.structures import ModelStructure
 from .result import FitStatus
 
@@ -99,10 +100,22 @@ def check_arguments(noise_std: object, max_nfev: object) -> tuple[float | None, 
     return noise_std, int(m)
 
 
-def check_data(data: SampledData, n_params: int) -> None:
-    """Refuse data that cannot identify anything (module docstring)."""
+def check_data(data: SampledData, n_params: int, uses_input: bool = True) -> None:
+    """Refuse data that cannot identify anything (module docstring); the input checks only
+    for a model driven by one (``uses_input``, :attr:`jitterid.systems.model.Model.uses_input`)."""
+    if uses_input:
+        _check_input(data)
+    _check_y_and_size(data, n_params)
+
+
+def _check_input(data: SampledData) -> None:
     t = data.t_nominal
     u = data.u
+    if u is None:
+        raise ValueError(
+            "data.u: this model is driven by a known input, but the data have none; give the "
+            "input (SampledData(y, T, u)) or fit a signal model with no input (SignalModel)"
+        )
     if t[-1] >= u.end:
         raise ValueError(
             f"data.u: the input ends at t = {u.end:g} but the samples reach t = {t[-1]:g} "
@@ -116,6 +129,9 @@ def check_data(data: SampledData, n_params: int) -> None:
             "so it cannot be identified. Check the input column/units, or use an input that "
             "switches (telegraph_input, zoh_input of a random sequence) or a multisine"
         )
+
+
+def _check_y_and_size(data: SampledData, n_params: int) -> None:
     y = data.y
     if np.ptp(y) == 0:
         raise ValueError(
@@ -164,7 +180,7 @@ class Scaling:
     factors: FloatArray  # x_scaled = x * factors
 
     @staticmethod
-    def build(data: SampledData, structure: ModelStructure, n_jitter: int) -> Scaling:
+    def build(data: SampledData, structure: Model, n_jitter: int) -> Scaling:
         """The scaling for ``data``; the identity when the structure cannot absorb it."""
         n = n_jitter + len(structure.param_names)
         one = Scaling(1.0, 1.0, np.ones(n))
@@ -175,9 +191,9 @@ class Scaling:
         if not np.all(np.isinf(bounds[gains])):  # a finite bound on a gain would move
             return one
         sy = _pow2(float(np.sqrt(np.mean(data.y**2))))
-        su = _pow2(float(np.sqrt(np.mean(data.u(data.t_nominal) ** 2))))
-        if _scaled_input(data.u, 1.0) is None:
-            su = 1.0
+        su = 1.0  # a model without input: its gains scale with y alone
+        if structure.uses_input and data.u is not None and _scaled_input(data.u, 1.0) is not None:
+            su = _pow2(float(np.sqrt(np.mean(data.u(data.t_nominal) ** 2))))
         f = np.ones(n)
         f[[n_jitter + g for g in gains]] = su / sy
         return Scaling(sy, su, f)
@@ -189,8 +205,8 @@ class Scaling:
     def data(self, data: SampledData) -> SampledData:
         if self.identity:
             return data
-        u = _scaled_input(data.u, 1.0 / self.su)
-        assert u is not None
+        u = None if data.u is None else _scaled_input(data.u, 1.0 / self.su)
+        assert u is not None or data.u is None
         noise = None if data.noise_std is None else data.noise_std / self.sy
         return SampledData(data.y / self.sy, data.T, u, noise, data.instants)
 
@@ -215,7 +231,7 @@ class PostContext:
     """What the checks after the search need, in the scaled units of the search."""
 
     data: SampledData
-    structure: ModelStructure
+    structure: Model
     jitter: JitterLaw | JitterFamily
     names: tuple[str, ...]
     bounds: Sequence[tuple[float, float]]
@@ -250,8 +266,8 @@ def _theta(ctx: PostContext) -> FloatArray:
 
 
 def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:
-    if not ctx.structure.param_names:
-        return None
+    if not (ctx.structure.param_names and isinstance(ctx.structure, ModelStructure)):
+        return None  # a signal model has no poles
     tf = ctx.structure.system(_theta(ctx))
     coef = np.r_[tf.num, tf.den]
     if not np.all(np.isfinite(coef)):
@@ -299,8 +315,8 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
     if scale > SCALE_COLLAPSE * ctx.data.T:
         return None
     theta_oe = ctx.oe_system()
-    if theta_oe is None:
-        return None
+    if theta_oe is None or not isinstance(ctx.structure, ModelStructure):
+        return None  # detect_jitter needs a system driven by an input
     from ..analysis.diagnostics import detect_jitter  # diagnostics imports estimation
 
     try:

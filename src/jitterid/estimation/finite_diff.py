@@ -5,7 +5,8 @@ Derivatives that have no closed form are taken here: the jittered noise autocova
 quadratures over the law), the delta-method covariance's d^2 V / d theta dy and
 d(gradient)/d theta (:mod:`jitterid.estimation.covariance`,
 :func:`jitterid.estimation.bjcriteria.bj_covariance`), and the exact likelihood's
-observed information. :func:`derivative` is a central difference of step
+observed information, its jitter-shape scores (:func:`forward`) and its Fisher information
+(:func:`central_pair`). :func:`derivative` is a central difference of step
 ``rel * max(|x_i|, floor)``, or the second-order one-sided rule
 (-3 f(x) + 4 f(x + h) - f(x + 2 h)) / (2 h) (and its mirror) where a central step would
 leave the bounds; :func:`hessian` the second differences of a scalar function. All are
@@ -19,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["derivative", "hessian", "step"]
+__all__ = ["central_pair", "derivative", "forward", "hessian", "step"]
 
 FloatArray = NDArray[np.float64]
 
@@ -29,6 +30,35 @@ REL_STEP = 1e-5  # (eps)^(1/3) ~ 6e-6: balances the O(h^2) error against roundin
 def step(x: FloatArray, i: int | np.integer, rel: float = REL_STEP, floor: float = 1e-2) -> float:
     """The step for parameter ``i``: rel * max(|x_i|, floor)."""
     return rel * max(abs(float(x[i])), floor)
+
+
+def forward(
+    x: FloatArray, i: int | np.integer, bounds: tuple[float, float], rel: float,
+    floor: float = 1e-2,
+) -> tuple[FloatArray, float]:
+    """x with x_i moved by a forward step :func:`step` (backward where the upper bound
+    forbids), and the signed step: a one-sided (O(h)) difference, for callers that difference
+    a costly quantity already evaluated at x (the likelihood's jitter-shape scores, the
+    moments' derivatives in a jitter shape)."""
+    h = step(x, i, rel, floor)
+    if x[i] + h > bounds[1]:
+        h = -h
+    out = np.array(x, dtype=float)
+    out[i] += h
+    return out, h
+
+
+def central_pair(
+    x: FloatArray, i: int | np.integer, bounds: tuple[float, float], rel: float
+) -> tuple[FloatArray, FloatArray, float]:
+    """(x + h e_i, x - h e_i, 2 h) with the pair's centre moved inside ``bounds`` where x_i is
+    within h of one: for callers that difference many quantities at the same two points
+    (the Fisher information (L3), the Gaussian bound (L4))."""
+    h = step(x, i, rel)
+    centre = float(np.clip(x[i], bounds[0] + h, bounds[1] - h))
+    xp, xm = np.array(x, dtype=float), np.array(x, dtype=float)
+    xp[i], xm[i] = centre + h, centre - h
+    return xp, xm, 2 * h
 
 
 def derivative(

@@ -24,8 +24,9 @@ from .._checks import real_array
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..noise.models import NoiseModel, NoiseStructure
+from ..systems.model import Model
 from ..systems.structures import ModelStructure, as_structure
-from ..systems.tf import TransferFunction
+from ..systems.tf import Response, TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
 from .checks import PostContext, Scaling, check_arguments, check_data, post_checks
@@ -45,11 +46,11 @@ FloatArray = NDArray[np.float64]
 _BAD = 1e10  # residual returned where the model cannot be evaluated (e.g. unstable)
 
 
-def _oe_start(data: SampledData, structure: ModelStructure) -> tuple[FloatArray, float]:
+def _oe_start(data: SampledData, structure: Model) -> tuple[FloatArray, float]:
     """Ordinary output-error fit ignoring jitter (time domain); returns (theta, rms residual)."""
     t = data.t_nominal
     if not structure.param_names:
-        r0 = data.y - structure.system(()).response(data.u)(t)
+        r0 = data.y - structure.signal((), data.u)(t)
         return np.zeros(0), float(np.sqrt(np.mean(r0**2)))
 
     # The samples at kT are the moments of a point-mass jitter: the same O(N) path and
@@ -73,7 +74,7 @@ def _oe_start(data: SampledData, structure: ModelStructure) -> tuple[FloatArray,
     # right time scale is what matters, and each full search costs ~30 evaluations).
     gains = list(structure.gain_params)
     scored = []
-    for x0 in structure.starts(data.T):
+    for x0 in structure.initial_points(data):
         x0 = np.clip(x0, lo, hi)
         try:
             s = oe.moments(x0).mean
@@ -141,7 +142,7 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
 
 def fit(
     data: SampledData,
-    system: ModelStructure | TransferFunction,
+    system: Model | TransferFunction,
     jitter: JitterLaw | JitterFamily,
     method: str | Estimator = "bcls",
     start: ArrayLike | FitResult | None = None,
@@ -158,9 +159,10 @@ def fit(
     ----------
     data : SampledData
         Samples y_k requested at kT, the known input, and (optionally) the noise std.
-    system : ModelStructure or TransferFunction
-        A structure with free parameters (``PolePairGain()``, ``RationalModel(m, n)``) or a
-        known system (its parameters are then not estimated, as in Table 1).
+    system : Model or TransferFunction
+        A structure with free parameters (``PolePairGain()``, ``RationalModel(m, n)``), a
+        known system (its parameters are then not estimated, as in Table 1), or a signal
+        model with no input (:class:`jitterid.SignalModel`; ``data.u`` may then be None).
     jitter : JitterLaw or JitterFamily
         A known jitter law (OE structure (2a)) or a family with free parameters (JOE, (2c)).
     method : str or Estimator
@@ -233,7 +235,7 @@ def fit(
 
 def _fit(
     data: SampledData,
-    system: ModelStructure | TransferFunction,
+    system: Model | TransferFunction,
     jitter: JitterLaw | JitterFamily,
     method: str | Estimator = "bcls",
     start: ArrayLike | FitResult | None = None,
@@ -248,8 +250,13 @@ def _fit(
     method = est.name
     cov_type = est.check_cov_type(cov_type)
     noise_std, max_nfev = check_arguments(noise_std, max_nfev)
+    if noise_model is not None and isinstance(system, Model) and not isinstance(system, ModelStructure):
+        raise ValueError(
+            "noise: coloured noise (Box-Jenkins) is implemented for LTI structures driven by a "
+            f"known input; {type(system).__name__} is a signal model: fit it with noise=None"
+        )
     if noise_model is not None and isinstance(data, SampledData):  # Box-Jenkins: the data checks
-        n_sys = len(system.param_names) if isinstance(system, ModelStructure) else 0
+        n_sys = len(system.param_names) if isinstance(system, Model) else 0
         check_data(data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0))
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         return fit_bj(
@@ -275,7 +282,7 @@ def _fit(
     if method == "ls" and not structure.param_names:
         raise ValueError("method 'ls' with a known system has nothing to estimate")
     n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
-    check_data(data, n_jit + len(structure.param_names))
+    check_data(data, n_jit + len(structure.param_names), structure.uses_input)
     f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
     if f.size < 1:
         raise ValueError("freqs must hold at least one frequency")
@@ -359,7 +366,6 @@ def _fit(
     x, cost, status, msg, _ = best
     x = np.asarray(x, float)
     assert cov_type is not None
-    law, tf, _ = problem.split(x)
     noise_rec: float | None = None
     cov = np.full((x.size, x.size), np.nan)
     cov_error: str | None = None
@@ -419,8 +425,8 @@ def _fit(
             cost = problem.objective(x)
         except ValueError:
             cost = np.inf
-        problem.release()  # a fresh system for the result, without the criterion's caches
-        law, tf, _ = problem.split(x)
+    problem.release()  # a fresh signal for the result, without the criterion's caches
+    law, sig, _ = problem.split(x)
     problem.release()
     return FitResult(
         method=method,
@@ -430,7 +436,7 @@ def _fit(
         status=status,
         message=msg,
         nfev=nfev,
-        system=tf,
+        system=sig.system if isinstance(sig, Response) else None,
         jitter_law=law,
         noise_std=noise_rec,
         freqs=f,

@@ -12,11 +12,15 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
   ``_modal_gradient`` in closed form) and the exact switch-state derivative dx(t_j)/dp
   (:meth:`TransferFunction.switch_state_sensitivity`) give the derivative tables of (M1) in
   :mod:`jitterid.moments.modal`, which turns them into dm, dVar with node work that does not grow
-  with the number of parameters. Inputs that are not piecewise constant fall back to central
-  differences of the moments.
+  with the number of parameters. Any other model (a signal model, an LTI system driven by a
+  multisine) goes through the model protocol (:mod:`jitterid.systems.model`): the signal's
+  gradient at the jitter nodes (:func:`jitterid.moments.sample.moment_pass`) or, where the
+  model declares none, central differences of the moments
+  (:func:`jitterid.estimation.finite_diff.derivative`).
 - the scale a of a scale family (tau = a xi: ``UniformFamily``, ``GaussianFamily``, and ``a``
   of ``SumOfUniformsFamily``): dm/da = E[s'(kT + tau) tau] / a plus the jumps of s,
-  (M3) of :mod:`jitterid.moments.modal`, from the same pass. Other jitter parameters (``n``) change
+  (M3) of :mod:`jitterid.moments.modal`, from the same pass (for a smooth signal model from
+  its slope, :func:`~jitterid.moments.sample.moment_pass`). Other jitter parameters (``n``) change
   the shape of the law and move the quadrature nodes: a one-sided difference of the moments
   (the step of scipy's "2-point" rule, which these replace), one extra evaluation each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
@@ -46,8 +50,9 @@ from ..moments.modal import (
     tables,
 )
 from ..moments.quadrature import panel_layout
-from ..moments.sample import LazyMoments, SampleMoments, sample_moments
-from ..systems.tf import TransferFunction
+from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
+from ..systems.tf import Response, TransferFunction
+from . import finite_diff
 
 if TYPE_CHECKING:
     from .problem import Problem
@@ -58,10 +63,15 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
 _FD_REL = float(np.sqrt(np.finfo(float).eps))  # scipy's 2-point step: sqrt(eps) max(1, |x|)
-_CD_REL = 1e-6  # central differences (inputs that are not piecewise constant)
+_CD_REL = 1e-6  # central differences (models that declare no gradient)
 
 
 # ---------------------------------------------------------------------------- moments
+def _modal_path(sig: object) -> bool:
+    """Whether the fast modal path applies: an LTI response to a piecewise-constant input."""
+    return isinstance(sig, Response) and isinstance(sig.u, PiecewiseConstant)
+
+
 def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> SegmentPlan:
     """The node plan for ``law``: rebuilt only when the law or the panel layout changes.
 
@@ -85,24 +95,17 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
 
 def moments(problem: Problem, x: FloatArray) -> SampleMoments:
     """m_k and Var_k at ``x`` (Lemmas 1-2), by the segment path for piecewise-constant inputs."""
-    law, tf, _ = problem.split(x)
+    law, sig, _ = problem.split(x)
     d = problem.data
-    if not isinstance(d.u, PiecewiseConstant):
-        return sample_moments(tf.response(d.u), law, d.T, d.N)
+    if not _modal_path(sig):
+        return sample_moments(sig, law, d.T, d.N)
+    assert isinstance(sig, Response)
+    assert isinstance(d.u, PiecewiseConstant)
+    tf = sig.system
     d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
     mean, var, _, _ = modal_moments(_plan(problem, x, law, tf), tables(tf, d.u))
     assert var is not None
     return SampleMoments(mean, var)
-
-
-def _shift(x: FloatArray, i: int, bound: tuple[float, float], rel: float) -> tuple[FloatArray, float]:
-    """x with x[i] moved forward by rel max(1, |x_i|) (backward at the upper bound)."""
-    h = rel * max(1.0, abs(float(x[i])))
-    if x[i] + h > bound[1]:
-        h = -h
-    out = x.copy()
-    out[i] += h
-    return out, h
 
 
 def _floored(problem: Problem, x: FloatArray, var: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -134,20 +137,24 @@ def moment_derivatives(
     if problem._dcache and problem._dcache[0] == key:
         return problem._dcache[1]
     problem._dcache = None  # free the last point's (P, N) arrays before making new ones
-    law, tf, noise = problem.split(x)
+    law, sig, noise = problem.split(x)
     d = problem.data
     nj, ns = problem.n_jitter, len(problem.structure.param_names)
     P = x.size
     dm, dv = np.zeros((P, d.N)), np.zeros((P, d.N))
     theta = x[nj : nj + ns]
     scale = problem.jitter.scale_index if nj else None  # type: ignore[union-attr]
-    modal = isinstance(d.u, PiecewiseConstant) and (ns > 0 or scale is not None)
     need_var = problem.needs_variances
-    if modal:
+    a = float(x[scale]) if scale is not None else None
+    analytic_scale = False
+    if _modal_path(sig) and not (ns > 0 or scale is not None):
+        mom = moments(problem, x)  # nothing to differentiate along the modal path
+    elif _modal_path(sig):
+        assert isinstance(sig, Response)
         assert isinstance(d.u, PiecewiseConstant)
+        tf = sig.system
         d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
         dtab = derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf)) if ns else None
-        a = float(x[scale]) if scale is not None else None
         plan, tab = _plan(problem, x, law, tf), tables(tf, d.u)
         mean, var, dms, dvs = modal_moments(plan, tab, dtab, scale=a, variance=need_var)
         assert dms is not None
@@ -156,26 +163,38 @@ def moment_derivatives(
         else:
             mom = SampleMoments(mean, var)
         dm[nj : nj + ns] = dms[:ns]
-        if scale is not None:
-            dm[scale] = dms[ns]
         if dvs is not None:
             dv[nj : nj + ns] = dvs[:ns]
-            if scale is not None:
+        analytic_scale = scale is not None
+        if analytic_scale:
+            dm[scale] = dms[ns]
+            if dvs is not None:
                 dv[scale] = dvs[ns]
-    else:
-        mom = moments(problem, x)
-        lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
-        for i in range(nj, nj + ns):  # central differences: the fallback for other inputs
-            h = _CD_REL * max(abs(float(x[i])), 1e-2)
-            c = float(np.clip(x[i], lo[i] + h, hi[i] - h))
-            up, down = x.copy(), x.copy()
-            up[i], down[i] = c + h, c - h
-            mu, md = moments(problem, up), moments(problem, down)
-            dm[i], dv[i] = (mu.mean - md.mean) / (2 * h), (mu.var - md.var) / (2 * h)
+    else:  # the model protocol: the signal's gradient and slope at the jitter nodes
+        sig.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
+        mp = moment_pass(sig, law, d.T, d.N, variance=True, gradient=ns > 0, scale=a)
+        assert mp.var is not None
+        mom = SampleMoments(mp.mean, mp.var)
+        if mp.scale_mean is not None:
+            assert scale is not None
+            assert mp.scale_var is not None
+            dm[scale], dv[scale] = mp.scale_mean, mp.scale_var
+            analytic_scale = True
+        if mp.dmean is not None:
+            assert mp.dvar is not None
+            dm[nj : nj + ns], dv[nj : nj + ns] = mp.dmean, mp.dvar
+        elif ns:  # declared missing: central differences of the moments (finite_diff)
+            def both(v: FloatArray) -> FloatArray:
+                mv = moments(problem, v)
+                return np.concatenate([mv.mean, mv.var])
+
+            for i in range(nj, nj + ns):
+                g = finite_diff.derivative(both, x, i, problem.bounds[i], rel=_CD_REL)
+                dm[i], dv[i] = g[: d.N], g[d.N :]
     for i in range(nj):  # other jitter parameters move the nodes: a one-sided difference
-        if modal and i == scale:
+        if analytic_scale and i == scale:
             continue
-        xi, h = _shift(x, i, problem.bounds[i], _FD_REL)
+        xi, h = finite_diff.forward(x, i, problem.bounds[i], _FD_REL, floor=1.0)
         mi = moments(problem, xi)
         dm[i] = (mi.mean - mom.mean) / h
         if need_var:

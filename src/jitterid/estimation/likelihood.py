@@ -60,8 +60,10 @@ from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import jitter_nodes
 from ..moments.sample import sample_moments
 from ..params import ParamLayout
+from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
+from . import finite_diff
 from .search import evaluator, newton_search
 
 __all__ = [
@@ -83,6 +85,8 @@ _CHUNK = 2048  # samples per node chunk
 _Y_STEP = 0.5  # y-grid spacing of (L3) in units of sigma_v
 _Y_TAIL = 9.0  # y-grid margin in units of sigma_v
 _LOG_SQRT_2PI = 0.5 * np.log(2 * np.pi)
+_SCORE_STEP = 1e-7  # relative forward step of the differenced scores (finite_diff.forward)
+_FISHER_STEP = 1e-4  # relative central step of (L3) and (L4) (finite_diff.central_pair)
 
 
 # ---------------------------------------------------------------------------- signal at nodes
@@ -105,14 +109,10 @@ def _modal_gradient(
     p0 = _kept(tf._modal)[2]
     n = theta.size
     dd, drho, dp = np.empty(n), np.empty((n, p0.size), complex), np.empty((n, p0.size), complex)
-    lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
     for i in range(n):
-        h = 1e-6 * max(abs(float(theta[i])), 1e-2)
-        c = float(np.clip(theta[i], lo[i] + h, hi[i] - h))
+        up, down, h2 = finite_diff.central_pair(theta, i, structure.bounds[i], 1e-6)
         parts = []
-        for v in (c + h, c - h):
-            th = theta.copy()
-            th[i] = v
+        for th in (up, down):
             d, rho, p = _kept(structure.system(th)._modal)
             if p.size != p0.size:
                 return None
@@ -121,7 +121,7 @@ def _modal_gradient(
                 return None
             parts.append((d, rho[j], p[j]))
         (dp_, rp, pp), (dm, rm, pm) = parts
-        dd[i], drho[i], dp[i] = (dp_ - dm) / (2 * h), (rp - rm) / (2 * h), (pp - pm) / (2 * h)
+        dd[i], drho[i], dp[i] = (dp_ - dm) / h2, (rp - rm) / h2, (pp - pm) / h2
     return dd, drho, dp
 
 
@@ -144,7 +144,9 @@ def _pole_sensitivity(tf: TransferFunction, u: PiecewiseConstant) -> NDArray[np.
 
 
 class _NodeSignal:
-    """s(t) and ds/dtheta at a fixed set of instants, for any system.
+    """s(t) and ds/dtheta at a fixed set of instants, for any signal.
+
+    For the response of an LTI system to a piecewise-constant input (:attr:`analytic`):
 
     The input's segment of every instant is found once, so a new system costs a few real
     exponentials per node and pole pair: the modal formula of :class:`jitterid.systems.tf.Response`
@@ -153,10 +155,11 @@ class _NodeSignal:
     dx/dp = e^{p dt} (dt X_j + dX_j/dp) + u_j (dt e^{p dt} / p - expm1(p dt) / p^2).
     """
 
-    def __init__(self, u: Input, t: FloatArray) -> None:
-        self.u, self.t = u, t
+    def __init__(self, sig: Signal, t: FloatArray) -> None:
+        self.t = t
         if t.size:
-            u.check_covers(float(np.max(t)), "the last quadrature node")
+            sig.check_covers(float(np.max(t)), "the last quadrature node")
+        self.u = u = sig.u if isinstance(sig, Response) else None
         if isinstance(u, PiecewiseConstant):
             j = np.searchsorted(u.times, t, side="right") - 1
             self.inside = j >= 0
@@ -166,7 +169,8 @@ class _NodeSignal:
 
     @property
     def analytic(self) -> bool:
-        """Whether :meth:`gradient` is available (piecewise-constant inputs)."""
+        """Whether :meth:`gradient` is available (LTI responses to piecewise-constant inputs);
+        otherwise the signal's own gradient and slope, or differences, are used."""
         return isinstance(self.u, PiecewiseConstant)
 
     def _pole_terms(
@@ -177,6 +181,7 @@ class _NodeSignal:
         small complex matmuls are ~10x slower. Nodes before the input starts get x = 0."""
         _, rho, pk = _kept(tf._modal)
         cols = np.flatnonzero(tf._modal[2].imag >= 0)
+        assert self.u is not None
         X = tf.response(self.u)._switch_states
         dt = self.dt[:, 0]
         for k, (rk, p) in enumerate(zip(rho, pk, strict=True)):
@@ -203,9 +208,11 @@ class _NodeSignal:
             zi = er * W.imag + ei * W.real + self.level * vi
             yield rk, p, xr, xi, zr, zi
 
-    def __call__(self, tf: TransferFunction) -> FloatArray:
-        if not isinstance(self.u, PiecewiseConstant):
-            return tf.response(self.u)(self.t)
+    def __call__(self, sig: Signal) -> FloatArray:
+        if not self.analytic:
+            return sig(self.t)
+        assert isinstance(sig, Response)
+        tf = sig.system
         s = tf._modal[0] * self.level
         for rk, _, xr, xi, _, _ in self._pole_terms(tf):
             s = s + (rk.real * xr - rk.imag * xi)
@@ -213,7 +220,7 @@ class _NodeSignal:
 
     def gradient(
         self,
-        tf: TransferFunction,
+        sig: Signal,
         dmodal: tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]] | None,
         dX: NDArray[np.complex128] | None,
         *,
@@ -225,6 +232,8 @@ class _NodeSignal:
         derivative s'(t) = Re sum rho (p x + u) at the nodes, from the same exponentials (the
         score of a jitter scale parameter, see :meth:`ExactLikelihood._terms`)."""
         assert isinstance(self.u, PiecewiseConstant)
+        assert isinstance(sig, Response)
+        tf = sig.system
         s = tf._modal[0] * self.level
         ds = np.zeros(self.t.size)
         if dmodal is None:
@@ -251,10 +260,10 @@ class _NodeSignal:
 
 
 def _panel_cuts(
-    signal: Response, span: tuple[float, float], sigma: float, panel: float
+    signal: Signal, span: tuple[float, float], sigma: float, panel: float
 ) -> FloatArray:
     """Absolute cut times at most ``panel * sigma / S(t)`` apart on ``span`` (see module doc)."""
-    a, b = max(span[0], signal.u.start), min(span[1], np.nextafter(signal.end, -np.inf))
+    a, b = max(span[0], signal.start), min(span[1], np.nextafter(signal.end, -np.inf))
     if not (b > a and signal.rate > 0):
         return np.zeros(0)
     step = 0.25 / signal.rate
@@ -369,6 +378,11 @@ def _evaluate(
     return _Eval(nodes, s, e, logp, ez / total[nodes.owner])
 
 
+def _has_slope(sig: Signal, analytic: bool) -> bool:
+    """Whether s'(t) is available at the nodes: from the modal form, or the signal's own."""
+    return analytic or sig.slope(np.zeros(0)) is not None
+
+
 # ---------------------------------------------------------------------------- the likelihood
 @dataclass(eq=False)
 class ExactLikelihood:
@@ -376,12 +390,12 @@ class ExactLikelihood:
 
     Parameters
     ----------
-    structure : ModelStructure or TransferFunction
-        Model structure (or a known system, then with no system parameters).
+    structure : Model or TransferFunction
+        Model (an LTI structure, a signal model), or a known system (no system parameters).
     jitter : JitterLaw or JitterFamily
         Known jitter law, or a family whose parameters are estimated.
-    u : Input
-        The known input.
+    u : Input or None
+        The known input (None for a signal model with no input).
     T : float
         Nominal sampling interval.
     N : int
@@ -407,16 +421,15 @@ class ExactLikelihood:
     :meth:`design`) and then frozen: evaluations far from there are less accurate.
     """
 
-    structure: ModelStructure | TransferFunction
+    structure: Model | TransferFunction
     jitter: JitterLaw | JitterFamily
-    u: Input
+    u: Input | None
     T: float
     N: int
     noise_std: float | None = None
     order: int = DEFAULT_ORDER
     panel: float = DEFAULT_PANEL
-    names: tuple[str, ...] = field(init=False)
-    bounds: tuple[tuple[float, float], ...] = field(init=False)
+    layout: ParamLayout = field(init=False, repr=False)
     _cuts: FloatArray | None = field(init=False, default=None, repr=False)
     _cache: dict[tuple[float, ...], list[_Nodes]] = field(init=False, default_factory=dict)
 
@@ -427,61 +440,61 @@ class ExactLikelihood:
                 "jitter must be a jitter law (Uniform(a), Gaussian(sigma), ...) or a family "
                 f"(SumOfUniformsFamily(), ...); got {type(self.jitter).__name__}"
             )
-        if not isinstance(self.u, Input):
-            raise TypeError(f"u must be a jitterid input; got {type(self.u).__name__}")
+        if self.u is not None and not isinstance(self.u, Input):
+            raise TypeError(f"u must be a jitterid input or None; got {type(self.u).__name__}")
         self.T = positive(self.T, "T")
         self.N = count(self.N, "N", minimum=1)
         if self.noise_std is not None:
             self.noise_std = positive(self.noise_std, "noise_std")
         self.order = count(self.order, "order", minimum=1)
         self.panel = positive(self.panel, "panel")
-        jnames: tuple[str, ...] = ()
-        jbounds: tuple[tuple[float, float], ...] = ()
-        if isinstance(self.jitter, JitterFamily):
-            jnames, jbounds = tuple(self.jitter.param_names), tuple(self.jitter.bounds)
-        self.names = jnames + self.structure.param_names
-        self.bounds = jbounds + self.structure.bounds
-        if self.noise_std is None:
-            self.names += ("noise_std",)
-            self.bounds += ((1e-12, np.inf),)
+        self.layout = ParamLayout.build(self.jitter, self.structure, noise_std=self.noise_std is None)
 
     # -------------------------------------------------------------- parameters and rule
     @property
-    def model(self) -> ModelStructure:
-        """The model structure (a known system is wrapped in a KnownSystem)."""
-        assert isinstance(self.structure, ModelStructure)
+    def names(self) -> tuple[str, ...]:
+        return self.layout.names
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]:
+        return self.layout.bounds
+
+    @property
+    def model(self) -> Model:
+        """The model (a known system is wrapped in a KnownSystem)."""
+        assert isinstance(self.structure, Model)
         return self.structure
 
     @property
     def n_jitter(self) -> int:
         return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
 
-    def split(self, x: ArrayLike) -> tuple[JitterLaw, TransferFunction, float]:
-        """(jitter law, system, noise std) at parameter vector ``x``."""
+    def split(self, x: ArrayLike) -> tuple[JitterLaw, Signal, float]:
+        """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``."""
         x = np.atleast_1d(real_array(x, "x"))
         if x.shape != (len(self.names),):
             raise ValueError(f"x must hold {len(self.names)} values {self.names}; got {x.shape}")
-        nj, ns = self.n_jitter, len(self.model.param_names)
+        lay = self.layout
         law = (
-            self.jitter.law(x[:nj].tolist())
+            self.jitter.law(lay.block(x, "jitter").tolist())
             if isinstance(self.jitter, JitterFamily)
             else self.jitter
         )
         sigma = float(x[-1]) if self.noise_std is None else self.noise_std
         if not sigma > 0:
             raise ValueError(f"noise_std must be > 0 for the likelihood; got {sigma!r}")
-        return law, self.model.system(x[nj : nj + ns]), sigma
+        return law, self.model.signal(lay.block(x, "system"), self.u), sigma
 
     def design(self, x: ArrayLike) -> None:
         """(Re-)design the quadrature rule for the signal and noise level at ``x``."""
-        law, tf, sigma = self.split(x)
+        law, sig, sigma = self.split(x)
         lo, hi = law.support
         width = hi - lo
         span = (lo - width, (self.N - 1) * self.T + hi + width)
-        self._cuts = _panel_cuts(tf.response(self.u), span, sigma, self.panel)
+        self._cuts = _panel_cuts(sig, span, sigma, self.panel)
         self._cache.clear()
 
-    def _nodes(self, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> list[_Nodes]:
+    def _nodes(self, x: FloatArray, law: JitterLaw, sig: Signal) -> list[_Nodes]:
         if self._cuts is None:
             self.design(x)
         assert self._cuts is not None
@@ -489,21 +502,20 @@ class ExactLikelihood:
         if key not in self._cache:
             if len(self._cache) > 16:
                 self._cache.clear()
-            self._cache[key] = list(self._make_nodes(law, tf))
+            self._cache[key] = list(self._make_nodes(law, sig))
         return self._cache[key]
 
-    def _make_nodes(self, law: JitterLaw, tf: TransferFunction) -> Iterator[_Nodes]:
-        self.u.check_covers((self.N - 1) * self.T + law.support[1], "the last jittered instant")
-        resp = tf.response(self.u)
+    def _make_nodes(self, law: JitterLaw, sig: Signal) -> Iterator[_Nodes]:
+        sig.check_covers((self.N - 1) * self.T + law.support[1], "the last jittered instant")
         assert self._cuts is not None
-        breaks = np.concatenate([resp.breaks, self._cuts])
+        breaks = np.concatenate([sig.breaks, self._cuts])
         lo, hi = law.support
         # With shape parameters (differenced by moving the weights alone, see _terms) the
         # rule's weights are kept apart from the pdf.
         split = bool(self._weight_params()) and hi > lo
         rule = _UnitDensity(law) if split else law
         for ch in jitter_nodes(
-            rule, self.T, self.N, breaks, resp.rate, order=self.order, chunk=_CHUNK,  # type: ignore[arg-type]
+            rule, self.T, self.N, breaks, sig.rate, order=self.order, chunk=_CHUNK,  # type: ignore[arg-type]
             shared_pdf=True,
         ):
             w = ch.w
@@ -520,11 +532,11 @@ class ExactLikelihood:
                 )
             t = ch.t[keep]
             logrule = np.log(ch.w[keep]) if split else None
-            yield _Nodes(ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(self.u, t), logrule)
+            yield _Nodes(ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(sig, t), logrule)
 
     def _evals(self, x: FloatArray, y: FloatArray) -> list[_Eval]:
-        law, tf, sigma = self.split(x)
-        return [_evaluate(nd, nd.signal(tf), y, sigma) for nd in self._nodes(x, law, tf)]
+        law, sig, sigma = self.split(x)
+        return [_evaluate(nd, nd.signal(sig), y, sigma) for nd in self._nodes(x, law, sig)]
 
     def _data(self, y: ArrayLike) -> FloatArray:
         y = real_array(y, "y", ndim=1)
@@ -568,8 +580,8 @@ class ExactLikelihood:
 
     def _scale_index(self, analytic: bool) -> int | None:
         """Index of the jitter family's scale parameter a (the law of a xi, xi fixed), whose
-        score is analytic (:meth:`_terms`); None if there is none or the input is not
-        piecewise constant (then it is differenced like the shape parameters)."""
+        score is analytic (:meth:`_terms`); None if there is none or the signal's slope is
+        not available (then it is differenced like the shape parameters)."""
         if not (analytic and self.n_jitter):
             return None
         return self.jitter.scale_index  # type: ignore[union-attr]
@@ -598,13 +610,13 @@ class ExactLikelihood:
         with that derivative at the same nodes, exact for the integral, with s' from the
         modal form. The shape parameters (n) move the weights: forward differences of ln p.
         """
-        law, tf, sigma = self.split(x)
+        law, sig, sigma = self.split(x)
         nj, p = self.n_jitter, x.size
         ns = len(self.model.param_names)
         noise = self.noise_std is None
-        nodes = self._nodes(x, law, tf)
+        nodes = self._nodes(x, law, sig)
         analytic = nodes[0].signal.analytic
-        scale = self._scale_index(analytic)
+        scale = self._scale_index(_has_slope(sig, analytic))
         # parameters whose score comes from ds at the nodes: the scale, then the system
         inner = ([scale] if scale is not None else []) + list(range(nj, nj + ns))
         dX: NDArray[np.complex128] | None = None
@@ -613,21 +625,35 @@ class ExactLikelihood:
         dmodal = None
         if ns and analytic:
             assert isinstance(self.u, PiecewiseConstant)
-            dmodal = _modal_gradient(self.model, x[nj : nj + ns], tf)
-            dX = _pole_sensitivity(tf, self.u) if dmodal is not None else None
-        shifted = {i: _shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj + ns) if i not in inner}
-        if dmodal is None:  # system parameters by differences of s (then not in `shifted`)
-            shifted.update({i: _shifted(x, i, 1e-7, self.bounds[i]) for i in range(nj, nj + ns)})
+            assert isinstance(sig, Response)
+            assert isinstance(self.model, ModelStructure)
+            dmodal = _modal_gradient(self.model, x[nj : nj + ns], sig.system)
+            dX = _pole_sensitivity(sig.system, self.u) if dmodal is not None else None
+        own_gradient = not analytic and ns and sig.gradient(np.zeros(0)) is not None
+        # parameters differenced (forward steps): jitter parameters without an analytic
+        # score, and the system's where neither the modal form nor the model gives ds/dtheta
+        differenced = [i for i in range(nj) if i not in inner]
+        if dmodal is None and not own_gradient:
+            differenced += list(range(nj, nj + ns))
+        fwd = {i: finite_diff.forward(x, i, self.bounds[i], _SCORE_STEP) for i in differenced}
         for nd in nodes:
             if analytic and (dmodal is not None or not ns):
-                s, D, ds = nd.signal.gradient(tf, dmodal, dX, slope=True)  # type: ignore[misc]
+                s, D, ds = nd.signal.gradient(sig, dmodal, dX, slope=True)  # type: ignore[misc]
             else:
-                s, D = nd.signal(tf), np.empty((ns, nd.t.size))
-                for i in range(ns):
-                    xi, h = shifted[nj + i]
-                    D[i] = (nd.signal(self.split(xi)[1]) - s) / h
+                s = nd.signal(sig)
+                G_own = sig.gradient(nd.t) if own_gradient else None
+                if G_own is not None:
+                    D = G_own
+                else:  # the declared finite-difference route: forward differences of s
+                    D = np.empty((ns, nd.t.size))
+                    for i in range(ns):
+                        xi, h = fwd[nj + i]
+                        D[i] = (nd.signal(self.split(xi)[1]) - s) / h
                 if scale is not None:
-                    ds = nd.signal.gradient(tf, None, None, slope=True)[2]  # type: ignore[misc]
+                    if analytic:
+                        ds = nd.signal.gradient(sig, None, None, slope=True)[2]  # type: ignore[misc]
+                    else:
+                        ds = sig.slope(nd.t)
             if scale is not None:
                 tau = nd.t - (nd.k0 + nd.owner) * self.T
                 D = np.vstack([ds * (tau / x[scale]), D])
@@ -656,11 +682,11 @@ class ExactLikelihood:
         # The shape (n) by differences of ln p with the weights alone moved: the pdf of the
         # shifted law at the same nodes (the derivative of the integral: the rule's panels
         # end at the law's knots, which move by O(h), where the pdf is continuous).
-        moving = [i for i in range(nj) if i in shifted and i not in self._weight_params()]
+        moving = [i for i in range(nj) if i in fwd and i not in self._weight_params()]
         for i in moving:  # parameters that may move the support: new nodes
-            xi, h = shifted[i]
+            xi, h = fwd[i]
             G[:, i] = (self.logpdf(xi, y) - logp) / h
-        shapes = [(i, *shifted[i]) for i in self._weight_params() if i in shifted]
+        shapes = [(i, *fwd[i]) for i in self._weight_params() if i in fwd]
         if shapes:
             lo, hi = law.support
             with np.errstate(divide="ignore"):
@@ -714,7 +740,9 @@ class ExactLikelihood:
         smooth = None
         nj = self.n_jitter
         if nj:
-            scale = self._scale_index(isinstance(self.u, PiecewiseConstant))
+            sig = self.split(x0)[1]
+            modal = isinstance(sig, Response) and isinstance(self.u, PiecewiseConstant)
+            scale = self._scale_index(_has_slope(sig, modal))
             smooth = np.arange(x0.size) >= nj
             if scale is not None:
                 smooth[scale] = True
@@ -734,7 +762,7 @@ class ExactLikelihood:
         # Variants: the base point, then a pair of shifted points per parameter.
         variants, steps = [x], np.empty(p)
         for i in range(p):
-            xp, xm, steps[i] = _pair(x, i, 1e-4, self.bounds[i])
+            xp, xm, steps[i] = finite_diff.central_pair(x, i, self.bounds[i], _FISHER_STEP)
             variants += [xp, xm]
         per_variant = []
         for xv in variants:
@@ -779,33 +807,6 @@ def _segment(nd: _Nodes, k: int) -> tuple[int, int]:
     a = int(nd.starts[k])
     b = int(nd.starts[k + 1]) if k + 1 < nd.starts.size else nd.t.size
     return a, b
-
-
-def _step(x: FloatArray, i: int, rel: float) -> float:
-    return rel * max(abs(float(x[i])), 1e-2)
-
-
-def _shifted(
-    x: FloatArray, i: int, rel: float, bound: tuple[float, float]
-) -> tuple[FloatArray, float]:
-    """x with x[i] moved by a forward step (backward if the bound forbids), and the signed step."""
-    h = _step(x, i, rel)
-    if x[i] + h > bound[1]:
-        h = -h
-    out = x.copy()
-    out[i] += h
-    return out, h
-
-
-def _pair(
-    x: FloatArray, i: int, rel: float, bound: tuple[float, float]
-) -> tuple[FloatArray, FloatArray, float]:
-    """(x + h e_i, x - h e_i, 2h), shifted inside the bounds when x[i] is near one."""
-    h = _step(x, i, rel)
-    centre = float(np.clip(x[i], bound[0] + h, bound[1] - h))
-    xp, xm = x.copy(), x.copy()
-    xp[i], xm[i] = centre + h, centre - h
-    return xp, xm, 2 * h
 
 
 # ---------------------------------------------------------------------------- functions
@@ -853,13 +854,13 @@ def log_density(
 
 
 def _problem_setup(
-    system_structure: ModelStructure | TransferFunction,
+    system_structure: Model | TransferFunction,
     jitter: JitterLaw | JitterFamily,
     T: float,
     N: int,
     noise_std: float,
     true_params: ArrayLike,
-) -> tuple[ModelStructure, FloatArray]:
+) -> tuple[Model, FloatArray]:
     structure = as_structure(system_structure)
     # a dict by name, a vector (jitter-family then system parameters; noise_std is passed
     # separately) or a FitResult, whose entries are taken by name
@@ -881,9 +882,9 @@ def _inverse(info: FloatArray, names: tuple[str, ...]) -> FloatArray:
 
 
 def crb(
-    system_structure: ModelStructure | TransferFunction,
+    system_structure: Model | TransferFunction,
     jitter: JitterLaw | JitterFamily,
-    input: Input,  # the name is part of the documented signature
+    input: Input | None,  # the name is part of the documented signature
     T: float,
     N: int,
     noise_std: float,
@@ -897,12 +898,13 @@ def crb(
 
     Parameters
     ----------
-    system_structure : ModelStructure or TransferFunction
-        The structure (``PolePairGain()``), or a known system (no system parameters).
+    system_structure : Model or TransferFunction
+        The structure (``PolePairGain()``), a signal model (``SignalModel``), or a known
+        system (no system parameters).
     jitter : JitterLaw or JitterFamily
         A known jitter law, or a family whose parameters are estimated (JOE).
-    input : Input
-        The known input.
+    input : Input or None
+        The known input (None for a signal model).
     T : float
         Nominal sampling interval.
     N : int
@@ -942,9 +944,9 @@ def crb(
 
 
 def gaussian_bound(
-    system_structure: ModelStructure | TransferFunction,
+    system_structure: Model | TransferFunction,
     jitter: JitterLaw | JitterFamily,
-    input: Input,  # same signature as crb
+    input: Input | None,  # same signature as crb
     T: float,
     N: int,
     noise_std: float,
@@ -960,21 +962,21 @@ def gaussian_bound(
     in :func:`crb`; derivatives by central differences (relative step 1e-4).
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
-    if not isinstance(input, Input):
-        raise TypeError(f"input must be a jitterid input; got {type(input).__name__}")
+    if input is not None and not isinstance(input, Input):
+        raise TypeError(f"input must be a jitterid input or None; got {type(input).__name__}")
     lik = ExactLikelihood(structure, jitter, input, T, N, None if estimate_noise else noise_std)
     if estimate_noise:
         x = np.r_[x, float(noise_std)]
 
     def moments(xv: FloatArray) -> tuple[FloatArray, FloatArray]:
-        law, tf, sigma = lik.split(xv)
-        mom = sample_moments(tf.response(input), law, T, N)
+        law, sig, sigma = lik.split(xv)
+        mom = sample_moments(sig, law, T, N)
         return mom.mean, mom.var + sigma**2
 
     w0 = moments(x)[1]
     dm, dw = np.empty((x.size, N)), np.empty((x.size, N))
     for i in range(x.size):
-        xp, xm, h = _pair(x, i, 1e-4, lik.bounds[i])
+        xp, xm, h = finite_diff.central_pair(x, i, lik.bounds[i], _FISHER_STEP)
         (mp, wp), (mm, wm) = moments(xp), moments(xm)
         dm[i], dw[i] = (mp - mm) / h, (wp - wm) / h
     info = (dm / w0) @ dm.T + 0.5 * (dw / w0**2) @ dw.T

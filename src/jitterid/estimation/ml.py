@@ -27,11 +27,10 @@ def _residual_std(problem: Problem, x0: FloatArray) -> float:
     lik = problem.likelihood
     assert lik is not None
     d = problem.data
-    _, tf, sigma = lik.split(x0)
-    resp = tf.response(d.u)
+    _, resp, sigma = lik.split(x0)
     t = d.t_nominal
     h = 1e-6 * d.T
-    lo, hi = d.u.start, np.nextafter(resp.end, -np.inf)
+    lo, hi = resp.start, np.nextafter(resp.end, -np.inf)
     tp, tm = np.clip(t + h, lo, hi), np.clip(t - h, lo, hi)
     slope = (resp(tp) - resp(tm)) / np.where(tp > tm, tp - tm, 1.0)
     excess = float(np.mean((d.y - resp(np.clip(t, lo, hi))) ** 2)) - sigma**2

@@ -29,8 +29,7 @@ from ..moments.modal import SegmentPlan
 from ..moments.reference import dtft
 from ..moments.sample import SampleMoments, difference_grid
 from ..params import ParamLayout
-from ..systems.structures import ModelStructure
-from ..systems.tf import TransferFunction
+from ..systems.model import Model, Signal
 from . import jacobians as _jacobians
 from .estimators import Estimator, as_estimator, method_names
 from .likelihood import ExactLikelihood
@@ -74,7 +73,7 @@ class Problem:
     """Everything a criterion needs, with the moments of the last parameter vector cached."""
 
     data: SampledData
-    structure: ModelStructure
+    structure: Model
     jitter: JitterLaw | JitterFamily
     method: str
     freqs: FloatArray
@@ -90,7 +89,7 @@ class Problem:
     # last derivatives, frequency-difference grid (see :mod:`jitterid.estimation.jacobians`)
     _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
     _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
-    _split: tuple[bytes, tuple[JitterLaw, TransferFunction, float]] | None = field(
+    _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = field(
         init=False, default=None
     )
     _plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
@@ -127,11 +126,13 @@ class Problem:
     def n_jitter(self) -> int:
         return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
 
-    def split(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
-        """(jitter law, system, noise std) at parameter vector ``x``.
+    def split(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]:
+        """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``.
 
-        Memoised for the last ``x``: the criterion, its derivatives and the variances all ask
-        for the same system, whose modal form and switch-time states are then built once.
+        The signal is the model's (:mod:`jitterid.systems.model`): for an LTI structure the
+        response of its system to the data's input. Memoised for the last ``x``: the
+        criterion, its derivatives and the variances all ask for the same signal, whose
+        modal form and switch-time states are then built once.
         """
         key = np.asarray(x, float).tobytes()
         if self._split is not None and self._split[0] == key:
@@ -140,7 +141,7 @@ class Problem:
         self._split = (key, out)
         return out
 
-    def _split_new(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, float]:
+    def _split_new(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]:
         lay = self.layout
         if self.estimator.ignores_jitter:
             law: JitterLaw = NoJitter()
@@ -148,9 +149,9 @@ class Problem:
             law = self.jitter.law(lay.block(x, "jitter").tolist())
         else:
             law = self.jitter
-        tf = self.structure.system(lay.block(x, "system"))
+        sig = self.structure.signal(lay.block(x, "system"), self.data.u)
         noise = float(x[-1]) if self.estimates_noise else float(self.noise_std or 0.0)
-        return law, tf, noise
+        return law, sig, noise
 
     def moments(self, x: FloatArray) -> SampleMoments:
         """m_k and Var_k at ``x`` (Lemmas 1-2, notes 1-2), cached for the last ``x``."""

@@ -14,7 +14,7 @@ check that both routes give the same numbers.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterLaw
+from ..systems.model import Signal
 from ..systems.tf import Response, TransferFunction
 from .modal import SegmentPlan, modal_moments, tables
 from .quadrature import DEFAULT_ORDER, jitter_nodes
@@ -32,6 +33,7 @@ __all__ = [
     "dft_covariance",
     "dft_pseudo_covariance",
     "expected_dft",
+    "moment_pass",
     "sample_moments",
 ]
 
@@ -75,7 +77,7 @@ class LazyMoments(SampleMoments):
 
 
 def sample_moments(
-    signal: Response,
+    signal: Signal,
     jitter: JitterLaw,
     T: float,
     N: int,
@@ -85,30 +87,102 @@ def sample_moments(
     """m_k and Var[s(kT + tau)] by panel Gauss-Legendre quadrature over tau (notes 1-2).
 
     The variance is computed as E[(s - m_k)^2] in a second pass over the same nodes, so it
-    does not suffer the cancellation of E[s^2] - m_k^2 when the jitter is small. For a
-    piecewise-constant input the node sums are taken per input segment from the modal form
-    (:mod:`jitterid.moments.modal`, (M1)-(M2)); without jitter the samples are s(kT) themselves.
-    Work O(N), memory bounded by the chunk size.
+    does not suffer the cancellation of E[s^2] - m_k^2 when the jitter is small. For the
+    response of an LTI system to a piecewise-constant input the node sums are taken per
+    input segment from the modal form (:mod:`jitterid.moments.modal`, (M1)-(M2)); any other
+    signal (:class:`jitterid.systems.model.Signal`) is evaluated at the nodes
+    (:func:`moment_pass`). Without jitter the samples are s(kT) themselves. Work O(N),
+    memory bounded by the chunk size.
     """
     T = positive(T, "T")
     N = count(N, "N", minimum=1)
-    signal.u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
+    signal.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
     lo, hi = jitter.support
-    if isinstance(signal.u, PiecewiseConstant) and hi > lo:
+    if isinstance(signal, Response) and isinstance(signal.u, PiecewiseConstant) and hi > lo:
         # The same nodes, summed per input segment from the modal form (:mod:`._modal`):
         # a few times faster than evaluating s(t) node by node.
         plan = SegmentPlan(jitter, T, N, signal.u, signal.rate, order=order, poles=signal.system._modal[2])
         mean, var, _, _ = modal_moments(plan, tables(signal.system, signal.u), keep=False)
         assert var is not None
         return SampleMoments(mean, var)
+    out = moment_pass(signal, jitter, T, N, order=order)
+    assert out.var is not None
+    return SampleMoments(out.mean, out.var)
+
+
+@dataclass(frozen=True)
+class MomentPass:
+    """m_k, Var_k and their derivatives from one pass over the jitter nodes.
+
+    ``dmean``/``dvar`` have a row per parameter of the signal's gradient and ``scale_mean``/
+    ``scale_var`` are the derivatives in the jitter scale; ``None`` where not asked for or
+    not available (the signal declares no gradient or slope: the caller differences)."""
+
+    mean: FloatArray
+    var: FloatArray | None
+    dmean: FloatArray | None = None
+    dvar: FloatArray | None = None
+    scale_mean: FloatArray | None = None
+    scale_var: FloatArray | None = None
+
+
+def moment_pass(
+    signal: Signal,
+    jitter: JitterLaw,
+    T: float,
+    N: int,
+    *,
+    variance: bool = True,
+    gradient: bool = False,
+    scale: float | None = None,
+    order: int = DEFAULT_ORDER,
+) -> MomentPass:
+    """The moments of any signal at the jitter nodes (notes 1-2), and their derivatives.
+
+    With ``gradient``, dm_k = E[ds/dtheta] and dVar_k = 2 E[(s - m_k) ds/dtheta] from the
+    signal's gradient (:meth:`~jitterid.systems.model.Signal.gradient`); with ``scale`` = a,
+    the scale of a jitter family (tau = a xi), dm_k/da = E[s'(kT + tau) tau] / a and
+    dVar_k/da = 2 E[(s - m_k) s' tau] / a from the signal's slope (the signal must be smooth:
+    :class:`~jitterid.systems.signals.SignalModel`). A derivative the signal does not declare
+    is left ``None``: the caller differences the moments.
+    """
+    none = np.zeros(0)
+    gradient = gradient and signal.gradient(none) is not None
+    if scale is not None and signal.slope(none) is None:
+        scale = None
     mean = np.empty(N)
-    var = np.empty(N)
+    var = np.empty(N) if variance else None
+    rows: list[FloatArray] = []  # per derivative: its dmean and (with variance) dvar
     for ch in jitter_nodes(jitter, T, N, signal.breaks, signal.rate, order=order):
         s = signal(ch.t)
         m = ch.expect(s)
-        mean[ch.k0 : ch.k1] = m
-        var[ch.k0 : ch.k1] = ch.expect((s - m[ch.owner]) ** 2)
-    return SampleMoments(mean, var)
+        sl = slice(ch.k0, ch.k1)
+        mean[sl] = m
+        dev = s - m[ch.owner]
+        if var is not None:
+            var[sl] = ch.expect(dev**2)
+        parts = []
+        if gradient:
+            g = signal.gradient(ch.t)
+            assert g is not None
+            parts.extend(g)
+        if scale is not None:
+            slope = signal.slope(ch.t)
+            assert slope is not None
+            parts.append(slope * (ch.t - (ch.k0 + ch.owner) * T) / scale)
+        if not rows:
+            rows = [np.empty((2 if variance else 1, N)) for _ in parts]
+        for row, gi in zip(rows, parts, strict=True):
+            row[0, sl] = ch.expect(gi)
+            if variance:
+                row[1, sl] = 2 * ch.expect(dev * gi)
+    out = MomentPass(mean, var)
+    if gradient:
+        grad = np.array(rows[: len(rows) - (scale is not None)]).reshape(-1, rows[0].shape[0], N)
+        out = replace(out, dmean=grad[:, 0], dvar=grad[:, 1] if variance else None)
+    if scale is not None:
+        out = replace(out, scale_mean=rows[-1][0], scale_var=rows[-1][1] if variance else None)
+    return out
 
 
 def _frequencies(f: ArrayLike) -> FloatArray:

@@ -1,33 +1,40 @@
-"""Parameterised model structures g_theta for estimation, each with named parameters and bounds."""
+"""Parameterised LTI model structures G_theta driven by a known input: the models of
+:mod:`jitterid.systems.model` whose signal is the exact response s = G_theta u."""
 
 from __future__ import annotations
 
 import abc
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import count, parameter_vector
-from .tf import TransferFunction
+from .._checks import count
+from .model import Bounds, Model
+from .tf import Response, TransferFunction
+
+if TYPE_CHECKING:
+    from ..data import SampledData
+    from ..inputs import Input
 
 __all__ = ["KnownSystem", "ModelStructure", "PolePairGain", "RationalModel"]
 
 FloatArray = NDArray[np.float64]
-Bounds = tuple[tuple[float, float], ...]
 
 
-class ModelStructure(abc.ABC):
-    """A family of transfer functions G_theta with named parameters.
+class ModelStructure(Model):
+    """A family of transfer functions G_theta with named parameters, driven by a known input.
 
     Subclasses define ``param_names``, ``bounds`` (closed, used by the optimiser), a map
     ``system(params) -> TransferFunction``, and ``starts(T)``: a few starting points for the
-    ordinary output-error fit that initialises every estimator (paper, Section 4.5).
+    ordinary output-error fit that initialises every estimator (paper, Section 4.5). Its
+    signal (:meth:`signal`) is the exact response of G_theta to the input, whose moments the
+    fast modal path computes (:mod:`jitterid.moments.modal`).
     """
 
-    param_names: tuple[str, ...]
-    bounds: Bounds
+    uses_input = True
 
     @property
     def gain_params(self) -> tuple[int, ...]:
@@ -40,6 +47,18 @@ class ModelStructure(abc.ABC):
     @abc.abstractmethod
     def starts(self, T: float) -> list[FloatArray]: ...
 
+    def signal(self, params: ArrayLike, u: Input | None = None) -> Response:
+        """s(t) = (G_theta u)(t), the exact response to the known input ``u``."""
+        if u is None:
+            raise ValueError(
+                f"{type(self).__name__} is driven by a known input: data.u must be given "
+                "(a PiecewiseConstant, telegraph_input, zoh_input or Multisine)"
+            )
+        return self.system(params).response(u)
+
+    def initial_points(self, data: SampledData) -> list[FloatArray]:
+        return self.starts(data.T)
+
     def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
         """d(num, den)/dtheta in closed form, shape (P, n) each (num padded to the length n
         of the denominator), or None: this structure declares no analytic derivative, and
@@ -47,9 +66,6 @@ class ModelStructure(abc.ABC):
         declared finite-difference route of :func:`jitterid.moments.modal.modal_sensitivity`).
         A subclass that maps its parameters otherwise must override it."""
         return None
-
-    def _check(self, params: ArrayLike) -> FloatArray:
-        return parameter_vector(params, self.param_names, self.bounds)
 
 
 @dataclass(frozen=True)
@@ -184,15 +200,16 @@ class KnownSystem(ModelStructure):
         return [np.zeros(0)]
 
 
-def as_structure(system: ModelStructure | TransferFunction) -> ModelStructure:
-    """Accept a structure or a known TransferFunction (wrapped in :class:`KnownSystem`)."""
-    if isinstance(system, ModelStructure):
+def as_structure(system: Model | TransferFunction) -> Model:
+    """Accept a model (a structure, a signal model) or a known TransferFunction (wrapped in
+    :class:`KnownSystem`)."""
+    if isinstance(system, Model):
         return system
     if isinstance(system, TransferFunction):
         return KnownSystem(system)
     raise TypeError(
-        "system must be a model structure (PolePairGain(), RationalModel(m, n)) or a known "
-        f"TransferFunction; got {type(system).__name__}"
+        "system must be a model structure (PolePairGain(), RationalModel(m, n)), a signal "
+        f"model (SignalModel) or a known TransferFunction; got {type(system).__name__}"
     )
 
 

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import real_array
 from ..inputs import Input, Multisine, PiecewiseConstant
+from .model import Signal
 
 __all__ = ["Response", "TransferFunction"]
 
@@ -202,8 +203,10 @@ class TransferFunction:
 
 
 @dataclass(frozen=True, eq=False)
-class Response:
-    """The exact output s(t) of ``system`` to input ``u`` (at rest before ``u.start``).
+class Response(Signal):
+    """The exact output s(t) of ``system`` to input ``u`` (at rest before ``u.start``): the
+    :class:`~jitterid.systems.model.Signal` of an LTI structure. Its parameter gradient is
+    not given here (the moments and the likelihood take it from the modal form).
 
     Call it with any array of instants (< ``end``) to get s(t), vectorised.
 
@@ -222,6 +225,7 @@ class Response:
 
     system: TransferFunction
     u: Input
+    start: float = field(init=False)
     end: float = field(init=False)
     breaks: FloatArray = field(init=False)
     rate: float = field(init=False)
@@ -238,9 +242,14 @@ class Response:
         rate = float(np.max(np.abs(p))) if p.size else 0.0
         if isinstance(self.u, Multisine) and self.u.freqs.size:
             rate = max(rate, float(2 * np.pi * np.max(self.u.freqs)))
+        object.__setattr__(self, "start", self.u.start)
         object.__setattr__(self, "end", self.u.end)
         object.__setattr__(self, "breaks", self.u.breaks)
         object.__setattr__(self, "rate", rate)
+
+    def check_covers(self, t_max: float, what: str) -> None:
+        """Refuse instants past the input's end (:meth:`jitterid.inputs.Input.check_covers`)."""
+        self.u.check_covers(t_max, what)
 
     @property
     def _switch_states(self) -> ComplexArray:

@@ -1,0 +1,118 @@
+"""The model protocol: what the moments, the likelihood and the fit need from a model of the
+sampled signal s(t; theta) (the paper's (1a): y_k = s(kT + tau_k; theta) + v_k).
+
+A :class:`Model` has named parameters with bounds, gives starting points, and at each
+parameter vector a :class:`Signal`: s(t) at arbitrary instants, with where it is not smooth
+(``breaks``), how fast it varies (``rate``), and, where it has them, its parameter gradient
+ds/dtheta and its time slope ds/dt. Everything downstream (:mod:`jitterid.moments`, the
+estimators, the search, the covariance) reads a model only through this protocol, so a new
+kind of model is one class:
+
+- LTI structures driven by a known input (:class:`jitterid.systems.structures.ModelStructure`:
+  ``PolePairGain``, ``RationalModel``, ``KnownSystem``); their signal is the exact response
+  :class:`jitterid.systems.tf.Response`, which the moments evaluate by the fast modal path
+  over input segments (:mod:`jitterid.moments.modal`) where the input is piecewise constant;
+- signal models with no input (:class:`jitterid.systems.signals.SignalModel`: a function
+  s(t, theta) with named parameters), whose moments are quadratures over the jitter of the
+  signal's values and gradient (:mod:`jitterid.moments.signal`).
+
+A model without an analytic gradient declares it by returning ``None`` from
+:meth:`Signal.gradient`: the moments then take central differences of the model through
+:mod:`jitterid.estimation.finite_diff` (never silently: :attr:`Model.analytic` says which).
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._checks import parameter_vector
+
+if TYPE_CHECKING:
+    from ..data import SampledData
+    from ..inputs import Input
+
+__all__ = ["Bounds", "Model", "Signal"]
+
+FloatArray = NDArray[np.float64]
+Bounds = tuple[tuple[float, float], ...]
+
+
+class Signal(abc.ABC):
+    """s(t) of one model at one parameter vector.
+
+    Attributes
+    ----------
+    breaks : ndarray
+        Instants where s(t) is not analytic (input switch times): quadrature panels end there.
+    rate : float
+        The fastest rate (1/s) at which s varies between breaks; quadrature panels are kept
+        shorter than about ``1 / rate``.
+    start, end : float
+        s(t) is zero before ``start``; evaluating at or after ``end`` is an error (an input
+        that ends). ``-inf`` and ``inf`` for a signal defined everywhere.
+    """
+
+    breaks: FloatArray
+    rate: float
+    start: float
+    end: float
+
+    @abc.abstractmethod
+    def __call__(self, t: ArrayLike) -> FloatArray:
+        """s(t) at the instants ``t`` (any shape)."""
+
+    def gradient(self, t: FloatArray) -> FloatArray | None:
+        """ds/dtheta at the instants ``t`` (1-D), shape (P, t.size), or None: no closed form
+        (the declared finite-difference route of the moments and the likelihood)."""
+        return None
+
+    def slope(self, t: FloatArray) -> FloatArray | None:
+        """ds/dt at the instants ``t`` (1-D), or None: no closed form (a jitter family's
+        scale is then differenced like its other parameters)."""
+        return None
+
+    def check_covers(self, t_max: float, what: str) -> None:
+        """Refuse instants at or past :attr:`end` with a ValueError naming ``what``."""
+        if t_max >= self.end:
+            raise ValueError(f"{what} (t = {t_max:g}) is at or past the signal's end {self.end:g}")
+
+
+class Model(abc.ABC):
+    """A parameterised model of the sampled signal, s(t; theta).
+
+    Subclasses define ``param_names``, ``bounds`` (closed, used by the optimiser),
+    :meth:`signal` and :meth:`initial_points`, and may declare ``gain_params`` (parameters in
+    which s is linear: the scaling of the data maps them exactly, and each start gets its
+    least-squares gain) and :attr:`uses_input`.
+    """
+
+    param_names: tuple[str, ...]
+    bounds: Bounds
+    #: whether s depends on a known input ``data.u`` (LTI structures) or not (signal models)
+    uses_input: bool = True
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        """Indices of parameters that scale the output linearly."""
+        return ()
+
+    @property
+    def analytic(self) -> bool:
+        """Whether the signal's parameter gradient is in closed form (else: differences)."""
+        return True
+
+    @abc.abstractmethod
+    def signal(self, params: ArrayLike, u: Input | None = None) -> Signal:
+        """s(t; params), driven by the known input ``u`` where the model has one."""
+
+    @abc.abstractmethod
+    def initial_points(self, data: SampledData) -> Sequence[FloatArray]:
+        """A few starting points for the ordinary fit that ignores the jitter (Section 4.5)."""
+
+    def _check(self, params: ArrayLike) -> FloatArray:
+        return parameter_vector(params, self.param_names, self.bounds)
