@@ -67,6 +67,8 @@ from .noise.covariance import (
 from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
 from .params import ParamLayout
 from .simulate import simulate
+from .systems.model import Model, Signal
+from .systems.signals import SignalModel
 from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
 from .systems.tf import Response, TransferFunction
 
@@ -82,6 +84,7 @@ __all__ = [
     "JitterFamily",
     "JitterLaw",
     "KnownSystem",
+    "Model",
     "ModelStructure",
     "Multisine",
     "NoJitter",
@@ -91,6 +94,8 @@ __all__ = [
     "Response",
     "SampleMoments",
     "SampledData",
+    "Signal",
+    "SignalModel",
     "SumOfUniforms",
     "SumOfUniformsFamily",
     "TransferFunction",

@@ -24,7 +24,7 @@ from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
 from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
-from ..systems.structures import ModelStructure
+from ..systems.model import Model
 from ..systems.tf import TransferFunction
 from . import finite_diff
 
@@ -112,8 +112,8 @@ class FitResult:
         The search's own message.
     nfev : int
         Criterion evaluations used by the search (all starts and stages).
-    system : TransferFunction
-        The fitted system G_theta.
+    system : TransferFunction or None
+        The fitted system G_theta; None for a signal model with no input.
     jitter_law : JitterLaw
         The jitter law: the known one, or the fitted member of the family.
     noise_std : float or None
@@ -132,8 +132,9 @@ class FitResult:
         residuals for w_k (Huber-White; for ``ml``, the sandwich of the per-sample scores),
         honest under a misspecified jitter law; ``"oim"``: the inverse observed
         information (``ml``, ``gaussian``); ``"none"``: not computed.
-    structure : ModelStructure
-        The system structure fitted (a known system is a ``KnownSystem``).
+    structure : Model
+        The model fitted: an LTI structure (a known system is a ``KnownSystem``) or a signal
+        model.
     jitter_model : JitterLaw or JitterFamily
         The jitter law or family passed to :func:`~jitterid.fit`.
     noise_structure : NoiseStructure or None
@@ -149,13 +150,13 @@ class FitResult:
     status: FitStatus
     message: str
     nfev: int
-    system: TransferFunction
+    system: TransferFunction | None
     jitter_law: JitterLaw
     noise_std: float | None
     freqs: FloatArray = field(repr=False)
     cov: FloatArray = field(repr=False)
     cov_type: str
-    structure: ModelStructure = field(repr=False)
+    structure: Model = field(repr=False)
     jitter_model: JitterLaw | JitterFamily = field(repr=False)
     noise_structure: NoiseStructure | None = field(default=None, repr=False)
     noise_model: NoiseModel | None = field(default=None, repr=False)
@@ -360,10 +361,16 @@ class FitResult:
             )
 
     def predict(self, data: SampledData) -> FloatArray:
-        """E y_k = E s(kT + tau) under the fitted system and jitter law, for ``data``'s input
+        """E y_k = E s(kT + tau) under the fitted model and jitter law, for ``data``'s input
         and grid (Lemma 1 in the time domain)."""
         self._check_data(data)
-        mom = sample_moments(self.system.response(data.u), self.jitter_law, data.T, data.N)
+        if self.system is not None:
+            sig = self.system.response(data.u) if data.u is not None else None
+        else:
+            sig = self.structure.signal(self.layout.block(self.x, "system"), data.u)
+        if sig is None:
+            raise ValueError("data.u: the fitted system is driven by an input; give data.u")
+        mom = sample_moments(sig, self.jitter_law, data.T, data.N)
         return np.asarray(mom.mean, dtype=float)
 
     def residuals(self, data: SampledData) -> FloatArray:
@@ -414,7 +421,10 @@ class FitResult:
         else:
             sd = f"std {self.jitter_std:.4g}, known"
         lines.append(f"  jitter law {self.jitter_law}  ({sd})")
-        lines.append(f"  system {self.system}")
+        if self.system is not None:
+            lines.append(f"  system {self.system}")
+        else:
+            lines.append(f"  signal model {type(self.structure).__name__}")
         if self.noise_model is not None:
             lines.append(f"  noise model {self.noise_model}")
         if self.noise_std is None:
@@ -436,7 +446,8 @@ class FitResult:
         """The fitted G(s) as a ``scipy.signal.lti`` (transfer-function form; s in rad/s)."""
         from scipy import signal
 
-        return signal.lti(self.system.num, self.system.den)
+        tf = self._transfer_function()
+        return signal.lti(tf.num, tf.den)
 
     def to_control(self) -> Any:
         """The fitted G(s) as a python-control ``TransferFunction`` (s in rad/s).
@@ -450,7 +461,16 @@ class FitResult:
                 "to_control() needs python-control, an optional dependency; install it with "
                 "pip install 'jitterid[control]' (or pip install control)"
             ) from exc
-        return control.tf(self.system.num.tolist(), self.system.den.tolist())
+        tf = self._transfer_function()
+        return control.tf(tf.num.tolist(), tf.den.tolist())
+
+    def _transfer_function(self) -> TransferFunction:
+        if self.system is None:
+            raise ValueError(
+                f"this fit is of a signal model ({type(self.structure).__name__}), which has no "
+                "transfer function to export; use params and predict()"
+            )
+        return self.system
 
     def to_dict(self) -> dict[str, Any]:
         """Every field as JSON-compatible values (the inverse is :meth:`from_dict`)."""
