@@ -67,7 +67,8 @@ def test_moments_match_the_closed_form_of_a_jittered_sinusoid(law):
     w = 2 * np.pi * f
     a = w * np.arange(N) * T + ph
     cf1, cf2 = law.cf(np.array([w / (2 * np.pi), 2 * w / (2 * np.pi)]))
-    assert abs(cf1.imag) < 1e-12 and abs(cf2.imag) < 1e-12
+    assert abs(cf1.imag) < 1e-12
+    assert abs(cf2.imag) < 1e-12
     mean = A * cf1.real * np.sin(a) + c
     var = A**2 * (1 - cf2.real * np.cos(2 * a)) / 2 - (A * cf1.real * np.sin(a)) ** 2
     np.testing.assert_allclose(mom.mean, mean, atol=1e-10)
@@ -100,7 +101,7 @@ def test_moment_derivatives_against_central_differences(jitter, analytic):
         {ji.Uniform: [], ji.GaussianFamily: [0.25], ji.SumOfUniformsFamily: [1.6, 0.4]}[type(jitter)],
         TRUTH, 0.05,
     ]
-    mom, w, dm, dw = prob.derivatives(x)
+    _mom, _w, dm, dw = prob.derivatives(x)
     for i in range(x.size):
         h = 1e-6 * max(abs(x[i]), 1e-2)
         up, down = x.copy(), x.copy()
@@ -128,7 +129,7 @@ def test_signal_model_refuses_bad_definitions_and_an_lti_model_needs_an_input():
     with pytest.raises(ValueError, match="shape"):
         bad.signal([1.0])(np.zeros(5))
     data = record(ji.Uniform(0.2), 50, 0.05, np.random.default_rng(0))
-    with pytest.raises(ValueError, match="data.u"):
+    with pytest.raises(ValueError, match=r"data\.u"):
         ji.fit(data, ji.PolePairGain(), ji.Uniform(0.2))
     with pytest.raises(ValueError, match="noise"):
         ji.fit(data, sine(), ji.Uniform(0.2), "bcls", noise=ji.RationalNoise(0, 1))
@@ -147,7 +148,8 @@ def test_every_estimator_fits_a_jittered_sinusoid(method):
     assert res.system is None
     se = np.array([res.stderr[n] for n in ("A", "phi", "f", "c")])
     est = np.array([res.params[n] for n in ("A", "phi", "f", "c")])
-    assert np.all(np.isfinite(se)) and np.all(se > 0)
+    assert np.all(np.isfinite(se))
+    assert np.all(se > 0)
     assert np.all(np.abs(est - TRUTH) < 3.5 * se), (est, se)
     assert np.isfinite(res.predict(data)).all()
     assert "signal model SignalModel" in res.summary()
