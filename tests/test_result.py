@@ -365,7 +365,7 @@ def test_bounds_take_a_dict_a_vector_or_a_fit_result_with_the_same_answer():
 def test_closed_form_d2v_dx_dy_against_differences_of_grad_y(method, jitter):
     """The covariance's G = d^2 V / dx dy^T in closed form, against central differences of
     the criterion's dV/dy (the route it replaces), at a point off the optimum."""
-    from jitterid.estimation import finite_diff
+    from jitterid import finite_diff
     from jitterid.estimation.problem import Problem
 
     data = table2_data(17, known_noise=False)

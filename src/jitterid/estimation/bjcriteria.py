@@ -32,7 +32,7 @@ the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^
 d theta dy^T (central differences of dV/dy), H the Hessian of V (central differences of the
 analytic gradient; Gauss-Newton 2 J^T J for the least-squares criteria); G Sigma_y G^T is an
 FFT Toeplitz product. Every difference quotient goes through
-:func:`jitterid.estimation.finite_diff.derivative`.
+:func:`jitterid.finite_diff.derivative`.
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from threadpoolctl import threadpool_limits
 
+from .. import finite_diff
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.reference import dtft
 from ..moments.sample import SampleMoments
@@ -59,7 +60,6 @@ from ..noise.models import NoiseModel, NoiseStructure
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
-from . import finite_diff
 from .covariance import _steps
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
@@ -198,7 +198,7 @@ class BJProblem:
         Noise parameters: in closed form (:func:`jitterid.noise.covariance.
         autocovariance_derivatives` with :meth:`RationalNoise.mode_derivatives`) when the
         jitter spans at most T. Otherwise, and for jitter-family parameters, by
-        :func:`jitterid.estimation.finite_diff.derivative` of (C1)-(C3): the near lags are
+        :func:`jitterid.finite_diff.derivative` of (C1)-(C3): the near lags are
         quadratures over the law, with no closed-form derivative."""
         nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
         key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from scipy import optimize
 from threadpoolctl import threadpool_limits
 
-from . import finite_diff
+from .. import finite_diff
 
 if TYPE_CHECKING:
     from .problem import Problem

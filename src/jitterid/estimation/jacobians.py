@@ -16,7 +16,7 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
   multisine) goes through the model protocol (:mod:`jitterid.systems.model`): the signal's
   gradient at the jitter nodes (:func:`jitterid.moments.sample.moment_pass`) or, where the
   model declares none, central differences of the moments
-  (:func:`jitterid.estimation.finite_diff.derivative`).
+  (:func:`jitterid.finite_diff.derivative`).
 - the scale a of a scale family (tau = a xi: ``UniformFamily``, ``GaussianFamily``, and ``a``
   of ``SumOfUniformsFamily``): dm/da = E[s'(kT + tau) tau] / a plus the jumps of s,
   (M3) of :mod:`jitterid.moments.modal`, from the same pass (for a smooth signal model from
@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import finite_diff
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterLaw
 from ..moments.modal import (
@@ -52,7 +53,6 @@ from ..moments.modal import (
 from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
 from ..systems.tf import Response, TransferFunction
-from . import finite_diff
 
 if TYPE_CHECKING:
     from .problem import Problem

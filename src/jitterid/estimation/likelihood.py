@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import finite_diff
 from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
@@ -63,7 +64,6 @@ from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
-from . import finite_diff
 from .search import evaluator, newton_search
 
 __all__ = [

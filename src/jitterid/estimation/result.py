@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from .. import _serial
+from .. import _serial, finite_diff
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
@@ -26,7 +26,6 @@ from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
 from ..systems.model import Model
 from ..systems.tf import TransferFunction
-from . import finite_diff
 
 __all__ = ["COV_TYPES", "FitResult", "FitStatus"]
 
@@ -77,7 +76,7 @@ class FitStatus(enum.Enum):
 
 def _jitter_std_gradient(family: JitterFamily, theta: FloatArray) -> FloatArray:
     """d std / d theta of ``family.law(theta).std`` by the one finite-difference rule
-    (:mod:`jitterid.estimation.finite_diff`; second-order one-sided at a bound); the laws'
+    (:mod:`jitterid.finite_diff`; second-order one-sided at a bound); the laws'
     std is closed-form, so a relative step of 1e-6 is accurate."""
     theta = np.asarray(theta, float)
 

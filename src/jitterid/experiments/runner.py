@@ -35,6 +35,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from .. import finite_diff
 from ..estimation.fit import fit
 from ..estimation.likelihood import crb
 from ..estimation.result import FitResult
@@ -261,15 +262,19 @@ def _bound_row(exp: Experiment, case_index: int, realization: int, u: Input) -> 
 
 
 def _std_gradient(family: JitterFamily, p: np.ndarray) -> np.ndarray:
-    """d sigma / d p of a family's law by central differences, one-sided at a bound."""
-    lo, hi = np.array(family.bounds, dtype=float).T
-    g = np.empty(p.size)
-    for i in range(p.size):
-        h = 1e-6 * max(abs(p[i]), 1e-3)
-        up, dn = p.copy(), p.copy()
-        up[i], dn[i] = min(p[i] + h, hi[i]), max(p[i] - h, lo[i])
-        g[i] = (family.law(up.tolist()).std - family.law(dn.tolist()).std) / (up[i] - dn[i])
-    return g
+    """d sigma / d p of a family's law (:func:`jitterid.finite_diff.derivative`: central,
+    one-sided of second order at a bound)."""
+    p = np.asarray(p, dtype=float)
+
+    def std(v: np.ndarray) -> np.ndarray:
+        return np.array([family.law(v.tolist()).std])
+
+    return np.array(
+        [
+            finite_diff.derivative(std, p, i, family.bounds[i], rel=1e-6, floor=1e-3)[0]
+            for i in range(p.size)
+        ]
+    )
 
 
 def run_experiment(

@@ -63,6 +63,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
+from .. import finite_diff
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import Gaussian, JitterLaw
 from ..systems.structures import ModelStructure
@@ -521,22 +522,18 @@ def _coefficient_jacobian(
 
     In closed form where the structure gives it
     (:meth:`~jitterid.systems.structures.ModelStructure.coefficient_jacobian`); central
-    differences of the structure's map where it declares none.
+    differences of the structure's map where it declares none (:mod:`jitterid.finite_diff`).
     """
     closed = structure.coefficient_jacobian(theta, n) if _closed_form_applies(structure) else None
     if closed is not None:
         return closed
     P = theta.size
     dnum, dden = np.zeros((P, n)), np.zeros((P, n))
-    lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
     for i in range(P):
-        h = 1e-5 * max(abs(float(theta[i])), 1e-2)
-        c = float(np.clip(theta[i], lo[i] + h, hi[i] - h))
-        up, down = theta.copy(), theta.copy()
-        up[i], down[i] = c + h, c - h
+        up, down, h2 = finite_diff.central_pair(theta, i, structure.bounds[i], finite_diff.REL_STEP)
         a, b = structure.system(up), structure.system(down)
-        dnum[i] = (_padded(a.num, n) - _padded(b.num, n)) / (2 * h)
-        dden[i] = (_padded(a.den, n) - _padded(b.den, n)) / (2 * h)
+        dnum[i] = (_padded(a.num, n) - _padded(b.num, n)) / h2
+        dden[i] = (_padded(a.den, n) - _padded(b.den, n)) / h2
     return dnum, dden
 
 

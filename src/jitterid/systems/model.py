@@ -18,7 +18,7 @@ kind of model is one class:
 
 A model without an analytic gradient declares it by returning ``None`` from
 :meth:`Signal.gradient`: the moments then take central differences of the model through
-:mod:`jitterid.estimation.finite_diff` (never silently: :attr:`Model.analytic` says which).
+:mod:`jitterid.finite_diff` (never silently: :attr:`Model.analytic` says which).
 """
 
 from __future__ import annotations

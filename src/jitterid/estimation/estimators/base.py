@@ -128,7 +128,7 @@ class Estimator:
 
     def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
         """d^2 V / dx dy^T, shape (P, N), in closed form, or None: the covariance then
-        differences :meth:`grad_y` (:mod:`jitterid.estimation.finite_diff`)."""
+        differences :meth:`grad_y` (:mod:`jitterid.finite_diff`)."""
         return None
 
     @property

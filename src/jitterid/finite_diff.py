@@ -1,6 +1,9 @@
-"""The one finite-difference rule of the estimation package.
+"""The one finite-difference rule of the package.
 
-Derivatives that have no closed form are taken here: the jittered noise autocovariance
+Derivatives that have no closed form are taken here: a model structure's coefficient map
+when it declares no closed form (:mod:`jitterid.moments.modal`), the moments of a model
+that declares no gradient (:mod:`jitterid.estimation.jacobians`), a jitter family's std
+(:mod:`jitterid.experiments.runner`), the jittered noise autocovariance
 (C1)-(C3) with respect to the noise and jitter-family parameters (whose near lags are
 quadratures over the law), the delta-method covariance's d^2 V / d theta dy and
 d(gradient)/d theta (:mod:`jitterid.estimation.covariance`,
@@ -68,13 +71,14 @@ def derivative(
     bounds: tuple[float, float],
     f0: FloatArray | None = None,
     rel: float = REL_STEP,
+    floor: float = 1e-2,
 ) -> FloatArray:
     """d fun / d x_i at ``x`` (``fun`` returns an array), O(h^2), never outside ``bounds``.
 
     ``f0`` = fun(x), if known, saves an evaluation in the one-sided case.
     """
     x = np.asarray(x, dtype=float)
-    h = step(x, i, rel)
+    h = step(x, i, rel, floor)
     lo, hi = bounds
 
     def at(dx: float) -> FloatArray:
