@@ -203,3 +203,14 @@ def test_crb_and_gaussian_bound_of_a_signal_model_take_no_input():
     # the exact likelihood's bound never exceeds the second-moment model's by much (the
     # second-moment model is the Gaussian with the same moments; here nearly Gaussian)
     assert np.all(np.sqrt(np.diag(crb)) < 1.5 * np.sqrt(np.diag(gb)))
+
+
+def test_lti_only_diagnostics_refuse_a_signal_model_fit_clearly():
+    law = ji.Uniform(0.5)
+    data = record(law, 200, 0.05, np.random.default_rng(1))
+    res = ji.fit(data, sine(), law, "bcls", noise_std=0.05)
+    with pytest.raises(ValueError, match="signal model"):
+        ji.detect_jitter(data, res)
+    z = ji.standardized_residuals(data, res)  # general: through the fitted signal
+    assert abs(np.std(z) - 1) < 0.15
+    assert np.allclose(res.residuals(data), data.y - res.predict(data))

@@ -57,6 +57,12 @@ def _level(level: float) -> float:
 
 def _system(model: FitResult | TransferFunction) -> TransferFunction:
     if isinstance(model, FitResult):
+        if model.system is None:
+            raise ValueError(
+                f"model: a fit of a signal model ({type(model.structure).__name__}) has no "
+                "transfer function; these diagnostics need an LTI fit (use FitResult.residuals "
+                "for a signal model)"
+            )
         return model.system
     if isinstance(model, TransferFunction):
         return model
@@ -101,6 +107,8 @@ def model_output(
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
     tf = _system(model)
+    if data.u is None:
+        raise ValueError("data.u: the model is driven by an input, but the data have none")
     t = data.t_nominal
     return tf.response(data.u)(t), _slope_system(tf).response(data.u)(t)
 
@@ -392,7 +400,7 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
         raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
-    mom = sample_moments(result.system.response(data.u), result.jitter_law, data.T, data.N)
+    mom = sample_moments(result.signal(data.u), result.jitter_law, data.T, data.N)
     r = data.y - mom.mean
     noise_var = (result.noise_std or 0.0) ** 2
     if noise_var <= 0:

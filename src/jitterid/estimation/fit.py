@@ -259,6 +259,7 @@ def _fit(
         n_sys = len(system.param_names) if isinstance(system, Model) else 0
         check_data(data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0))
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
+        assert isinstance(system, (ModelStructure, TransferFunction))  # refused above otherwise
         return fit_bj(
             data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
             max_nfev=max_nfev, oe_fit=fit, cov_type=cov_type,

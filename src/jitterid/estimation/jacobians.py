@@ -52,6 +52,7 @@ from ..moments.modal import (
 )
 from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
+from ..systems.structures import ModelStructure
 from ..systems.tf import Response, TransferFunction
 
 if TYPE_CHECKING:
@@ -147,11 +148,13 @@ def moment_derivatives(
     need_var = problem.needs_variances
     a = float(x[scale]) if scale is not None else None
     analytic_scale = False
+    mom: SampleMoments
     if _modal_path(sig) and not (ns > 0 or scale is not None):
         mom = moments(problem, x)  # nothing to differentiate along the modal path
     elif _modal_path(sig):
         assert isinstance(sig, Response)
         assert isinstance(d.u, PiecewiseConstant)
+        assert isinstance(problem.structure, ModelStructure)  # a Response is an LTI structure's
         tf = sig.system
         d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
         dtab = derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf)) if ns else None
@@ -159,7 +162,7 @@ def moment_derivatives(
         mean, var, dms, dvs = modal_moments(plan, tab, dtab, scale=a, variance=need_var)
         assert dms is not None
         if var is None:
-            mom: SampleMoments = LazyMoments(mean, partial(_variances, plan, tab))
+            mom = LazyMoments(mean, partial(_variances, plan, tab))
         else:
             mom = SampleMoments(mean, var)
         dm[nj : nj + ns] = dms[:ns]

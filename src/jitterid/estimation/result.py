@@ -20,11 +20,12 @@ from scipy import stats
 
 from .. import _serial, finite_diff
 from ..data import SampledData
+from ..inputs import Input
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
 from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
-from ..systems.model import Model
+from ..systems.model import Model, Signal
 from ..systems.tf import TransferFunction
 
 __all__ = ["COV_TYPES", "FitResult", "FitStatus"]
@@ -359,17 +360,20 @@ class FitResult:
                 f"{type(data).__name__}"
             )
 
+    def signal(self, u: Input | None = None) -> Signal:
+        """The fitted signal s(t; theta) (:class:`jitterid.systems.model.Signal`): the fitted
+        system's response to the input ``u``, or the fitted signal model (``u`` unused)."""
+        if self.system is not None:
+            if u is None:
+                raise ValueError("u: the fitted system is driven by an input; give the input")
+            return self.system.response(u)
+        return self.structure.signal(self.layout.block(self.x, "system"), u)
+
     def predict(self, data: SampledData) -> FloatArray:
         """E y_k = E s(kT + tau) under the fitted model and jitter law, for ``data``'s input
         and grid (Lemma 1 in the time domain)."""
         self._check_data(data)
-        if self.system is not None:
-            sig = self.system.response(data.u) if data.u is not None else None
-        else:
-            sig = self.structure.signal(self.layout.block(self.x, "system"), data.u)
-        if sig is None:
-            raise ValueError("data.u: the fitted system is driven by an input; give data.u")
-        mom = sample_moments(sig, self.jitter_law, data.T, data.N)
+        mom = sample_moments(self.signal(data.u), self.jitter_law, data.T, data.N)
         return np.asarray(mom.mean, dtype=float)
 
     def residuals(self, data: SampledData) -> FloatArray:

@@ -161,7 +161,7 @@ def moment_pass(
         dev = s - m[ch.owner]
         if var is not None:
             var[sl] = ch.expect(dev**2)
-        parts = []
+        parts: list[FloatArray] = []
         if gradient:
             g = signal.gradient(ch.t)
             assert g is not None

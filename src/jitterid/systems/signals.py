@@ -76,13 +76,13 @@ class SignalModel(Model):
     """
 
     function: Function
-    param_names: tuple[str, ...]  # type: ignore[misc]
+    param_names: tuple[str, ...]
     starts: Sequence[Sequence[float]]
     rate: float | Callable[[FloatArray], float]
-    bounds: Bounds = ()  # type: ignore[misc]
+    bounds: Bounds = ()
     gradient: Function | None = None
     slope: Function | None = None
-    gain_params: tuple[int, ...] = ()  # type: ignore[assignment]
+    gain_params: tuple[int, ...] = ()
 
     uses_input = False
 
