@@ -402,9 +402,12 @@ def test_practically_white_noise_gives_the_oe_estimate_and_white_noise_stays_oe(
 def test_estimated_noise_model_on_white_data_gives_the_oe_fit_in_few_evaluations():
     """Table 2's setting (white noise 0.01, std unknown): BJ with H = hb0 / (s + ha0)
     estimated has white noise as a limit (hb0 -> 0, or ha0 -> infinity), so its system
-    estimate and error bars are OE's within a fraction of a standard error, and the Newton
-    search with analytic derivatives needs ~40-90 evaluations in all stages (L-BFGS-B with
-    difference quotients needed 500-1000)."""
+    estimate is OE's within a fraction of a standard error, and the Newton search with
+    analytic derivatives needs ~40-90 evaluations in all stages (L-BFGS-B with difference
+    quotients needed 500-1000). Error bars: OE's gaussian covariance uses the samples' third
+    and fourth moments exactly (tests/test_score_covariance.py); BJ's keeps the first-order
+    delta method, which overstates them: BJ / OE = 1.00-1.25 measured on these six seeds
+    (the OE first-order form gave the same as BJ within 10 %)."""
     for seed in range(40, 46):
         d = data_with(None, seed)
         data = ji.SampledData(d.y, d.T, d.u)
@@ -415,7 +418,7 @@ def test_estimated_noise_model_on_white_data_gives_the_oe_fit_in_few_evaluations
         se = np.array([oe.stderr[n] for n in ("k0", "pr", "pi")])
         se_bj = np.array([bj.stderr[n] for n in ("k0", "pr", "pi")])
         assert np.all(np.abs(bj.x[:3] - oe.x[:3]) < 0.5 * se), (seed, (bj.x[:3] - oe.x[:3]) / se)
-        np.testing.assert_allclose(se_bj, se, rtol=0.1)
+        assert np.all((se_bj >= 0.97 * se) & (se_bj <= 1.3 * se)), (seed, se_bj / se)
 
 
 def test_small_monte_carlo_bj_is_unbiased_with_honest_errors_where_oe_is_not():

@@ -17,7 +17,11 @@ maximum-likelihood value given the residuals (:func:`noise_variance_ml`) is used
 
 ``cov_type`` chooses the form (:data:`jitterid.estimation.result.COV_TYPES`):
 
-- ``"sandwich"`` (default of the moment estimators): w_k from the model, as above;
+- ``"sandwich"`` (default of the moment estimators): w_k from the model, as above; for a
+  criterion whose gradient is a sum of per-sample terms quadratic in y_k (``gaussian``) the
+  exact Cov(dV/dx) with the samples' third and fourth moments instead of the first-order
+  G diag(w) G^T (:func:`_per_sample_score_covariance`; the frequency-domain criteria keep
+  the first-order form);
 - ``"robust"``: w_k = (y_k - m_k)^2 (White's HC0), honest when the jitter law or the noise
   level is misspecified (default for ``ls``, whose model has no jitter); for ``ml`` the
   Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores;
@@ -105,11 +109,7 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
     if problem.method == "ml":
         return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov)
     bounds = problem.bounds
-    closed = problem.estimator.grad_y_jacobian(problem, x)
-    if closed is not None:
-        G = np.asarray(closed, float)[idx]
-    else:
-        G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i], rel=_REL_STEP) for i in idx])
+    G = _grad_y_jacobian(problem, x, idx)
     if problem.estimator.least_squares:
         J = problem.jacobian(x)[:, idx]  # analytic (jitterid.estimation.jacobians)
         H = 2 * J.T @ J
@@ -128,15 +128,58 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
     if cov_type == "oim":  # V = -2 ln L_G + const: Cov = (-d2 ln L_G)^{-1} = 2 H^{-1}
         cov[np.ix_(idx, idx)] = 2 * Hinv
         return cov
-    if cov_type == "robust":
-        w = (problem.data.y - problem.moments(x).mean) ** 2
+    A = problem.estimator.y_hessian_diagonal(problem, x)
+    if A is not None:
+        B = _per_sample_score_covariance(problem, x, G, np.asarray(A, float)[idx], cov_type == "robust")
     else:
-        w = problem.variances(x)
-        if not problem.uses_noise and noise_std is not None:
-            w = w + float(noise_std) ** 2
-    B = (G * w) @ G.T
+        if cov_type == "robust":
+            w = (problem.data.y - problem.moments(x).mean) ** 2
+        else:
+            w = problem.variances(x)
+            if not problem.uses_noise and noise_std is not None:
+                w = w + float(noise_std) ** 2
+        B = (G * w) @ G.T
     cov[np.ix_(idx, idx)] = Hinv @ B @ Hinv.T
     return cov
+
+
+def _grad_y_jacobian(problem: Problem, x: FloatArray, idx: NDArray[np.intp]) -> FloatArray:
+    """G = d^2 V / dx dy^T at the problem's data, rows ``idx``: closed form or differences."""
+    closed = problem.estimator.grad_y_jacobian(problem, x)
+    if closed is not None:
+        return np.asarray(closed, float)[idx]
+    bounds = problem.bounds
+    return np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i], rel=_REL_STEP) for i in idx])
+
+
+def _per_sample_score_covariance(
+    problem: Problem, x: FloatArray, G: FloatArray, A: FloatArray, robust: bool
+) -> FloatArray:
+    """B = Cov(dV/dx) for a gradient that is a sum of per-sample terms quadratic in y_k:
+    psi_k = c_k + b_k r_k + A_k r_k^2, r = y - m (the ``gaussian`` criterion,
+    :meth:`Estimator.y_hessian_diagonal`).
+
+    The first-order delta method (G diag(w) G^T with G = b + 2 A r at the data) gives
+    E[B] = b W b^T + 4 sum A A^T w^2: for Gaussian samples twice the quadratic part's
+    variance, and it ignores the skewness and kurtosis of jittered samples, which are far
+    from Gaussian (a sinusoid under wide uniform jitter: kurtosis ~ 1.5). Exactly, with the
+    model's third and fourth moments (:meth:`Problem.central_moments`),
+
+        B = sum_k b_k b_k^T w_k + A_k A_k^T (mu4_k - w_k^2) + mu3_k (b_k A_k^T + A_k b_k^T),
+
+    b = G at y = m; ``robust``: sum_k psi_k psi_k^T with psi_k = b_k r_k + A_k (r_k^2 - w_k)
+    at the residuals (Huber-White).
+    """
+    mom = problem.moments(x)
+    r = problem.data.y - mom.mean
+    w = problem.variances(x)
+    b = G - 2 * A * r  # G = b + 2 A r
+    if robust:
+        psi = b * r + A * (r * r - w)
+        return psi @ psi.T
+    mu3, mu4 = problem.central_moments(x)
+    cross = (b * mu3) @ A.T
+    return (b * w) @ b.T + (A * (mu4 - w * w)) @ A.T + cross + cross.T
 
 
 def _ml_covariance(

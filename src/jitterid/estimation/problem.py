@@ -27,7 +27,7 @@ from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..moments.modal import SegmentPlan
 from ..moments.reference import dtft
-from ..moments.sample import SampleMoments, difference_grid
+from ..moments.sample import SampleMoments, difference_grid, moment_pass
 from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from . import jacobians as _jacobians
@@ -181,6 +181,20 @@ class Problem:
         _, _, noise = self.split(x)
         w = self.moments(x).var + noise**2
         return np.maximum(w, 1e-300 + 1e-12 * float(np.max(w, initial=0.0)))
+
+    def central_moments(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """E[(y_k - m_k)^3] and E[(y_k - m_k)^4] at ``x``, with Gaussian white noise of the
+        variance in :meth:`variances` beyond the signal's: for the covariance of the criteria
+        that are quadratic in y (:mod:`jitterid.estimation.covariance`). One pass at the
+        jitter nodes (:func:`jitterid.moments.sample.moment_pass`)."""
+        law, sig, _ = self.split(np.asarray(x, float))
+        d = self.data
+        mp = moment_pass(sig, law, d.T, d.N, higher=True)
+        assert mp.var is not None
+        assert mp.mu3 is not None
+        assert mp.mu4 is not None
+        noise_var = np.maximum(self.variances(x) - mp.var, 0.0)
+        return mp.mu3, mp.mu4 + 6 * mp.var * noise_var + 3 * noise_var**2
 
     # ------------------------------------------------------------------ for the criteria
     @property

@@ -124,6 +124,8 @@ class MomentPass:
     dvar: FloatArray | None = None
     scale_mean: FloatArray | None = None
     scale_var: FloatArray | None = None
+    mu3: FloatArray | None = None  # E[(s - m_k)^3] (with ``higher``)
+    mu4: FloatArray | None = None  # E[(s - m_k)^4] (with ``higher``)
 
 
 def moment_pass(
@@ -135,9 +137,13 @@ def moment_pass(
     variance: bool = True,
     gradient: bool = False,
     scale: float | None = None,
+    higher: bool = False,
     order: int = DEFAULT_ORDER,
 ) -> MomentPass:
     """The moments of any signal at the jitter nodes (notes 1-2), and their derivatives.
+
+    With ``higher``, also the third and fourth central moments of s(kT + tau) (the
+    covariance of the second-moment criteria, :mod:`jitterid.estimation.covariance`).
 
     With ``gradient``, dm_k = E[ds/dtheta] and dVar_k = 2 E[(s - m_k) ds/dtheta] from the
     signal's gradient (:meth:`~jitterid.systems.model.Signal.gradient`); with ``scale`` = a,
@@ -153,6 +159,7 @@ def moment_pass(
     mean = np.empty(N)
     var = np.empty(N) if variance else None
     rows: list[FloatArray] = []  # per derivative: its dmean and (with variance) dvar
+    mu3, mu4 = (np.empty(N), np.empty(N)) if higher else (None, None)
     for ch in jitter_nodes(jitter, T, N, signal.breaks, signal.rate, order=order):
         s = signal(ch.t)
         m = ch.expect(s)
@@ -161,6 +168,8 @@ def moment_pass(
         dev = s - m[ch.owner]
         if var is not None:
             var[sl] = ch.expect(dev**2)
+        if mu3 is not None and mu4 is not None:
+            mu3[sl], mu4[sl] = ch.expect(dev**3), ch.expect(dev**4)
         parts: list[FloatArray] = []
         if gradient:
             g = signal.gradient(ch.t)
@@ -176,7 +185,7 @@ def moment_pass(
             row[0, sl] = ch.expect(gi)
             if variance:
                 row[1, sl] = 2 * ch.expect(dev * gi)
-    out = MomentPass(mean, var)
+    out = MomentPass(mean, var, mu3=mu3, mu4=mu4)
     if gradient:
         grad = np.array(rows[: len(rows) - (scale is not None)]).reshape(-1, rows[0].shape[0], N)
         out = replace(out, dmean=grad[:, 0], dvar=grad[:, 1] if variance else None)

@@ -131,6 +131,14 @@ class Estimator:
         differences :meth:`grad_y` (:mod:`jitterid.finite_diff`)."""
         return None
 
+    def y_hessian_diagonal(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        """For a criterion whose gradient dV/dx is a sum of per-sample terms quadratic in
+        y_k (no cross terms): A, shape (P, N), with d^2(dV/dx) / dy_k^2 = 2 A[:, k]. The
+        covariance then uses the samples' third and fourth moments exactly
+        (:mod:`jitterid.estimation.covariance`). None (the default): not of that form.
+        """
+        return None
+
     @property
     def default_cov_type(self) -> str:
         return self.cov_types[0]

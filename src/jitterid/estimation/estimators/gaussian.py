@@ -46,3 +46,7 @@ class GaussianCriterion(Estimator):
         mom, w, dm, dw = problem.derivatives(x)  # d(2 e / w) = -2 dm / w - 2 e dw / w^2
         e = problem.data.y - mom.mean
         return -2 * dm / w - 2 * e * dw / w**2
+
+    def y_hessian_diagonal(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
+        _, w, _, dw = problem.derivatives(x)  # d(-2 e dw / w^2) / dy = -2 dw / w^2
+        return -dw / w**2

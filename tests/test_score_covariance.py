@@ -1,0 +1,53 @@
+"""The sandwich's middle matrix B = Cov(dV/dx) at the truth against the covariance of the
+criterion's gradient over simulated data sets (the referee: the scores themselves).
+
+For the gaussian criterion (per-sample terms quadratic in y) the first-order delta method
+(G diag(w) G^T at the data) counts the quadratic part twice for Gaussian samples and ignores
+the skewness and kurtosis of jittered samples;
+:func:`jitterid.estimation.covariance._per_sample_score_covariance` uses the model's third
+and fourth moments.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import jitterid as ji
+from jitterid.estimation import covariance as C
+from jitterid.estimation.problem import Problem, default_frequencies
+
+N, T = 200, 1.0
+SYSTEM = ji.PolePairGain().system([6.25, -1.5, 2.0])
+
+
+def _scores(method, jitter, x0, law, R, rng, u):
+    def prob(y):
+        return Problem(ji.SampledData(y, T, u), ji.PolePairGain(), jitter, method, default_frequencies(N, T), None)
+
+    psi = [prob(ji.simulate(SYSTEM, u, law, T=T, N=N, noise_std=0.01, rng=rng).y).objective_gradient(x0)[1] for _ in range(R)]
+    p = prob(ji.simulate(SYSTEM, u, law, T=T, N=N, noise_std=0.01, rng=rng).y)
+    G = C._grad_y_jacobian(p, x0, np.arange(x0.size))
+    A = p.estimator.y_hessian_diagonal(p, x0)
+    new = C._per_sample_score_covariance(p, x0, G, A, False)
+    return np.cov(np.array(psi).T), new, (G * p.variances(x0)) @ G.T
+
+
+@pytest.mark.parametrize(
+    ("method", "jitter", "x0"),
+    [
+        ("gaussian", ji.UniformFamily(), np.array([0.5, 6.25, -1.5, 2.0, 0.01])),
+        ("gaussian", ji.Uniform(0.5), np.array([6.25, -1.5, 2.0, 0.01])),
+    ],
+)
+def test_score_covariance_matches_simulated_scores(method, jitter, x0):
+    """Measured (R = 300): within 7 % of the simulated scores' standard deviations for
+    every parameter. (The first-order form, at one data set, was 22 % low for the jitter
+    scale a and 29 % high for the noise std in one such comparison at R = 600; it varies
+    with the data set, its expectation being off by the kurtosis term.)"""
+    rng = np.random.default_rng(3)
+    u = ji.telegraph_input(N * T + 2, rng)
+    emp, new, _ = _scores(method, jitter, x0, ji.Uniform(0.5), 300, rng, u)
+    ratio = np.sqrt(np.diag(new) / np.diag(emp))
+    # the sd of a standard deviation estimated from R = 300 draws is ~4 %
+    assert np.all(np.abs(ratio - 1) < 0.15), ratio
