@@ -390,7 +390,7 @@ def detect(
     data_path: str,
     input_path: str | None,
     model_spec: str,
-    T: float | None,
+    T: str | None,
     level: float,
     plot_path: str | None,
 ) -> None:
@@ -478,7 +478,7 @@ def fit(
     jitter_spec: str,
     method: str,
     noise_std: float | None,
-    T: float | None,
+    T: str | None,
     out: str,
     level: float,
     seed: int,
