@@ -21,6 +21,7 @@ import numpy as np
 from .._markdown import md_code as _code
 from .._markdown import md_text
 from ..analysis.diagnostics import (
+    JitterCrossCheck,
     JitterDetection,
     ResidualTest,
     bias_frequency,
@@ -54,6 +55,7 @@ class FitReport:
     seed: int
     version: str
     skipped: tuple[tuple[str, str], ...] = ()
+    cross_check: JitterCrossCheck | None = None
 
 
 _ERRORS = (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError)
@@ -148,6 +150,19 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             "implied_jitter_std_ci_s": det.jitter_std_ci,
             "level": det.level,
         }
+    xc = rep.cross_check
+    warnings: list[str] = []
+    if xc is not None:
+        diagnostics["jitter_cross_check"] = {
+            "verdict": xc.verdict,
+            "consistent": xc.consistent,
+            "jitter_std_s": xc.fitted_std,
+            "jitter_std_stderr_s": xc.fitted_std_se,
+            "jitter_estimated": xc.estimated,
+            "message": xc.message,
+        }
+        if not xc.consistent:
+            warnings.append(f"jitter cross-check: {xc.message}")
     for c in rep.checks:
         diagnostics[c.name] = {"statistic": c.statistic, "dof": c.dof, "pvalue": c.pvalue}
     if skipped:
@@ -159,6 +174,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             "success": res.success,
             "status": res.status.value,
             "message": res.message,
+            "warnings": warnings,
             "nfev": res.nfev,
             "criterion": res.cost,
             "data": {
@@ -346,8 +362,24 @@ def _detection_lines(rep: FitReport, figs: dict[str, str]) -> list[str]:
             "accurate estimate)"
         ),
         "",
+        *_cross_check_lines(rep),
         *_image("residuals of the ordinary fit", figs.get("residuals")),
     ]
+
+
+def _cross_check_lines(rep: FitReport) -> list[str]:
+    xc = rep.cross_check
+    if xc is None:
+        return []
+    if xc.consistent:
+        return [
+            (
+                f"Cross-check: the {'fitted' if xc.estimated else 'assumed'} jitter std "
+                f"({xc.fitted_std:.3g} s) agrees with this test."
+            ),
+            "",
+        ]
+    return [f"**Warning: the jitter std contradicts this test.** {md_text(xc.message)}.", ""]
 
 
 def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
@@ -370,6 +402,11 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         f"- **Model**: {_code(rep.model_spec)}, {md_text(rep.model_label)}",
         f"- **Jitter**: {_code(rep.jitter_spec)}; **method**: `{res.method}`",
         f"- **Status**: {res.status.value} ({res.nfev} evaluations)",
+        *(
+            ["- **Warning**: the jitter std contradicts the detection test (section 1)"]
+            if rep.cross_check is not None and not rep.cross_check.consistent
+            else []
+        ),
         f"- jitterid {rep.version}; full numbers in `result.json`",
         "",
         "## 1. Is there jitter?",
