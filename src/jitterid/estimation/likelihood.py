@@ -62,6 +62,7 @@ from ..moments.sample import sample_moments
 from ..params import ParamLayout
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
+from .resources import check_likelihood
 from .search import evaluator, newton_search
 
 __all__ = [
@@ -479,6 +480,7 @@ class ExactLikelihood:
         width = hi - lo
         span = (lo - width, (self.N - 1) * self.T + hi + width)
         self._cuts = _panel_cuts(tf.response(self.u), span, sigma, self.panel)
+        check_likelihood(self, law, tf)  # the rule's memory, before any node is built
         self._cache.clear()
 
     def _nodes(self, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> list[_Nodes]:
