@@ -42,6 +42,8 @@ on time.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .._checks import TooLargeError, memory_budget
@@ -84,10 +86,14 @@ def _refuse(what: str, need: float, seconds: float, fix: str) -> None:
     budget = memory_budget()
     if need <= budget:
         return
+    source = (
+        "set by JITTERID_MEMORY_BUDGET"
+        if os.environ.get("JITTERID_MEMORY_BUDGET")
+        else "half the free memory; set JITTERID_MEMORY_BUDGET in bytes to change it"
+    )
     raise TooLargeError(
         f"{what} needs about {_gb(need)} of memory (and roughly {_duration(seconds)}), more "
-        f"than the memory budget of {_gb(budget)} (half the free memory; set "
-        f"JITTERID_MEMORY_BUDGET in bytes to change it); {fix}"
+        f"than the memory budget of {_gb(budget)} ({source}); {fix}"
     )
 
 
