@@ -57,7 +57,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
-from typing import Any, Self
+from typing import IO, Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
@@ -683,7 +683,7 @@ def load(
     path: PathLike,
     input: PathLike | None = None,
     *,
-    T: float | None = None,
+    T: float | str | None = None,
     noise_std: float | None = None,
 ) -> Dataset:
     """Read a data file (and its input) into a :class:`Dataset`.
@@ -837,7 +837,10 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8", "newline": ""})) as fh:
+        fh: IO[Any] = (
+            os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
+        )
+        with fh:
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())

@@ -6,6 +6,9 @@
   output. Regressing squared residuals on squared model slopes and testing the slope
   coefficient (one-sided t test, H0: no jitter) detects jitter; the coefficient is the
   implied jitter variance (first-order Taylor approximation, see the function's notes).
+* :func:`cross_check_jitter` - after a fit: does the fitted (or assumed) jitter std agree
+  with what :func:`detect_jitter` implies? A jitter scale collapsed to ~0 while the test
+  finds jitter, or a large one where it finds none, is said plainly with what to try.
 * :func:`ljung_box`, :func:`input_correlation_test` and :func:`standardized_residuals` -
   after a fit: residuals of a correct model are white and independent of the input.
 * :func:`ls_gain_factor` - the ordinary LS fit sees G(f) scaled by |phi(f)|, the jitter's
@@ -30,14 +33,16 @@ from .._checks import count, real_array
 from ..data import SampledData
 from ..estimation.covariance import noise_variance_ml
 from ..estimation.result import FitResult
-from ..jitter.laws import JitterLaw, NoJitter
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..moments.sample import sample_moments
 from ..systems.tf import TransferFunction
 
 __all__ = [
+    "JitterCrossCheck",
     "JitterDetection",
     "ResidualTest",
     "bias_frequency",
+    "cross_check_jitter",
     "detect_jitter",
     "input_correlation_test",
     "ljung_box",
@@ -242,6 +247,172 @@ def detect_jitter(
         t=data.t_nominal,
         residuals=r,
         slopes=slope,
+    )
+
+
+# ------------------------------------------------------------------------ cross-check
+#: a jitter std below this fraction of T counts as no jitter (as in estimation.checks)
+CROSS_COLLAPSE = 1e-3
+#: detection p-value below which "jitter is there" is taken as established (the test is
+#: slightly liberal at 5 %, so the cross-check asks for much stronger evidence)
+CROSS_DETECTED_P = 1e-3
+#: detection p-value above which "no jitter is seen" (the test's 5 % level)
+CROSS_NOT_DETECTED_P = 0.05
+#: factor by which the fit must miss the detection's interval to be called inconsistent
+#: (the detection's std is a first-order approximation whose interval under-covers:
+#: 73-88 % at nominal 95 %, see detect_jitter)
+CROSS_FACTOR = 2.0
+
+
+@dataclass(frozen=True)
+class JitterCrossCheck:
+    """Result of :func:`cross_check_jitter`.
+
+    Attributes
+    ----------
+    verdict : str
+        ``"consistent"``, ``"too small"`` (the fitted or assumed jitter std is ~0, or far
+        below the detection's interval, while the test finds jitter) or ``"too large"`` (a
+        jitter std far above the detection's interval while the test finds none).
+    fitted_std, fitted_std_se : float
+        The jitter std of the fit (s) and its standard error (0 for a known law, NaN if
+        unavailable).
+    detected_std, detected_ci, pvalue : float, tuple, float
+        What :func:`detect_jitter` implied.
+    estimated : bool
+        True for a fitted jitter family, False for a known (assumed) law.
+    message : str
+        Empty when consistent; else what is wrong, with the numbers, and what to try.
+    """
+
+    verdict: str
+    fitted_std: float
+    fitted_std_se: float
+    detected_std: float
+    detected_ci: tuple[float, float]
+    pvalue: float
+    estimated: bool
+    message: str
+
+    @property
+    def consistent(self) -> bool:
+        return self.verdict == "consistent"
+
+    def summary(self) -> str:
+        if self.consistent:
+            return (
+                f"jitter cross-check: the {'fitted' if self.estimated else 'assumed'} jitter "
+                f"std {self.fitted_std:.3g} s agrees with the detection test (implied "
+                f"{self.detected_std:.3g} s, p = {self.pvalue:.2g})"
+            )
+        return f"warning: jitter cross-check: {self.message}"
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+def cross_check_jitter(result: FitResult, detection: JitterDetection) -> JitterCrossCheck:
+    """Cross-check the jitter std of a fit against :func:`detect_jitter`.
+
+    Parameters
+    ----------
+    result : FitResult
+        A jitter-aware fit (a jitter family or a known law).
+    detection : JitterDetection
+        :func:`detect_jitter` on the same data (from an ordinary fit).
+
+    Returns
+    -------
+    JitterCrossCheck
+        ``"too small"`` when the test finds jitter (p < 1e-3) but the fit's std is below
+        1e-3 T or its upper two-standard-error bound is below half the detection's
+        interval; ``"too large"`` when the test finds none (p >= 0.05) but the fit's lower
+        two-standard-error bound exceeds twice the detection's upper bound (and 1e-3 T).
+        Otherwise ``"consistent"``.
+
+    Notes
+    -----
+    The detection's std is a first-order approximation (low by a few per cent, more for
+    large jitter) and its interval under-covers, so only a miss by a factor of 2 beyond
+    the fit's own uncertainty counts. A large jitter that the test also finds is never
+    flagged (the first-order approximation reads low there). An under-modelled system
+    also raises the detection statistic, so the message names the model order too.
+    """
+    if not isinstance(result, FitResult):
+        raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
+    if not isinstance(detection, JitterDetection):
+        raise TypeError(f"detection must be a JitterDetection; got {type(detection).__name__}")
+    estimated = isinstance(result.jitter_model, JitterFamily)
+    std = float(result.jitter_std)
+    try:
+        se = float(result.jitter_std_stderr) if estimated else 0.0
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        se = float("nan")
+    se_ok = se if np.isfinite(se) else 0.0
+    t = np.asarray(detection.t, float)
+    T = float(t[1] - t[0]) if t.size > 1 else float("nan")
+    lo, hi = detection.jitter_std_ci
+    p = float(detection.pvalue)
+    what = "fitted" if estimated else "assumed"
+    found = (
+        f"detect_jitter finds jitter (p = {p:.2g}, implied std {detection.jitter_std:.3g} s, "
+        f"interval [{lo:.3g}, {hi:.3g}] s)"
+    )
+    verdict, message = "consistent", ""
+    collapsed = std <= CROSS_COLLAPSE * T
+    if p < CROSS_DETECTED_P and (collapsed or std + 2 * se_ok < lo / CROSS_FACTOR):
+        verdict = "too small"
+        head = (
+            f"the {what} jitter std is {std:.3g} s"
+            + (f" (± {se:.2g})" if estimated and np.isfinite(se) and not collapsed else "")
+            + f", {'~0' if collapsed else 'far below what the data show'}, while {found}"
+        )
+        if estimated:
+            fix = (
+                "; a mean-based criterion (bcls) can trade jitter for the system's "
+                "coefficients: fit again with --method gaussian, ml or asml, or with the law "
+                f"known (e.g. --jitter known:gaussian:sigma={detection.jitter_std:.3g}), "
+                "and check the model order (an under-modelled system also raises the test)"
+            )
+        else:
+            fix = (
+                "; check the --jitter value and its time unit, fit a jitter family to "
+                "estimate it, and check the model order (an under-modelled system also "
+                "raises the test)"
+            )
+        message = head + fix
+    elif (
+        p >= CROSS_NOT_DETECTED_P
+        and std - 2 * se_ok > max(CROSS_FACTOR * hi, CROSS_COLLAPSE * T)
+    ):
+        verdict = "too large"
+        head = (
+            f"the {what} jitter std is {std:.3g} s"
+            + (f" (± {se:.2g})" if estimated and np.isfinite(se) else "")
+            + f", but detect_jitter finds no jitter (p = {p:.2g}; the data allow at most about "
+            f"{hi:.3g} s)"
+        )
+        if estimated:
+            fix = (
+                "; the jitter parameters may be absorbing model error or noise: compare with "
+                "--jitter none, bound the family (e.g. gaussian:sigma_max=...), or check the "
+                "model order and the input"
+            )
+        else:
+            fix = (
+                "; check the --jitter value and its time unit (a bare number is in the data "
+                "file's time_unit), or fit a jitter family (or --jitter none) instead"
+            )
+        message = head + fix
+    return JitterCrossCheck(
+        verdict=verdict,
+        fitted_std=std,
+        fitted_std_se=se,
+        detected_std=float(detection.jitter_std),
+        detected_ci=(float(lo), float(hi)),
+        pvalue=p,
+        estimated=estimated,
+        message=message,
     )
 
 

@@ -21,6 +21,7 @@ import numpy as np
 from .._markdown import md_code as _code
 from .._markdown import md_text
 from ..analysis.diagnostics import (
+    JitterCrossCheck,
     JitterDetection,
     ResidualTest,
     bias_frequency,
@@ -54,6 +55,7 @@ class FitReport:
     seed: int
     version: str
     skipped: tuple[tuple[str, str], ...] = ()
+    cross_check: JitterCrossCheck | None = None
 
 
 _ERRORS = (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError)
@@ -148,6 +150,19 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             "implied_jitter_std_ci_s": det.jitter_std_ci,
             "level": det.level,
         }
+    xc = rep.cross_check
+    warnings: list[str] = []
+    if xc is not None:
+        diagnostics["jitter_cross_check"] = {
+            "verdict": xc.verdict,
+            "consistent": xc.consistent,
+            "jitter_std_s": xc.fitted_std,
+            "jitter_std_stderr_s": xc.fitted_std_se,
+            "jitter_estimated": xc.estimated,
+            "message": xc.message,
+        }
+        if not xc.consistent:
+            warnings.append(f"jitter cross-check: {xc.message}")
     for c in rep.checks:
         diagnostics[c.name] = {"statistic": c.statistic, "dof": c.dof, "pvalue": c.pvalue}
     if skipped:
@@ -159,6 +174,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             "success": res.success,
             "status": res.status.value,
             "message": res.message,
+            "warnings": warnings,
             "nfev": res.nfev,
             "criterion": res.cost,
             "data": {
@@ -189,11 +205,11 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             f"conf_int_{round(100 * rep.level)}": ci,
             "conf_int_notes": ci_notes or {},
             "covariance": {"names": list(res.names), "matrix": cov},
-            "system": _system_dict(res.system),
+            "system": _system_dict(_tf(res)),
             "ordinary_ls": {
                 "parameters": rep.ordinary.params,
                 "stderr": ls_se,
-                "system": _system_dict(rep.ordinary.system),
+                "system": _system_dict(_tf(rep.ordinary)),
             },
             "diagnostics": diagnostics,
             "seed": rep.seed,
@@ -227,7 +243,7 @@ def _bode_fig(rep: FitReport, out: Path) -> dict[str, str]:
     fig = Figure(figsize=(6.4, 6.0), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
     band = bode_band(res, f, rep.level, structure=rep.structure)
-    refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": rep.ordinary.system}
+    refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": _tf(rep.ordinary)}
     plot_bode(band, refs, label=f"{res.method} estimate", ax=axes)
     axes[0].set_title(f"Bode plot, {100 * rep.level:g}% delta-method band", fontsize="medium")
     _save(fig, out / "bode.png")
@@ -346,8 +362,24 @@ def _detection_lines(rep: FitReport, figs: dict[str, str]) -> list[str]:
             "accurate estimate)"
         ),
         "",
+        *_cross_check_lines(rep),
         *_image("residuals of the ordinary fit", figs.get("residuals")),
     ]
+
+
+def _cross_check_lines(rep: FitReport) -> list[str]:
+    xc = rep.cross_check
+    if xc is None:
+        return []
+    if xc.consistent:
+        return [
+            (
+                f"Cross-check: the {'fitted' if xc.estimated else 'assumed'} jitter std "
+                f"({xc.fitted_std:.3g} s) agrees with this test."
+            ),
+            "",
+        ]
+    return [f"**Warning: the jitter std contradicts this test.** {md_text(xc.message)}.", ""]
 
 
 def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
@@ -370,6 +402,11 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         f"- **Model**: {_code(rep.model_spec)}, {md_text(rep.model_label)}",
         f"- **Jitter**: {_code(rep.jitter_spec)}; **method**: `{res.method}`",
         f"- **Status**: {res.status.value} ({res.nfev} evaluations)",
+        *(
+            ["- **Warning**: the jitter std contradicts the detection test (section 1)"]
+            if rep.cross_check is not None and not rep.cross_check.consistent
+            else []
+        ),
         f"- jitterid {rep.version}; full numbers in `result.json`",
         "",
         "## 1. Is there jitter?",
@@ -386,13 +423,13 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         _jitter_std_line(rep),
         _noise_line(rep),
         (
-            f"- G(s) numerator {np.array2string(res.system.num, precision=5)}, denominator "
-            f"{np.array2string(res.system.den, precision=5)} (s in rad/s)"
+            f"- G(s) numerator {np.array2string(_tf(res).num, precision=5)}, denominator "
+            f"{np.array2string(_tf(res).den, precision=5)} (s in rad/s)"
         ),
         "- poles: "
         + ", ".join(
             f"{p.real:.4g}{p.imag:+.4g}i rad/s (|p| = {abs(p) / (2 * np.pi):.4g} Hz)"
-            for p in res.system.poles
+            for p in _tf(res).poles
         ),
         "",
         "## 3. Frequency response",
@@ -448,3 +485,10 @@ def write_outputs(rep: FitReport, out: Path, *, plots: bool = True) -> list[Path
     atomic_write(out / "report.md", lambda fh: fh.write(md))
     pngs = [out / v for k, v in figs.items() if v.endswith(".png")]
     return [out / "result.json", out / "report.md", *pngs]
+
+
+def _tf(res: FitResult) -> TransferFunction:
+    """The fitted system of an LTI fit (the command line fits LTI structures only)."""
+    if res.system is None:
+        raise ValueError("the command line reports LTI fits; this fit is of a signal model")
+    return res.system

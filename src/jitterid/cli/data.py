@@ -31,12 +31,14 @@ import numpy as np
 from .._checks import allocation
 from ..analysis.diagnostics import (
     bias_frequency,
+    cross_check_jitter,
     detect_jitter,
     input_correlation_test,
     ljung_box,
     ls_gain_factor,
     standardized_residuals,
 )
+from ..data import SampledData
 from ..estimation.fit import fit as fit_model
 from ..estimation.problem import METHODS
 from ..inputs import telegraph_input, zoh_input
@@ -390,7 +392,7 @@ def detect(
     data_path: str,
     input_path: str | None,
     model_spec: str,
-    T: float | None,
+    T: str | None,
     level: float,
     plot_path: str | None,
 ) -> None:
@@ -478,7 +480,7 @@ def fit(
     jitter_spec: str,
     method: str,
     noise_std: float | None,
-    T: float | None,
+    T: str | None,
     out: str,
     level: float,
     seed: int,
@@ -491,6 +493,9 @@ def fit(
     jitter law, method, data checksum, library version), OUT/report.md and its figures.
     Exits with status 3 if the search did not converge (the outputs are still written).
     A diagnostic that cannot run is reported as skipped; the fit is written regardless.
+    The fitted (or assumed) jitter std is cross-checked against the detection test: a
+    contradiction (jitter ~0 where the test finds it, or large where it finds none) is
+    printed as a warning, with what to try, and listed under "warnings" in result.json.
 
     Times in --jitter and --T take a unit (sigma=80ms, --T 0.5s); a bare number is in
     DATA's time_unit (seconds unless the file says otherwise).
@@ -514,7 +519,7 @@ def fit(
     stages = ["ordinary LS fit", *([] if method == "ls" else [f"{method} fit"])]
     stages += ["diagnostics", "writing results" + (" and figures" if plots else "")]
 
-    def run(bar: _Progress) -> tuple[list[Path], Any, Any, list[Any], list[tuple[str, str]], OSError | None]:
+    def run(bar: _Progress) -> tuple[list[Path], FitReport, OSError | None]:
         with _clean_errors("the fit failed"):
             ls = fit_model(ds.data, structure, NoJitter(), "ls")
             if method == "ls":
@@ -527,6 +532,9 @@ def fit(
         # run is reported as skipped, with its reason, and the results are written regardless.
         skipped: list[tuple[str, str]] = []
         det = _diagnostic(skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level))
+        xc = None
+        if det is not None and method != "ls":
+            xc = _diagnostic(skipped, "jitter cross-check", lambda: cross_check_jitter(res, det))
         checks: list[Any] = []
         z = _diagnostic(skipped, "residual checks", lambda: standardized_residuals(ds.data, res))
         if z is not None:
@@ -534,7 +542,7 @@ def fit(
                 ("Ljung-Box test", lambda: ljung_box(z)),
                 (
                     "input correlation test",
-                    lambda: input_correlation_test(z, ds.data.u(ds.data.t_nominal)),
+                    lambda: input_correlation_test(z, _input_at_samples(ds.data)),
                 ),
             ):
                 c = _diagnostic(skipped, name, make)
@@ -550,6 +558,7 @@ def fit(
             result=res,
             ordinary=ls,
             detection=det,
+            cross_check=xc,
             checks=tuple(checks),
             level=level,
             seed=seed,
@@ -558,12 +567,13 @@ def fit(
         )
         bar.stage(stages[-1])
         try:
-            return write_outputs(rep, out_dir, plots=plots), res, det, checks, skipped, None
+            return write_outputs(rep, out_dir, plots=plots), rep, None
         except OSError as exc:
-            return [], res, det, checks, skipped, exc
+            return [], rep, exc
 
     with _progress(stages, quiet) as bar:
-        written, res, det, checks, skipped, failed = run(bar)
+        written, rep, failed = run(bar)
+    res, det, xc, checks, skipped = rep.result, rep.detection, rep.cross_check, rep.checks, rep.skipped
     # The bar is gone: stdout gets the summary alone.
     if failed is not None:
         click.echo(_safe_summary(res))
@@ -574,6 +584,8 @@ def fit(
     click.echo(_safe_summary(res))
     if det is not None:
         click.echo(det.summary())
+    if xc is not None:
+        click.echo(xc.summary())
     for c in checks:
         click.echo(c.summary())
     for name, why in skipped:
@@ -675,3 +687,10 @@ def bias(
                 Path(plot_path), lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True
             )
         click.echo(f"wrote {plot_path}")
+
+
+def _input_at_samples(data: SampledData) -> np.ndarray:
+    """u(kT) of the data (the command line fits systems driven by an input)."""
+    if data.u is None:
+        raise ValueError("data.u: the data have no input")
+    return np.asarray(data.u(data.t_nominal), dtype=float)

@@ -30,8 +30,11 @@ says what to try:
 * ``UNIDENTIFIABLE``: the covariance is not finite where no bound explains it, the
   correlation matrix is numerically singular (condition > 1e10), or a bounded parameter's
   standard error exceeds its whole admissible range;
-* ``LOCAL_OPTIMUM``: the criterion at one of the default (output-error) starts is already
-  lower than at the estimate: the search stopped at a local optimum;
+* ``LOCAL_OPTIMUM``: the criterion at one of the default (output-error) starts, or at the
+  estimate with its system parameters replaced by one of the structure's default starts
+  (``structure.starts(T)``, a few evaluations of the criterion, no search), is already
+  lower than at the estimate: the search stopped at a local optimum (e.g. a mean-based
+  criterion under jitter many T wide, whose minimum in the system is multimodal);
 * ``NOT_SIGNIFICANT``: the fitted model does not explain significantly more of y than the
   zero model (an F test of the residual sums of squares at the 1e-3 level): the data carry
   no detectable response to the input (e.g. pure noise).
@@ -387,21 +390,60 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     return None
 
 
+def _structure_starts(ctx: PostContext) -> list[tuple[FloatArray, str]]:
+    """The estimate with its system parameters replaced by each of the structure's default
+    starts (``structure.initial_points(data)``: ``starts(T)`` of an LTI structure), inside
+    the bounds: the points an ordinary multi-start
+    over the system would begin from, at the fitted jitter and noise; each with a label."""
+    p = len(ctx.structure.param_names)
+    if not p:
+        return []
+    try:
+        starts = ctx.structure.initial_points(ctx.data)
+    except (ValueError, NotImplementedError):
+        return []
+    nj = _n_jitter(ctx.jitter)
+    lo, hi = np.array(ctx.bounds, float).reshape(-1, 2).T
+    out = []
+    for i, s0 in enumerate(starts):
+        s0 = np.asarray(s0, float)
+        if s0.shape != (p,) or not np.all(np.isfinite(s0)):
+            continue
+        v = ctx.x.copy()
+        v[nj : nj + p] = s0
+        label = (
+            f"the estimate with its system parameters set to the structure's default start "
+            f"{i} = {np.round(s0, 6).tolist()}"
+        )
+        out.append((np.clip(v, lo, hi), label))
+    return out
+
+
 def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
-    best, where = ctx.cost, None
-    for x0 in ctx.starts():
+    best, which = ctx.cost, ""
+    candidates = [
+        (x0, f"the default start {np.round(x0, 6).tolist()} (in the search's units)")
+        for x0 in ctx.starts()
+    ]
+    candidates += _structure_starts(ctx)
+    for x0, label in candidates:
         try:
             v = ctx.objective(x0)
-        except ValueError:
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
             continue
         if np.isfinite(v) and v < best:
-            best, where = v, x0
-    if where is None or not best < ctx.cost - 1e-6 * max(abs(ctx.cost), 1e-300):
+            best, which = v, label
+    if not which or not best < ctx.cost - 1e-6 * max(abs(ctx.cost), 1e-300):
         return None
     return FitStatus.LOCAL_OPTIMUM, (
-        f"the search stopped at a local optimum: the criterion is {ctx.cost:.6g} here but "
-        f"{best:.6g} at the default start {np.round(where, 6).tolist()}; fit again without "
-        "start (the default multi-start) or from a better start"
+        f"the search stopped at a local optimum: the criterion is lower at {which} than at "
+        f"the estimate ({best:.6g} against {ctx.cost:.6g}, with y and u scaled as in the "
+        "search), so the estimate is not the criterion's minimum and its error bars mean "
+        "nothing: fit again without start (the default multi-start) or from a better start; "
+        "if this happened without a start, the criterion is multimodal here (e.g. jitter "
+        "wide against the system's time scale, so the mean of the samples carries little of "
+        "the response): fit from that start, try method 'gaussian' or 'ml' from it, use a "
+        "longer record, or a richer input"
     )
 
 

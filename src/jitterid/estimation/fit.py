@@ -37,6 +37,7 @@ from .problem import (
     Problem,
     default_frequencies,
 )
+from .resources import check_fit as check_fit_resources
 from .result import FitResult, FitStatus
 from .search import evaluator, newton_search
 
@@ -284,6 +285,7 @@ def _fit(
         raise ValueError("method 'ls' with a known system has nothing to estimate")
     n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
     check_data(data, n_jit + len(structure.param_names), structure.uses_input)
+    check_fit_resources(data, structure, jitter, method)  # memory up front (resources.py)
     f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
     if f.size < 1:
         raise ValueError("freqs must hold at least one frequency")

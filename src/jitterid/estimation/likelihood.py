@@ -64,6 +64,7 @@ from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
+from .resources import check_likelihood
 from .search import evaluator, newton_search
 
 __all__ = [
@@ -492,6 +493,7 @@ class ExactLikelihood:
         width = hi - lo
         span = (lo - width, (self.N - 1) * self.T + hi + width)
         self._cuts = _panel_cuts(sig, span, sigma, self.panel)
+        check_likelihood(self, law, sig)  # the rule's memory, before any node is built
         self._cache.clear()
 
     def _nodes(self, x: FloatArray, law: JitterLaw, sig: Signal) -> list[_Nodes]:

@@ -30,6 +30,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -47,6 +48,9 @@ from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from .config import Experiment, split_method
 from .store import Estimate, Store
+
+if TYPE_CHECKING:
+    from dask.distributed import LocalCluster
 
 __all__ = ["RunSummary", "realize", "run_experiment", "seed_stream", "seed_streams", "store_path"]
 
@@ -362,7 +366,7 @@ def _check_address(scheduler: str) -> None:
         )
 
 
-def local_cluster(workers: int) -> object:
+def local_cluster(workers: int) -> LocalCluster:
     """A local Dask cluster of ``workers`` single-threaded processes, listening on loopback
     only (127.0.0.1), with no dashboard."""
     from dask.distributed import LocalCluster
