@@ -214,3 +214,18 @@ def test_lti_only_diagnostics_refuse_a_signal_model_fit_clearly():
     z = ji.standardized_residuals(data, res)  # general: through the fitted signal
     assert abs(np.std(z) - 1) < 0.15
     assert np.allclose(res.residuals(data), data.y - res.predict(data))
+
+
+def test_a_sinusoid_search_that_ends_at_the_wrong_frequency_is_not_a_success():
+    """A start 1 % off in frequency is 5.8 rad of phase over 400 samples: the search ends
+    at f = 0.279 Hz, A = 0.18 (truth 0.23 Hz, 1.5), which the old checks called CONVERGED
+    (one start, nothing to compare). With the noise std known the residuals' mean square
+    is ~400 times what the model allows: LACK_OF_FIT."""
+    law = ji.Uniform(0.8)
+    data = record(law, 400, 0.05, np.random.default_rng(21))
+    far = ji.fit(data, sine(start=TRUTH * [0.8, 1.0, 1.01, 0.5]), law, "bcls", noise_std=0.05)
+    assert far.status is ji.FitStatus.LACK_OF_FIT
+    assert not far.success
+    assert "times what the model allows" in far.message
+    near = ji.fit(data, sine(), law, "bcls", noise_std=0.05)
+    assert near.status is ji.FitStatus.CONVERGED

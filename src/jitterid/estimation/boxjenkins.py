@@ -425,7 +425,10 @@ def fit_bj(
             best = _search(problem, x0, max_nfev)
         nfev = best[4]
     else:
-        pre = fit(data, structure, jitter, "bcls", start, freqs=f, max_nfev=max_nfev)
+        # the white-noise (OE) BCLS stage: its criterion does not use the noise, and the
+        # white-noise lack-of-fit check does not apply where the noise is coloured
+        oe_data = replace(data, noise_std=None)
+        pre = fit(oe_data, structure, jitter, "bcls", start, freqs=f, max_nfev=max_nfev)
         nfev = pre.nfev
         x_pre = pre.x
         eta, n = _noise_stage(problem, x_pre, max_nfev) if free_noise else (np.zeros(0), 0)

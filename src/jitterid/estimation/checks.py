@@ -35,6 +35,9 @@ says what to try:
   (``structure.starts(T)``, a few evaluations of the criterion, no search), is already
   lower than at the estimate: the search stopped at a local optimum (e.g. a mean-based
   criterion under jitter many T wide, whose minimum in the system is multimodal);
+* ``LACK_OF_FIT``: with the noise std known, the residuals' mean square is over 3 times
+  what the model (jitter variance plus the known noise) allows, and a chi-square test
+  rejects it at 1e-6: the search ended far from any fit of the data;
 * ``NOT_SIGNIFICANT``: the fitted model does not explain significantly more of y than the
   zero model (an F test of the residual sums of squares at the 1e-3 level): the data carry
   no detectable response to the input (e.g. pure noise).
@@ -72,6 +75,10 @@ DETECT_P = 1e-6
 SIGNIFICANCE = 1e-3
 #: condition number of the correlation matrix above which the problem is unidentifiable
 MAX_CONDITION = 1e10
+#: mean square of the standardized residuals, and chi-square p-value, beyond which a fit
+#: with a known noise std does not explain the data
+LACK_OF_FIT_RATIO = 3.0
+LACK_OF_FIT_P = 1e-6
 
 
 # ------------------------------------------------------------------------ before the search
@@ -246,6 +253,9 @@ class PostContext:
     oe_system: Callable[[], FloatArray | None]  # theta of the ordinary OE fit (lazy)
     starts: Callable[[], list[FloatArray]]  # the default starts of this criterion (lazy)
     cov_error: str | None = None  # why the covariance could not be computed
+    # w_k = Var s(kT + tau) + the known noise variance, where the noise std is known and the
+    # criterion models the jitter (else None: no lack-of-fit check)
+    known_variance: Callable[[FloatArray], FloatArray] | None = None
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
@@ -256,7 +266,8 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
     """The status and message after the checks; only a CONVERGED search is re-examined."""
     if status is not FitStatus.CONVERGED:
         return status, message
-    for check in (_at_bound, _unstable, _unidentifiable, _local_optimum, _not_significant):
+    checks = (_at_bound, _unstable, _unidentifiable, _local_optimum, _not_significant, _lack_of_fit)
+    for check in checks:
         out = check(ctx)
         if out is not None:
             return out[0], f"{out[1]} (search: {message})"
@@ -473,3 +484,29 @@ def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
         "the noise"
     )
 
+
+def _lack_of_fit(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    """With the noise std known, the standardized residuals z_k = (y_k - m_k) / sqrt(w_k)
+    have E z^2 = 1 whatever the jitter law's shape; a mean square above LACK_OF_FIT_RATIO
+    that a chi-square test also rejects (p < LACK_OF_FIT_P, conservative for the
+    platykurtic samples of jitter) is a model that does not explain the data (e.g. a
+    sinusoid's search that ended at the wrong frequency)."""
+    if ctx.known_variance is None:
+        return None
+    try:
+        m = np.asarray(ctx.model_mean(ctx.x), float)
+        w = np.asarray(ctx.known_variance(ctx.x), float)
+    except ValueError:
+        return None
+    z2 = (ctx.data.y - m) ** 2 / np.maximum(w, 1e-300)
+    n = z2.size
+    ratio = float(np.mean(z2))
+    pval = float(stats.chi2.sf(ratio * n, n))
+    if ratio <= LACK_OF_FIT_RATIO or pval >= LACK_OF_FIT_P:
+        return None
+    return FitStatus.LACK_OF_FIT, (
+        f"the residuals' mean square is {ratio:.3g} times what the model allows with the "
+        f"known noise std (chi-square p = {pval:.2g}): the fit does not explain the data. "
+        "Try other starts (for a sinusoid, a frequency within 1/(N T) of the periodogram's "
+        "peak), another structure or jitter law, or check noise_std and the data's units"
+    )

@@ -303,6 +303,7 @@ def _fit(
     data = scaling.data(data)
     if noise is not None:
         noise = noise / scaling.sy
+    given_noise = noise  # the user's noise std in the search's units (wbcls may plug one in)
     make = partial(Problem, data, structure, jitter, freqs=f)
     theta_oe: list[tuple[FloatArray, float]] = []  # the ordinary OE fit, computed once if needed
 
@@ -403,12 +404,19 @@ def _fit(
         lo, hi = np.array(problem.bounds, float).reshape(-1, 2).T
         return [np.clip(v, lo, hi) for v in out]
 
+    known_variance = None
+    if given_noise is not None and not est.ignores_jitter and not problem.estimates_noise:
+        known_noise = float(given_noise)
+
+        def known_variance(v: FloatArray) -> FloatArray:
+            return np.asarray(problem.moments(v).var + known_noise**2, dtype=float)
+
     status, msg = post_checks(
         PostContext(
             data=data, structure=structure, jitter=jitter, names=problem.names,
             bounds=problem.bounds, x=x, cost=float(cost), cov=cov, objective=problem.objective,
             model_mean=lambda v: problem.moments(v).mean, oe_system=oe_system, starts=default_starts,
-            cov_error=cov_error,
+            cov_error=cov_error, known_variance=known_variance,
         ),
         status,
         msg,

@@ -69,6 +69,10 @@ class FitStatus(enum.Enum):
         "failed: the fitted model explains no significant part of the output (see message); "
         "check that u drove y, or use a stronger or longer excitation"
     )
+    LACK_OF_FIT = (
+        "failed: the residuals are far larger than the model (jitter and the known noise) "
+        "allows (see message); try other starts, another structure, or check noise_std"
+    )
 
     @property
     def success(self) -> bool:
