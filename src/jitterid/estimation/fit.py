@@ -208,9 +208,10 @@ def fit(
         (:mod:`jitterid.estimation.checks`): ``AT_BOUND`` (a system parameter on its bound,
         or the jitter scale collapsed while :func:`jitterid.detect_jitter` finds jitter),
         ``UNIDENTIFIABLE`` (near-singular information), ``UNSTABLE_MODEL``,
-        ``LOCAL_OPTIMUM`` (a default start has a lower criterion) or ``NOT_SIGNIFICANT``
-        (the model explains no significant part of y); ``message`` gives the numbers and
-        what to try.
+        ``LOCAL_OPTIMUM`` (a default start has a lower criterion), ``NOT_SIGNIFICANT``
+        (the model explains no significant part of y) or ``LACK_OF_FIT`` (with the noise std
+        given, residuals far beyond what the model allows); ``message`` gives the numbers
+        and what to try.
 
     Raises
     ------
