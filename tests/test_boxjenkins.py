@@ -19,6 +19,15 @@ from scipy import integrate, stats
 import jitterid as ji
 from jitterid.cli import main
 from jitterid.estimation.bjcriteria import BJProblem
+from jitterid.estimation.estimators import (
+    BCLS,
+    WBCLS,
+    Estimator,
+    GaussianCriterion,
+    coloured_method_names,
+    register,
+)
+from jitterid.estimation.estimators import base as estimator_base
 from jitterid.estimation.problem import Problem
 from jitterid.experiments import ExperimentError, load_experiment, packaged_path, parse_experiment
 from jitterid.experiments.bj import spectra_figure
@@ -499,6 +508,94 @@ def test_least_squares_criteria_plug_in_the_noise_model_for_their_error_bars(met
 def test_bad_input_is_refused_naming_the_argument(call, exc, match):
     with pytest.raises(exc, match=match):
         call(data_with(None, 9, n=40))
+
+
+# --------------------------------------------------------------------------- estimator objects
+
+
+@pytest.fixture
+def registry(monkeypatch):
+    """A private copy of the estimator registry: estimators registered in a test vanish
+    after it."""
+    monkeypatch.setattr(estimator_base, "_REGISTRY", dict(estimator_base._REGISTRY))
+
+
+def test_a_registered_estimator_is_used_by_the_bj_path_without_edits_elsewhere(registry):
+    """One subclass and one registration: a Newton-searched estimator (its coloured-noise
+    criterion inherited and instrumented) and one blind to the noise covariance (a BCLS
+    variant, whose BJ estimate is its own white-noise one) go through fit(..., noise=...) by
+    name, with the numbers of the estimators they derive from (the Newton one bit for bit)."""
+    calls: list[int] = []
+
+    @register
+    @dataclasses.dataclass(frozen=True)
+    class CountedGaussian(GaussianCriterion):
+        name = "test-counted-gaussian"
+
+        def bj_objective_gradient(self, problem, x, free=None):
+            calls.append(1)
+            return super().bj_objective_gradient(problem, x, free)
+
+    @register
+    @dataclasses.dataclass(frozen=True)
+    class BCLSVariant(BCLS):
+        name = "test-bcls-variant"
+
+    assert {"test-counted-gaussian", "test-bcls-variant"} <= set(coloured_method_names())
+    data = data_with(SLOW, 8, n=60)
+    noise = ji.RationalNoise(0, 1)
+    ref = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=noise)
+    got = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "test-counted-gaussian", noise=noise)
+    assert calls, "the registered estimator's coloured-noise criterion was not called"
+    assert got.method == "test-counted-gaussian"
+    np.testing.assert_array_equal(got.x, ref.x)
+    np.testing.assert_array_equal(got.cov, ref.cov)
+    assert got.status is ref.status
+    ref = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls", noise=noise)
+    got = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "test-bcls-variant", noise=noise)
+    assert got.method == "test-bcls-variant"
+    assert got.success, got.message
+    # its own white-noise search, started at the BCLS estimate, ends at the same point within
+    # the least-squares stopping rule: a hundredth of a standard error
+    se = np.array([ref.stderr[n] for n in ("k0", "pr", "pi")])
+    assert np.all(np.abs(got.x[:3] - ref.x[:3]) < 0.01 * se), (got.x[:3] - ref.x[:3]) / se
+    np.testing.assert_array_equal(got.x[3:], ref.x[3:])  # the same plug-in noise model
+
+
+def test_an_estimator_without_a_coloured_noise_form_is_refused_naming_method_and_noise(registry):
+    @register
+    @dataclasses.dataclass(frozen=True)
+    class WhiteOnly(Estimator):
+        name = "test-white-only"
+        equation = "none"
+
+        def objective(self, problem, x):
+            return 0.0
+
+    data = data_with(None, 9, n=40)
+    with pytest.raises(ValueError, match=r"method must be one of .*noise=.*'test-white-only'.*noise=None"):
+        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "test-white-only", noise=ji.RationalNoise())
+    with pytest.raises(ValueError, match="'test-white-only' has no coloured-noise"):
+        BJProblem(data, ji.PolePairGain(), ji.Uniform(0.5), ji.RationalNoise(), WhiteOnly(), ji.default_frequencies(40, T), None)
+    with pytest.raises(TypeError, match="declares coloured_noise = True but implements no"):
+
+        @register
+        @dataclasses.dataclass(frozen=True)
+        class Half(Estimator):
+            name = "test-half"
+            equation = "none"
+            coloured_noise = True
+
+
+def test_estimator_options_reach_the_bj_search():
+    """WBCLS(refreeze=0) freezes R once: the same stages as the default (one re-freeze) and
+    one search fewer, each costing at least one evaluation."""
+    data = data_with(SLOW, 8, n=60)
+    noise = ji.RationalNoise(0, 1)
+    once = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), WBCLS(refreeze=0), noise=noise)
+    twice = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "wbcls", noise=noise)
+    assert once.method == twice.method == "wbcls"
+    assert once.nfev < twice.nfev
 
 
 # --------------------------------------------------------------------------- experiment

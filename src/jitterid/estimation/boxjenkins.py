@@ -9,8 +9,15 @@ restarts the system from the BCLS estimate and from the structure's starts (stro
 noise can put BCLS in a wrong basin, which the joint search would not leave); then the joint
 search: the project's one Newton (Fisher scoring) search
 (:func:`jitterid.estimation.search.newton_search`) with the criteria's analytic gradients and
-expected Hessians (trust-region least squares for ``wbcls``). ``bcls`` and ``wbcls`` keep the
-noise parameters of the residual fit (plug-in).
+expected Hessians (trust-region least squares for the least-squares estimators, ``wbcls``).
+Estimators that do not identify the noise model (``bcls``, ``wbcls``) keep the noise
+parameters of the residual fit (plug-in).
+
+Every stage reads the estimator's declared properties (:class:`~jitterid.estimation
+.estimators.base.Estimator`: ``coloured_noise``, ``least_squares``,
+``identifies_noise_model``, ``weighs_by_noise``, ``freeze_rounds``), never its name; the
+stages that need a particular criterion use its object (the BCLS pre-fit, the Gaussian noise
+stage).
 """
 
 from __future__ import annotations
@@ -30,7 +37,8 @@ from ..noise.models import NoiseModel, NoiseStructure, as_noise_structure
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
-from .bjcriteria import BJ_METHODS, LEAST_SQUARES, BJProblem, bj_covariance
+from .bjcriteria import BJProblem, bj_covariance
+from .estimators import BCLS, Estimator, GaussianCriterion, as_estimator, coloured_method_names
 from .jacobians import moment_derivatives
 from .problem import default_frequencies
 from .result import FitResult, FitStatus
@@ -39,6 +47,10 @@ from .search import damped_step, evaluator, newton_search
 __all__ = ["BJ_METHODS", "fit_bj", "fitted_noise"]
 
 FloatArray = NDArray[np.float64]
+
+#: The registered estimators with a coloured-noise form at import (``fit_bj`` asks the
+#: registry at each call, so an estimator registered later is accepted too).
+BJ_METHODS = coloured_method_names()
 
 _BAD = 1e10  # criterion value where the model cannot be evaluated (unstable, not PD)
 # Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
@@ -121,7 +133,7 @@ def _search(
 
     if idx.size == 0:
         return x0, value(x0), FitStatus.CONVERGED, "no free parameters", 1
-    if problem.method in LEAST_SQUARES:
+    if problem.estimator.least_squares:
 
         def resid(z: FloatArray) -> FloatArray:
             with np.errstate(all="ignore"):
@@ -132,7 +144,7 @@ def _search(
             return r if np.all(np.isfinite(r)) else np.full(r.size, _BAD)
 
         jac: str | Callable[[FloatArray], FloatArray] = "2-point"
-        if problem.method == "bcls" or problem.weights_at is not None:
+        if problem.has_jacobian:
 
             def jac(z: FloatArray) -> FloatArray:
                 try:
@@ -215,7 +227,7 @@ def _noise_stage(
     start converged to the same point in the tests while each search costs ~15 evaluations."""
     nfixed = problem.n_jitter + problem.n_system
     stage = BJProblem(
-        problem.data, problem.structure, problem.jitter, problem.noise, "gaussian",
+        problem.data, problem.structure, problem.jitter, problem.noise, GaussianCriterion(),
         problem.freqs, problem.white_std,
     )
     free = np.arange(len(stage.names)) >= nfixed
@@ -322,18 +334,21 @@ def _whitened_stage(
     return (x_i if moved else x_b), moved, nfev
 
 
-def _run_wbcls(
+def _run_frozen(
     problem: BJProblem, x0: FloatArray, max_nfev: int
 ) -> tuple[BJProblem, tuple[FloatArray, float, FitStatus, str, int]]:
-    """WBCLS (20) with R frozen at ``x0``, then re-frozen once at that estimate (iterated
-    feasible GLS, as :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside
-    the search and no ln det R, (20) is minimised partly by inflating R, which biases it."""
+    """A criterion with frozen weights (WBCLS (20)): R frozen at ``x0``, then re-frozen at
+    each estimate, ``estimator.freeze_rounds`` searches in all (iterated feasible GLS, as
+    :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside the search and
+    no ln det R, (20) is minimised partly by inflating R, which biases it."""
     nfev = 0
-    for _ in range(2):
+    out: tuple[FloatArray, float, FitStatus, str, int] | None = None
+    for _ in range(problem.estimator.freeze_rounds):
         problem = replace(problem, weights_at=np.array(x0, float))
         out = _search(problem, x0, max_nfev)
         nfev += out[4]
         x0 = out[0]
+    assert out is not None
     return problem, (*out[:4], nfev)
 
 
@@ -365,11 +380,32 @@ def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> Noise
     return structure.model([params[n] for n in structure.param_names])
 
 
+def _coloured_estimator(method: str | Estimator) -> Estimator:
+    """The estimator of ``method`` if it has a coloured-noise form, else a ValueError naming
+    ``method`` and ``noise``."""
+    names = coloured_method_names()
+    try:
+        est = as_estimator(method)
+    except ValueError:
+        raise ValueError(
+            f"method must be one of {names} (or an Estimator with a coloured-noise form) when a "
+            f"noise model is given (noise=...); got {method!r}"
+        ) from None
+    if not est.coloured_noise:
+        hint = " (it ignores the jitter)" if est.ignores_jitter else ""
+        raise ValueError(
+            f"method must be one of {names} when a noise model is given (noise=...); got "
+            f"{est.name!r}, which has no coloured-noise (Box-Jenkins) form{hint}: fit it with "
+            "noise=None"
+        )
+    return est
+
+
 def fit_bj(
     data: SampledData,
     system: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
-    method: str,
+    method: str | Estimator,
     start: ArrayLike | FitResult | None,
     *,
     noise: NoiseStructure | NoiseModel,
@@ -381,22 +417,19 @@ def fit_bj(
 ) -> FitResult:
     """:func:`jitterid.fit` with ``noise=``: the BJ (2b) and JBJ (2d) structures.
 
-    Parameters are those of :func:`jitterid.fit`; ``noise`` is a structure with free
+    Parameters are those of :func:`jitterid.fit`; ``method`` is an estimator with a
+    coloured-noise form (``coloured_noise``) or its name; ``noise`` is a structure with free
     parameters (``RationalNoise(0, 1)``) or a known :class:`~jitterid.NoiseModel`, and
     ``noise_std`` (default ``data.noise_std``) is the std of the additional white part,
-    estimated as parameter ``noise_std`` by ``asml``, ``asml-diag``, ``gaussian`` when neither
-    is given (``bcls``/``wbcls`` plug it in with the noise parameters). ``oe_fit`` is
-    :func:`jitterid.fit` itself, whose white-noise BCLS fit gives the start (Section 4.5);
-    ``cov_type`` is ``"sandwich"`` (the delta method with the coloured covariance) or
-    ``"none"``.
+    estimated as parameter ``noise_std`` by the estimators that identify the noise model
+    (``asml``, ``asml-diag``, ``gaussian``) when neither is given (``bcls``/``wbcls`` plug it
+    in with the noise parameters). ``oe_fit`` is :func:`jitterid.fit` itself, whose
+    white-noise BCLS fit gives the start (Section 4.5); ``cov_type`` is ``"sandwich"`` (the
+    delta method with the coloured covariance) or ``"none"``.
     """
     fit = oe_fit
 
-    if method not in BJ_METHODS:
-        hint = " ('ls' ignores the jitter; fit it with noise=None)" if method == "ls" else ""
-        raise ValueError(
-            f"method must be one of {BJ_METHODS} when a noise model is given; got {method!r}{hint}"
-        )
+    est = _coloured_estimator(method)
     if cov_type not in ("sandwich", "none"):
         raise ValueError(
             f"cov_type must be 'sandwich' or 'none' with a noise model; got {cov_type!r} (the "
@@ -409,28 +442,31 @@ def fit_bj(
     f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
     white = data.noise_std if noise_std is None else noise_std
     free_noise = len(nstruct.param_names) > 0 or white is None
+    # a criterion without a ln det term holds the noise parameters at plug-in values
+    plug_in = free_noise and not est.identifies_noise_model
     make = partial(BJProblem, data, structure, jitter, nstruct, freqs=f, white_std=white)
-    problem = make(method=method)
+    problem = make(method=est)
     nfev = 0
     if start is not None and not isinstance(start, FitResult):
         x0 = np.atleast_1d(real_array(start, "start"))
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
-        if method in LEAST_SQUARES and free_noise:
+        if plug_in:
             k = problem.n_jitter + problem.n_system
-            problem = make(method=method, pinned=x0[k:])
-        if method == "wbcls":
-            problem, best = _run_wbcls(problem, x0, max_nfev)
+            problem = make(method=est, pinned=x0[k:])
+        if est.freeze_rounds:
+            problem, best = _run_frozen(problem, x0, max_nfev)
         else:
             best = _search(problem, x0, max_nfev)
         nfev = best[4]
     else:
-        pre = fit(data, structure, jitter, "bcls", start, freqs=f, max_nfev=max_nfev)
+        prefit = BCLS()
+        pre = fit(data, structure, jitter, prefit, start, freqs=f, max_nfev=max_nfev)
         nfev = pre.nfev
         x_pre = pre.x
         eta, n = _noise_stage(problem, x_pre, max_nfev) if free_noise else (np.zeros(0), 0)
         nfev += n
-        if method != "bcls":  # bcls keeps its estimate; the others may start elsewhere
+        if est.weighs_by_noise:  # a criterion blind to Sigma_y keeps its estimate (below)
             theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
             nfev += n
             x_pre = np.r_[x_pre[: problem.n_jitter], theta]  # the GLS system: a closer start
@@ -438,12 +474,18 @@ def fit_bj(
                 eta, n = _noise_stage(problem, x_pre, max_nfev, start=eta)
                 nfev += n
         x0 = np.r_[x_pre, eta]
-        if method in LEAST_SQUARES and free_noise:
-            problem = make(method=method, pinned=eta)
-        if method == "bcls":  # the noise model does not enter the BCLS criterion (14)
+        if plug_in:
+            problem = make(method=est, pinned=eta)
+        if not est.weighs_by_noise:
+            # The noise model does not enter the criterion (BCLS (14)): its BJ estimate is
+            # its white-noise one (the pre-fit itself for BCLS), the noise only its error bars.
+            if est != prefit:
+                pre = fit(data, structure, jitter, est, pre, freqs=f, max_nfev=max_nfev)
+                nfev += pre.nfev
+                x0 = np.r_[pre.x[: problem.n_jitter + problem.n_system], eta]
             best = (x0, problem.objective(x0), pre.status, pre.message, 0)
-        elif method == "wbcls":
-            problem, best = _run_wbcls(problem, x0, max_nfev)
+        elif est.freeze_rounds:
+            problem, best = _run_frozen(problem, x0, max_nfev)
             nfev += best[4]
         else:
             best = _search(problem, x0, max_nfev)
@@ -451,7 +493,7 @@ def fit_bj(
     x, cost, status, msg, _ = best
     law, tf, noise_fitted, white_used = problem.split(x)
     return FitResult(
-        method=method,
+        method=est.name,
         names=problem.names,
         x=np.asarray(x, float),
         cost=float(cost),

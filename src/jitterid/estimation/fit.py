@@ -253,7 +253,7 @@ def _fit(
         check_data(data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0))
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         return fit_bj(
-            data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
+            data, system, jitter, est, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
             max_nfev=max_nfev, oe_fit=fit, cov_type=cov_type,
         )
     prefit = start if isinstance(start, FitResult) else None

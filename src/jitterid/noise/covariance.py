@@ -543,6 +543,20 @@ def toeplitz_dft_diagonal(d: FloatArray, g: FloatArray | None, T: float, f: Floa
     return np.asarray(total + 2.0 * dtft(q, T, f).real - q[0], dtype=float)
 
 
+def toeplitz_products(g: FloatArray, x: FloatArray) -> FloatArray:
+    """Toeplitz(g_p) x for every row g_p of g (P, N) and x (N, K): (N, P, K), by one FFT of
+    x and of each g_p on the circulant embedding of size 2N (matmul_toeplitz per p would
+    transform x again for each)."""
+    P, N = g.shape
+    c = np.zeros((P, 2 * N))
+    c[:, :N] = g
+    c[:, N + 1 :] = g[:, :0:-1]
+    fx = np.fft.rfft(x, n=2 * N, axis=0)  # (N + 1, K)
+    fc = np.fft.rfft(c, axis=1)  # (P, N + 1)
+    out = np.fft.irfft(fc.T[:, :, None] * fx[:, None, :], n=2 * N, axis=0)
+    return np.asarray(out[:N], dtype=float)
+
+
 def toeplitz_dft(d: FloatArray, g: FloatArray | None, T: float, f: FloatArray, other: FloatArray) -> ComplexArray:
     """E_f M E_other^H for M = diag(d) + Toeplitz(g): :meth:`SampleCovariance.dft`, and its
     derivatives (M linear in d, g)."""
