@@ -69,7 +69,7 @@ from .estimators import BCLS, Estimator, as_estimator
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
 
-__all__ = ["BJProblem", "bj_covariance"]
+__all__ = ["BJProblem", "bj_covariance", "bj_covariance_flat"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -354,18 +354,26 @@ class BJProblem:
 def bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
     """Delta-method covariance H^{-1} G Sigma_y G^T H^{-1} (module docstring); NaN rows and
     columns for parameters on a bound or pinned."""
+    return bj_covariance_flat(problem, x)[0]
+
+
+def bj_covariance_flat(problem: BJProblem, x: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
+    """:func:`bj_covariance` and the indices of the parameters it left out because the
+    criterion does not depend on them at ``x`` (a vanishing row of H: the pole of a noise
+    model whose gain is 0, or which has run off to the white limit)."""
     # Small complex Cholesky factors run ~1000x slower on a multi-threaded BLAS (as in fit).
     with threadpool_limits(limits=1, user_api="blas"):
         return _bj_covariance(problem, x)
 
 
-def _bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
+def _bj_covariance(problem: BJProblem, x: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
     p = x.size
     cov = np.full((p, p), np.nan)
+    none = np.zeros(0, dtype=np.intp)
     _, free = _steps(x, problem.bounds)  # a parameter on (or next to) a bound: no error bar
     idx = np.flatnonzero(free)
     if idx.size == 0:
-        return cov
+        return cov, none
     x = np.asarray(x, float)
     bounds = problem.bounds
     with np.errstate(all="ignore"):
@@ -388,13 +396,14 @@ def _bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
     # 0) has a vanishing row of H: no error bar for it, and none of its noise in the others.
     diag = np.abs(np.diag(H))
     keep = diag > 1e-14 * np.max(diag, initial=0.0)
+    flat = idx[~keep]
     idx, H, G = idx[keep], H[np.ix_(keep, keep)], G[keep]
     if idx.size == 0:
-        return cov
+        return cov, flat
     B = G @ problem.covariance(x).matmul(G.T)
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
-        return cov
+        return cov, flat
     cov[np.ix_(idx, idx)] = Hinv @ B @ Hinv.T
-    return cov
+    return cov, flat

@@ -13,6 +13,10 @@ expected Hessians (trust-region least squares for the least-squares estimators, 
 Estimators that do not identify the noise model (``bcls``, ``wbcls``) keep the noise
 parameters of the residual fit (plug-in).
 
+As the OE search, it runs in the power-of-two units of :class:`checks.Scaling` (the noise
+structure's gain parameters scaled with y) and ends with :func:`checks.post_checks`, so that a
+fit's status is honest and does not depend on the data's units (:func:`fit_bj`).
+
 Every stage reads the estimator's declared properties (:class:`~jitterid.estimation
 .estimators.base.Estimator`: ``coloured_noise``, ``least_squares``,
 ``identifies_noise_model``, ``weighs_by_noise``, ``freeze_rounds``), never its name; the
@@ -33,11 +37,12 @@ from scipy.optimize import least_squares
 
 from .._checks import real_array
 from ..jitter.laws import JitterFamily, JitterLaw
-from ..noise.models import NoiseModel, NoiseStructure, as_noise_structure
+from ..noise.models import KnownNoise, NoiseModel, NoiseStructure, as_noise_structure
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
-from .bjcriteria import BJProblem, bj_covariance
+from .bjcriteria import BJProblem, bj_covariance_flat
+from .checks import PostContext, Scaling, post_checks
 from .estimators import BCLS, Estimator, GaussianCriterion, as_estimator, coloured_method_names
 from .jacobians import moment_derivatives
 from .problem import default_frequencies
@@ -401,6 +406,28 @@ def _coloured_estimator(method: str | Estimator) -> Estimator:
     return est
 
 
+def _scaling(
+    data: SampledData, structure: ModelStructure, noise: NoiseStructure, n_jitter: int
+) -> tuple[Scaling, NoiseStructure]:
+    """The unit scaling of :func:`jitterid.estimation.fit` (:class:`checks.Scaling`: y / sy,
+    u / su, powers of two) extended to the BJ layout, and the noise structure in the scaled
+    units. v / sy is H / sy: a structure's gain parameters (``gain_params``, the numerator of
+    ``RationalNoise``) scale by 1 / sy, a known model's intensity by 1 / sy^2 (exact). A
+    structure with parameters but no declared gains cannot absorb the scaling: identity."""
+    sc = Scaling.build(data, structure, n_jitter)
+    nn = len(noise.param_names)
+    gains = list(noise.gain_params)
+    if sc.identity or (nn and not gains):
+        n = sc.factors.size + nn
+        return Scaling(1.0, 1.0, np.ones(n)), noise
+    f = np.ones(nn)
+    f[gains] = 1.0 / sc.sy
+    if not nn:  # a known noise model
+        m = noise.model(())
+        noise = KnownNoise(NoiseModel(m.tf, m.intensity / sc.sy**2))
+    return replace(sc, factors=np.r_[sc.factors, f]), noise
+
+
 def fit_bj(
     data: SampledData,
     system: ModelStructure | TransferFunction,
@@ -426,6 +453,13 @@ def fit_bj(
     in with the noise parameters). ``oe_fit`` is :func:`jitterid.fit` itself, whose
     white-noise BCLS fit gives the start (Section 4.5); ``cov_type`` is ``"sandwich"`` (the
     delta method with the coloured covariance) or ``"none"``.
+
+    As for OE, the search runs on y and u divided by powers of two near their rms
+    (:func:`_scaling`), so that its tolerances and floors do not depend on the data's units;
+    estimates, criterion and covariance are reported in the data's units (exactly). A search
+    that converged to an answer that cannot be trusted gets the status of
+    :func:`jitterid.estimation.checks.post_checks` (``AT_BOUND``, ``UNSTABLE_MODEL``,
+    ``UNIDENTIFIABLE``, ``LOCAL_OPTIMUM``, ``NOT_SIGNIFICANT``).
     """
     fit = oe_fit
 
@@ -444,28 +478,55 @@ def fit_bj(
     free_noise = len(nstruct.param_names) > 0 or white is None
     # a criterion without a ln det term holds the noise parameters at plug-in values
     plug_in = free_noise and not est.identifies_noise_model
-    make = partial(BJProblem, data, structure, jitter, nstruct, freqs=f, white_std=white)
+    nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    # The search runs in the units of checks.Scaling (as fit's OE search); every parameter,
+    # the criterion and the covariance map back exactly (powers of two).
+    scaling, noise_s = _scaling(data, structure, nstruct, nj)
+    sdata = scaling.data(data)
+    white_s = None if white is None else white / scaling.sy
+    make = partial(BJProblem, sdata, structure, jitter, noise_s, freqs=f, white_std=white_s)
     problem = make(method=est)
+    k = problem.n_jitter + problem.n_system
+    prefits: list[FitResult] = []
+
+    def prefit() -> FitResult:
+        """The white-noise BCLS fit (Section 4.5), once; fit() scales the data exactly as
+        here, so its estimate maps to these units exactly."""
+        if not prefits:
+            given = start if isinstance(start, FitResult) else None
+            prefits.append(fit(data, structure, jitter, BCLS(), given, freqs=f, max_nfev=max_nfev))
+        return prefits[0]
+
+    # points of the default route that the final search did not start from, for the
+    # local-optimum check (lazily: they cost a pre-fit and a noise stage after a given start)
+    others: list[Callable[[], FloatArray | None]] = []
     nfev = 0
     if start is not None and not isinstance(start, FitResult):
         x0 = np.atleast_1d(real_array(start, "start"))
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
+        x0 = scaling.to_scaled(x0)
         if plug_in:
-            k = problem.n_jitter + problem.n_system
             problem = make(method=est, pinned=x0[k:])
         if est.freeze_rounds:
             problem, best = _run_frozen(problem, x0, max_nfev)
         else:
             best = _search(problem, x0, max_nfev)
         nfev = best[4]
+
+        def default_start() -> FloatArray | None:
+            x_pre = scaling.to_scaled(prefit().x)
+            eta = _noise_stage(problem, x_pre, max_nfev)[0] if free_noise else np.zeros(0)
+            return np.r_[x_pre, eta]
+
+        others.append(default_start)
     else:
-        prefit = BCLS()
-        pre = fit(data, structure, jitter, prefit, start, freqs=f, max_nfev=max_nfev)
+        pre = prefit()
         nfev = pre.nfev
-        x_pre = pre.x
+        x_pre = scaling.to_scaled(pre.x)
         eta, n = _noise_stage(problem, x_pre, max_nfev) if free_noise else (np.zeros(0), 0)
         nfev += n
+        x_bcls = np.r_[x_pre, eta]
         if est.weighs_by_noise:  # a criterion blind to Sigma_y keeps its estimate (below)
             theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
             nfev += n
@@ -474,15 +535,17 @@ def fit_bj(
                 eta, n = _noise_stage(problem, x_pre, max_nfev, start=eta)
                 nfev += n
         x0 = np.r_[x_pre, eta]
+        if not np.array_equal(x_bcls, x0):
+            others.append(lambda: x_bcls)
         if plug_in:
             problem = make(method=est, pinned=eta)
         if not est.weighs_by_noise:
             # The noise model does not enter the criterion (BCLS (14)): its BJ estimate is
             # its white-noise one (the pre-fit itself for BCLS), the noise only its error bars.
-            if est != prefit:
+            if est != BCLS():
                 pre = fit(data, structure, jitter, est, pre, freqs=f, max_nfev=max_nfev)
                 nfev += pre.nfev
-                x0 = np.r_[pre.x[: problem.n_jitter + problem.n_system], eta]
+                x0 = np.r_[scaling.to_scaled(pre.x)[:k], eta]
             best = (x0, problem.objective(x0), pre.status, pre.message, 0)
         elif est.freeze_rounds:
             problem, best = _run_frozen(problem, x0, max_nfev)
@@ -491,11 +554,58 @@ def fit_bj(
             best = _search(problem, x0, max_nfev)
             nfev += best[4]
     x, cost, status, msg, _ = best
+    x = np.asarray(x, float)
+    cov = np.full((x.size, x.size), np.nan)
+    cov_error: str | None = None
+    flat: NDArray[np.intp] | None = None  # parameters the criterion does not depend on
+    if cov_type == "sandwich":
+        try:
+            cov, flat = bj_covariance_flat(problem, x)
+        except (ValueError, np.linalg.LinAlgError) as exc:  # the checks below say why
+            cov_error = str(exc)
+    # A noise model that is white once sampled (a white record: its gain at 0 or its pole
+    # run off) is the natural home of the estimate, as a jitter scale at 0 is on data
+    # without jitter: the parameters it leaves unidentified get no error bars and are exempt
+    # from the identifiability check (said in the message); the system's are checked as usual.
+    white_limit = _white_limit(problem, x, flat)
+    if white_limit:
+        cov[white_limit, :] = np.nan
+        cov[:, white_limit] = np.nan
+        msg = (
+            f"{msg}; the noise model is at its white limit (the sampled coloured noise is "
+            f"white or zero): {[problem.names[i] for i in white_limit]} not identified (no "
+            "standard errors)"
+        )
+    status, msg = post_checks(
+        PostContext(
+            data=sdata, structure=structure, jitter=jitter, names=problem.names,
+            bounds=problem.bounds, x=x, cost=float(cost), cov=cov,
+            objective=problem.objective, model_mean=lambda v: problem.moments(v).mean,
+            oe_system=lambda: scaling.to_scaled(prefit().x)[nj:],
+            starts=partial(_other_starts, problem, others), cov_error=cov_error,
+            exempt=white_limit,
+        ),
+        status,
+        msg,
+    )
+    if not scaling.identity:  # back to the data's units, exactly; the criterion is re-evaluated there
+        x = scaling.to_original(x)
+        cov = scaling.cov_to_original(cov)
+        w = problem.weights_at
+        problem = BJProblem(
+            data, structure, jitter, nstruct, est, f, white,
+            pinned=x[k:] if problem.pinned is not None else None,
+            weights_at=None if w is None else scaling.to_original(w),
+        )
+        try:
+            cost = problem.objective(x)
+        except (ValueError, np.linalg.LinAlgError):
+            cost = np.inf
     law, tf, noise_fitted, white_used = problem.split(x)
     return FitResult(
         method=est.name,
         names=problem.names,
-        x=np.asarray(x, float),
+        x=x,
         cost=float(cost),
         status=status,
         message=msg,
@@ -504,10 +614,55 @@ def fit_bj(
         jitter_law=law,
         noise_std=white_used,
         freqs=f,
-        cov=bj_covariance(problem, np.asarray(x, float)) if cov_type == "sandwich" else np.full((x.size, x.size), np.nan),
+        cov=cov,
         cov_type=cov_type,
         structure=structure,
         jitter_model=jitter,
         noise_structure=nstruct,
         noise_model=noise_fitted,
     )
+
+
+WHITE_LAG = 1e-3  # |gamma(1)| / gamma(0) below which the sampled coloured noise is white
+
+
+def _white_limit(
+    problem: BJProblem, x: FloatArray, flat: NDArray[np.intp] | None
+) -> tuple[int, ...]:
+    """The parameters a noise model at its white limit leaves unidentified at ``x``:
+
+    - no coloured noise (variance 0, its gain at the bound 0): the noise parameters on which
+      the criterion does not depend (``flat``, from the covariance: its poles);
+    - coloured noise that is white once sampled (lag-1 autocovariance below ``WHITE_LAG``
+      of the variance: its pole run off): it and the white part share one identified white
+      variance, so every noise parameter and the white std (if estimated).
+    """
+    k, nn = problem.n_jitter + problem.n_system, problem.n_noise
+    if not nn:
+        return ()
+    try:
+        g = problem.autocovariance(x).sequence(2)
+    except ValueError:
+        return ()
+    if g[0] <= 0:
+        return () if flat is None else tuple(int(i) for i in flat if k <= i < k + nn)
+    if abs(g[1]) <= WHITE_LAG * g[0]:
+        return tuple(range(k, x.size))
+    return ()
+
+
+def _other_starts(
+    problem: BJProblem, others: list[Callable[[], FloatArray | None]]
+) -> list[FloatArray]:
+    """The default route's points that the final search did not start from, inside the
+    problem's bounds (a pinned noise block takes its pinned values)."""
+    lo, hi = np.array(problem.bounds, float).reshape(-1, 2).T
+    out = []
+    for get in others:
+        try:
+            v = get()
+        except ValueError:
+            continue
+        if v is not None and v.size == lo.size:
+            out.append(np.clip(v, lo, hi))
+    return out
