@@ -243,6 +243,18 @@ def test_bj_gradient_is_the_derivative_of_the_criterion(method, jitter, noise, x
     assert np.all(np.linalg.eigvalsh(M) > 0)
 
 
+@pytest.mark.parametrize(("jitter", "noise", "x"), DERIVATIVE_CASES, ids=["u", "u-far", "jbj", "gauss", "order2"])
+def test_gaussian_grad_y_jacobian_is_the_derivative_of_grad_y(jitter, noise, x):
+    """The closed-form d^2 V / dx dy^T of the Gaussian BJ criterion (used by the covariance)
+    against central differences of dV/dy; the gradient alone equals objective_gradient's."""
+    problem = _bj_problem("gaussian", jitter, noise=noise)
+    x = np.array(x)
+    G = problem.grad_y_jacobian(x)
+    fd = _central(problem.grad_y, x)
+    np.testing.assert_allclose(G, fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd)))
+    np.testing.assert_array_equal(problem.gradient(x), problem.objective_gradient(x)[1])
+
+
 @pytest.mark.parametrize("method", ["bcls", "wbcls"])
 def test_least_squares_jacobian_with_frozen_weights_is_the_derivative_of_the_residuals(method):
     """bcls and wbcls with R frozen at ``weights_at`` (the OE fix carried over to BJ: the

@@ -33,7 +33,7 @@ inside the search, having no ln det R, is minimised partly by inflating R and is
 
 Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance, because
 the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
-d theta dy^T (central differences of dV/dy), H the Hessian of V (central differences of the
+d theta dy^T (closed form for ``gaussian``, else central differences of dV/dy), H the Hessian of V (central differences of the
 analytic gradient; Gauss-Newton 2 J^T J for the least-squares criteria); G Sigma_y G^T is an
 FFT Toeplitz product. Every difference quotient goes through
 :func:`jitterid.estimation.finite_diff.derivative`.
@@ -69,7 +69,7 @@ from .estimators import BCLS, Estimator, as_estimator
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
 
-__all__ = ["BJProblem", "bj_covariance", "bj_covariance_flat"]
+__all__ = ["BJProblem", "bj_covariance"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -350,37 +350,44 @@ class BJProblem:
         """dV/dy at the data: the input to the delta-method covariance."""
         return np.asarray(self.estimator.bj_grad_y(self, np.asarray(x, float)), dtype=float)
 
+    def grad_y_jacobian(self, x: FloatArray) -> FloatArray | None:
+        """d^2 V / dx dy^T (P, N) in closed form, or None (then :meth:`grad_y` is differenced)."""
+        return self.estimator.bj_grad_y_jacobian(self, np.asarray(x, float))
 
-def bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
+    def gradient(self, x: FloatArray) -> FloatArray:
+        """dV/dx (Newton-searched estimators), without the expected Hessian."""
+        return self.estimator.bj_gradient(self, np.asarray(x, float))
+
+
+def bj_covariance(problem: BJProblem, x: FloatArray, fixed: tuple[int, ...] = ()) -> FloatArray:
     """Delta-method covariance H^{-1} G Sigma_y G^T H^{-1} (module docstring); NaN rows and
-    columns for parameters on a bound or pinned."""
-    return bj_covariance_flat(problem, x)[0]
-
-
-def bj_covariance_flat(problem: BJProblem, x: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
-    """:func:`bj_covariance` and the indices of the parameters it left out because the
-    criterion does not depend on them at ``x`` (a vanishing row of H: the pole of a noise
-    model whose gain is 0, or which has run off to the white limit)."""
+    columns for parameters on a bound, pinned, in ``fixed`` (held: none of their noise in
+    the others), or on which the criterion does not depend at ``x``."""
     # Small complex Cholesky factors run ~1000x slower on a multi-threaded BLAS (as in fit).
     with threadpool_limits(limits=1, user_api="blas"):
-        return _bj_covariance(problem, x)
+        return _bj_covariance(problem, x, fixed)
 
 
-def _bj_covariance(problem: BJProblem, x: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
+def _bj_covariance(problem: BJProblem, x: FloatArray, fixed: tuple[int, ...] = ()) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
-    none = np.zeros(0, dtype=np.intp)
     _, free = _steps(x, problem.bounds)  # a parameter on (or next to) a bound: no error bar
+    free[list(fixed)] = False
     idx = np.flatnonzero(free)
     if idx.size == 0:
-        return cov, none
+        return cov
     x = np.asarray(x, float)
     bounds = problem.bounds
     with np.errstate(all="ignore"):
-        # G = d^2 V / dx dy^T and, for the Newton-searched criteria, H = d(analytic
-        # gradient)/dx: the one difference rule (finite_diff); least squares: H = 2 J^T J
-        # with J analytic (bcls, frozen wbcls) or by the same rule.
-        G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i]) for i in idx])
+        # G = d^2 V / dx dy^T (closed form where the estimator has one: gaussian) and, for
+        # the Newton-searched criteria, H = d(analytic gradient)/dx: the one difference rule
+        # (finite_diff); least squares: H = 2 J^T J with J analytic (bcls, frozen wbcls) or
+        # by the same rule.
+        closed = problem.grad_y_jacobian(x)
+        if closed is not None:
+            G = closed[idx]
+        else:
+            G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i]) for i in idx])
         if problem.estimator.least_squares:
             if problem.has_jacobian:
                 J = problem.jacobian(x)[:, idx]
@@ -388,22 +395,19 @@ def _bj_covariance(problem: BJProblem, x: FloatArray) -> tuple[FloatArray, NDArr
                 J = np.array([finite_diff.derivative(problem.residuals, x, i, bounds[i]) for i in idx]).T
             H = 2 * J.T @ J
         else:
-            H = np.array(
-                [finite_diff.derivative(lambda z: problem.objective_gradient(z)[1][idx], x, i, bounds[i]) for i in idx]
-            )
+            H = np.array([finite_diff.derivative(lambda z: problem.gradient(z)[idx], x, i, bounds[i]) for i in idx])
             H = 0.5 * (H + H.T)
     # A parameter the criterion does not depend on (the pole of a noise model whose gain is
     # 0) has a vanishing row of H: no error bar for it, and none of its noise in the others.
     diag = np.abs(np.diag(H))
     keep = diag > 1e-14 * np.max(diag, initial=0.0)
-    flat = idx[~keep]
     idx, H, G = idx[keep], H[np.ix_(keep, keep)], G[keep]
     if idx.size == 0:
-        return cov, flat
+        return cov
     B = G @ problem.covariance(x).matmul(G.T)
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
-        return cov, flat
+        return cov
     cov[np.ix_(idx, idx)] = Hinv @ B @ Hinv.T
-    return cov, flat
+    return cov

@@ -41,7 +41,7 @@ from ..noise.models import KnownNoise, NoiseModel, NoiseStructure, as_noise_stru
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
-from .bjcriteria import BJProblem, bj_covariance_flat
+from .bjcriteria import BJProblem, bj_covariance
 from .checks import PostContext, Scaling, post_checks
 from .estimators import BCLS, Estimator, GaussianCriterion, as_estimator, coloured_method_names
 from .jacobians import moment_derivatives
@@ -173,11 +173,13 @@ def _search(
         record: list[tuple[float, FloatArray]] = []
 
         n_eval = [0]
+        # a loose stage (tol above NEWTON_TOL) stalls as loosely: gains below its tolerance
+        stall_gain = STALL_GAIN if tol is None else max(STALL_GAIN, tol)
 
         def fun(z: FloatArray) -> tuple[float, FloatArray, FloatArray]:
             n_eval[0] += 1
-            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < STALL_GAIN:
-                raise _Stalled  # the last STALL_WINDOW accepted steps gained < STALL_GAIN
+            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < stall_gain:
+                raise _Stalled  # the last STALL_WINDOW accepted steps gained < stall_gain
             xs, jac = cz.forward(z)
             with np.errstate(all="ignore"):
                 try:
@@ -200,7 +202,7 @@ def _search(
             # amounts far below one unit of V; the estimate of every identifiable parameter
             # has converged. (search.newton_search has no relative-decrease test.)
             z, ok, nfev = record[-1][1], True, n_eval[0]
-            msg = f"converged: V decreased by < {STALL_GAIN:g} over {STALL_WINDOW} evaluations"
+            msg = f"converged: V decreased by < {stall_gain:g} over {STALL_WINDOW} evaluations"
         if not ok and msg.startswith("no step decreases") and z.tobytes() in seen:
             # Damping exhausted: no step, however short, lowers V. At a point whose Newton
             # decrement is already far below one unit of V (-2 log-likelihood), that is the
@@ -494,7 +496,10 @@ def fit_bj(
         here, so its estimate maps to these units exactly."""
         if not prefits:
             given = start if isinstance(start, FitResult) else None
-            prefits.append(fit(data, structure, jitter, BCLS(), given, freqs=f, max_nfev=max_nfev))
+            # its white-noise covariance is never used (the BJ one is computed below)
+            prefits.append(
+                fit(data, structure, jitter, BCLS(), given, freqs=f, max_nfev=max_nfev, cov_type="none")
+            )
         return prefits[0]
 
     # points of the default route that the final search did not start from, for the
@@ -527,7 +532,11 @@ def fit_bj(
         eta, n = _noise_stage(problem, x_pre, max_nfev) if free_noise else (np.zeros(0), 0)
         nfev += n
         x_bcls = np.r_[x_pre, eta]
-        if est.weighs_by_noise:  # a criterion blind to Sigma_y keeps its estimate (below)
+        # The GLS stage picks the system's basin where coloured noise dominates some
+        # frequencies; a noise model white once sampled (a white record) weights as the OE
+        # criterion does, which starts from the BCLS estimate too: skipped. A criterion
+        # blind to Sigma_y keeps its estimate (below).
+        if est.weighs_by_noise and not _white_limit(problem, x_bcls)[0]:
             theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
             nfev += n
             x_pre = np.r_[x_pre[: problem.n_jitter], theta]  # the GLS system: a closer start
@@ -557,17 +566,18 @@ def fit_bj(
     x = np.asarray(x, float)
     cov = np.full((x.size, x.size), np.nan)
     cov_error: str | None = None
-    flat: NDArray[np.intp] | None = None  # parameters the criterion does not depend on
-    if cov_type == "sandwich":
-        try:
-            cov, flat = bj_covariance_flat(problem, x)
-        except (ValueError, np.linalg.LinAlgError) as exc:  # the checks below say why
-            cov_error = str(exc)
     # A noise model that is white once sampled (a white record: its gain at 0 or its pole
     # run off) is the natural home of the estimate, as a jitter scale at 0 is on data
-    # without jitter: the parameters it leaves unidentified get no error bars and are exempt
-    # from the identifiability check (said in the message); the system's are checked as usual.
-    white_limit = _white_limit(problem, x, flat)
+    # without jitter. The noise parameters are then not identified (held in the covariance,
+    # whose other rows they would only fill with rounding), nor is the white std apart
+    # from them when both are white: no error bars for those, exempt from the
+    # identifiability check, said in the message; the system's are checked as usual.
+    held, white_limit = _white_limit(problem, x)
+    if cov_type == "sandwich":
+        try:
+            cov = bj_covariance(problem, x, held)
+        except (ValueError, np.linalg.LinAlgError) as exc:  # the checks below say why
+            cov_error = str(exc)
     if white_limit:
         cov[white_limit, :] = np.nan
         cov[:, white_limit] = np.nan
@@ -626,29 +636,29 @@ def fit_bj(
 WHITE_LAG = 1e-3  # |gamma(1)| / gamma(0) below which the sampled coloured noise is white
 
 
-def _white_limit(
-    problem: BJProblem, x: FloatArray, flat: NDArray[np.intp] | None
-) -> tuple[int, ...]:
-    """The parameters a noise model at its white limit leaves unidentified at ``x``:
+def _white_limit(problem: BJProblem, x: FloatArray) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """(held, unidentified): the parameters a noise model at its white limit leaves
+    unidentified at ``x``, to hold in the covariance and to report without error bars:
 
-    - no coloured noise (variance 0, its gain at the bound 0): the noise parameters on which
-      the criterion does not depend (``flat``, from the covariance: its poles);
+    - no coloured noise (variance 0: its gains at 0): every noise parameter, in which the
+      criterion is then constant (the white std stays identified);
     - coloured noise that is white once sampled (lag-1 autocovariance below ``WHITE_LAG``
-      of the variance: its pole run off): it and the white part share one identified white
-      variance, so every noise parameter and the white std (if estimated).
+      of the variance: its pole run off): the noise parameters, and the white std too (the
+      two share one identified white variance).
     """
     k, nn = problem.n_jitter + problem.n_system, problem.n_noise
     if not nn:
-        return ()
+        return (), ()
     try:
         g = problem.autocovariance(x).sequence(2)
     except ValueError:
-        return ()
+        return (), ()
+    noise = tuple(range(k, k + nn))
     if g[0] <= 0:
-        return () if flat is None else tuple(int(i) for i in flat if k <= i < k + nn)
+        return noise, noise
     if abs(g[1]) <= WHITE_LAG * g[0]:
-        return tuple(range(k, x.size))
-    return ()
+        return noise, tuple(range(k, x.size))
+    return (), ()
 
 
 def _other_starts(

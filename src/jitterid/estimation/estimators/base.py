@@ -245,6 +245,16 @@ class Estimator:
         """dV/dy at the data, coloured noise (for the delta-method covariance)."""
         self._no_bj("bj_grad_y")
 
+    def bj_grad_y_jacobian(self, problem: ColouredContext, x: FloatArray) -> FloatArray | None:
+        """d^2 V / dx dy^T, shape (P, N), in closed form, or None: the covariance then
+        differences :meth:`bj_grad_y` (as :meth:`grad_y_jacobian` for white noise)."""
+        return None
+
+    def bj_gradient(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """dV/dx alone (what the covariance differences for the Hessian of a Newton-searched
+        criterion); by default from :meth:`bj_objective_gradient`."""
+        return self.bj_objective_gradient(problem, x)[1]
+
     @property
     def default_cov_type(self) -> str:
         return self.cov_types[0]

@@ -64,6 +64,21 @@ class GaussianCriterion(Estimator):
     def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
         return 2 * problem.covariance(x).solve(problem.data.y - problem.moments(x).mean)
 
+    def bj_grad_y_jacobian(self, problem: ColouredContext, x: FloatArray) -> FloatArray | None:
+        """d(2 S^{-1} e)/dx_p = -2 S^{-1} (dm_p + dS_p z), z = S^{-1} e, dS_p = diag(dd_p) +
+        Toeplitz(dgamma_p): one derivative pass and P solves (instead of 2P criteria)."""
+        mom, dm, dd, dg = problem.derivatives(x)
+        cov = problem.covariance(x)
+        z = cov.solve(problem.data.y - mom.mean)
+        R = dm + dd * z  # (P, N): dm_p + diag(dd_p) z
+        if dg:
+            keys = list(dg)
+            R[keys] += toeplitz_products(np.array([dg[p][0] for p in keys]), z[:, None])[:, :, 0].T
+        return -2 * cov.solve(R.T).T
+
+    def bj_gradient(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        return self._bj_parts(problem, np.asarray(x, float), None, information=False)[1]
+
     def bj_objective_gradient(
         self, problem: ColouredContext, x: FloatArray, free: NDArray[np.intp] | None = None
     ) -> tuple[float, FloatArray, FloatArray]:
@@ -86,7 +101,15 @@ class GaussianCriterion(Estimator):
         gradient and value are exact. ``free``: only those rows and columns are formed (zeros
         elsewhere), e.g. the noise stage with the system fixed.
         """
-        x = np.asarray(x, float)
+        value, grad, info = self._bj_parts(problem, np.asarray(x, float), free, information=True)
+        assert info is not None
+        return value, grad, info
+
+    def _bj_parts(
+        self, problem: ColouredContext, x: FloatArray, free: NDArray[np.intp] | None,
+        information: bool,
+    ) -> tuple[float, FloatArray, FloatArray | None]:
+        """(V, dV/dx, M or None): :meth:`bj_objective_gradient`, M only if ``information``."""
         mom, dm, dd, dg = problem.derivatives(x)
         cov = problem.covariance(x)
         N, P_all = problem.data.N, x.size
@@ -112,6 +135,12 @@ class GaussianCriterion(Estimator):
         for b in range(w + 1):
             zz[b, : N - b] = z[b:] * z[: N - b]
         grad += dB.reshape(P, -1) @ (twice * (cov.band_inverse - zz)).ravel()
+        if not information:
+            if P_all == P:
+                return value, grad, None
+            g_all = np.zeros(P_all)
+            g_all[sel] = grad
+            return value, g_all, None
         Wm = cov._triangular(Lm, "N")
         info = 2 * (Wm.T @ Wm)
         zeta = cov.colour(problem.probes())  # (N, K)
