@@ -24,6 +24,7 @@ from jitterid.estimation.estimators import (
     WBCLS,
     Estimator,
     GaussianCriterion,
+    as_estimator,
     coloured_method_names,
     register,
 )
@@ -706,10 +707,15 @@ def test_ordinary_bj_fits_stay_converged(method):
     for seed in (11, 12):
         res = ji.fit(data_with(SLOW, seed), ji.PolePairGain(), ji.Uniform(0.5), method, noise=ji.RationalNoise(0, 1))
         assert res.status is ji.FitStatus.CONVERGED, (seed, res.message)
-    d = data_with(None, 40)
-    res = ji.fit(ji.SampledData(d.y, d.T, d.u), ji.PolePairGain(), ji.Uniform(0.5), method, noise=ji.RationalNoise(0, 1))
-    assert res.status is ji.FitStatus.CONVERGED, res.message
-    assert "white limit" in res.message
+    # seed 8119: bench_bj.py's second white data set: the noise gain ends at 0 with the pole
+    # where the noise stage put it, whose Hessian row is rounding, not exactly 0 (the rule
+    # that holds such a pole keeps it CONVERGED; the row alone flagged it UNIDENTIFIABLE)
+    for seed in (40, 8119):
+        d = data_with(None, seed)
+        res = ji.fit(ji.SampledData(d.y, d.T, d.u), ji.PolePairGain(), ji.Uniform(0.5), method, noise=ji.RationalNoise(0, 1))
+        assert res.status is ji.FitStatus.CONVERGED, (seed, res.message)
+        if as_estimator(method).identifies_noise_model:  # (a plug-in model may stay coloured)
+            assert "white limit" in res.message
 
 
 # --------------------------------------------------------------------------- experiment
