@@ -111,8 +111,12 @@ def _rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tu
     kept: gamma and its derivatives at one noise model ask for the same one."""
     key = (law, coarse, fine, anchors.tobytes())
     last = _RULE_MEMO[-1] if _RULE_MEMO else None  # one read: safe if another thread writes
-    if last is not None and last[0] == key:
-        return last[1]
+    if last is not None and last[0][1:] == key[1:]:
+        try:
+            if last[0][0] is law or bool(last[0][0] == law):
+                return last[1]
+        except (TypeError, ValueError):  # a law whose == is not a plain bool: no reuse
+            pass
     out = _new_rule(law, coarse, anchors, fine)
     _RULE_MEMO[:] = [(key, out)]
     return out
