@@ -1,10 +1,14 @@
-"""The Box-Jenkins criteria (BJ (2b), JBJ (2d)) and their delta-method covariance.
+"""The Box-Jenkins problem (BJ (2b), JBJ (2d)) and its delta-method covariance.
 
 y_k = s(kT + tau_k; theta) + v(kT + tau_k; eta) + w_k with coloured noise v (eq. (1c),
 :mod:`jitterid.noise.models`) and a white part w_k of std sigma_w (known, or estimated as
 ``noise_std``). The mean is Lemma 1's m_k as for OE; the covariance is Sigma_y of (C2)
-(:mod:`jitterid.noise.covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz covariance
-of the jittered noise. The criteria of :mod:`jitterid.estimation.problem` with this covariance:
+(:mod:`jitterid.noise.covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz
+covariance of the jittered noise. :class:`BJProblem` gives a criterion what it reads
+(:class:`~jitterid.estimation.estimators.base.ColouredContext`): the moments, Sigma_y, the
+DTFT residual, R = E Sigma_y E^H and its Cholesky factor, and their derivatives. The criteria
+themselves are the estimators' coloured-noise forms (the ``bj_*`` methods, each beside its
+white-noise twin in :mod:`jitterid.estimation.estimators`):
 
 =============  ===================================================================  =========
 method         criterion                                                            paper
@@ -17,9 +21,9 @@ method         criterion                                                        
 =============  ===================================================================  =========
 
 Parameter order: jitter-family parameters (JBJ), system, noise structure, then
-``noise_std`` (sigma_w) when it is estimated. ``bcls`` and ``wbcls`` cannot identify the noise
-(no ln det term): their noise parameters are *plug-in* values held fixed (``pinned``), so
-they get NaN standard errors.
+``noise_std`` (sigma_w) when it is estimated. An estimator that does not identify the noise
+model (``identifies_noise_model`` False: ``bcls`` and ``wbcls``, no ln det term) gets the
+noise parameters as *plug-in* values held fixed (``pinned``), with NaN standard errors.
 
 WBCLS weights: as for OE (:mod:`jitterid.estimation.problem`), R is frozen at ``weights_at``
 (the BCLS/GLS start with the plug-in noise model, then re-frozen once at the first WBCLS
@@ -29,7 +33,7 @@ inside the search, having no ln det R, is minimised partly by inflating R and is
 
 Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance, because
 the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
-d theta dy^T (central differences of dV/dy), H the Hessian of V (central differences of the
+d theta dy^T (closed form for ``gaussian``, else central differences of dV/dy), H the Hessian of V (central differences of the
 analytic gradient; Gauss-Newton 2 J^T J for the least-squares criteria); G Sigma_y G^T is an
 FFT Toeplitz product. Every difference quotient goes through
 :func:`jitterid.finite_diff.derivative`.
@@ -41,7 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
+from scipy.linalg import cho_factor
 from threadpoolctl import threadpool_limits
 
 from .. import finite_diff
@@ -61,18 +65,15 @@ from ..simulate import SampledData
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 from .covariance import _steps
+from .estimators import BCLS, Estimator, as_estimator
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
 
-__all__ = ["BJ_METHODS", "BJProblem", "bj_covariance"]
+__all__ = ["BJProblem", "bj_covariance"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
-BJ_METHODS = ("bcls", "wbcls", "asml", "asml-diag", "gaussian")
-# Criteria with a ln det term, which identify the noise parameters.
-JOINT = ("asml", "asml-diag", "gaussian")
-LEAST_SQUARES = ("bcls", "wbcls")
 WHITE_FLOOR = 1e-12  # lower bound of an estimated white-noise std
 PROBES = 16  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
 
@@ -89,11 +90,12 @@ class BJProblem:
     structure: ModelStructure
     jitter: JitterLaw | JitterFamily
     noise: NoiseStructure
-    method: str
+    method: str | Estimator  # an estimator with a coloured-noise form, or its name
     freqs: FloatArray
     white_std: float | None
     pinned: FloatArray | None = None
     weights_at: FloatArray | None = None  # wbcls: the point at which R is frozen
+    estimator: Estimator = field(init=False)
     names: tuple[str, ...] = field(init=False)
     bounds: tuple[tuple[float, float], ...] = field(init=False)
     Y: ComplexArray = field(init=False)
@@ -109,6 +111,9 @@ class BJProblem:
     _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
+        self.estimator = as_estimator(self.method)
+        if not self.estimator.coloured_noise:
+            self.estimator.refuse_coloured_noise()
         jn: tuple[str, ...] = ()
         jb: tuple[tuple[float, float], ...] = ()
         if isinstance(self.jitter, JitterFamily):
@@ -130,7 +135,7 @@ class BJProblem:
         self.bounds = jb + tuple(self.structure.bounds) + nb
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
         self._oe = Problem(
-            self.data, self.structure, self.jitter, "bcls", self.freqs, None, with_variances=True
+            self.data, self.structure, self.jitter, BCLS.name, self.freqs, None, with_variances=True
         )
 
     @property
@@ -232,7 +237,9 @@ class BJProblem:
         self._dgamma = (key, out)
         return out
 
-    def _derivatives(self, x: FloatArray) -> tuple[SampleMoments, FloatArray, FloatArray, dict[int, tuple[FloatArray, FloatArray]]]:
+    def derivatives(
+        self, x: FloatArray
+    ) -> tuple[SampleMoments, FloatArray, FloatArray, dict[int, tuple[FloatArray, FloatArray]]]:
         """(moments, dm, dd, {p: (dgamma, dar)}): the derivatives of m and of Sigma_y =
         diag(d) + Toeplitz(gamma) (AR coefficients ar) for every parameter, shapes (P, N).
 
@@ -253,224 +260,142 @@ class BJProblem:
         dg = self.autocovariance_derivatives(x) if nj + self.n_noise else {}
         return mom, dm, dd, dg
 
-    def objective_gradient(
-        self, x: FloatArray, free: NDArray[np.intp] | None = None
-    ) -> tuple[float, FloatArray, FloatArray]:
-        """(V, dV/dx, expected Hessian M of V) for ``gaussian``, ``asml``, ``asml-diag``: the
-        input of :func:`jitterid.estimation.search.newton_search`. O(N) for ``gaussian``
-        (:meth:`_gaussian`), O(F^3) for ``asml`` as the criterion itself. ``free``: indices
-        of the parameters searched; ``gaussian`` then forms only their rows and columns
-        (zeros elsewhere), e.g. the noise stage with the system fixed."""
-        if self.method == "gaussian":
-            return self._gaussian(x, free)
-        if self.method in ("asml", "asml-diag"):
-            return self._frequency(x)
-        raise ValueError(f"objective_gradient: method {self.method!r} is a least-squares criterion")
+    # ------------------------------------------------------------------ for the criteria
+    @property
+    def frozen_weights(self) -> bool:
+        """True for a full-covariance criterion with R frozen at ``weights_at`` (wbcls)."""
+        return self.estimator.full_covariance and self.weights_at is not None
 
-    def _gaussian(self, x: FloatArray, free: NDArray[np.intp] | None = None) -> tuple[float, FloatArray, FloatArray]:
-        """V = e^T S^{-1} e + ln det S, S = Sigma_y, e = y - m, through the banded B = L S L^T
-        of (C4): with u = L e, z = B^{-1} u,
-
-            V = u^T z + ln det B,
-            dV = 2 (dL e - L dm)^T z - z^T dB z + tr(B^{-1} dB),
-
-        dB banded (:meth:`SampleCovariance.derivative_band`) and tr(B^{-1} dB) from B^{-1}
-        on the band only (:attr:`SampleCovariance.band_inverse`): O(N w^2) in all.
-
-        Expected Hessian (2 x Fisher information) M = 2 dm^T S^{-1} dm + tr(S^{-1} dS_i
-        S^{-1} dS_j). The first term is exact (whitened columns C^{-1} L dm). The trace term
-        has no banded form (it needs all of S^{-1}); it is estimated with ``PROBES`` fixed
-        probe vectors zeta = L^T C^{-T} xi, xi ~ N(0, I) (so E zeta zeta^T = S^{-1}):
-        tr(S^{-1} dS_i S^{-1} dS_j) = E[(dS_i zeta)^T S^{-1} (dS_j zeta)], a Gram matrix of
-        whitened vectors, hence positive semi-definite, and smooth in x (the same xi at
-        every point). M only steers the Newton steps; the gradient and value are exact.
-        """
-        x = np.asarray(x, float)
-        mom, dm, dd, dg = self._derivatives(x)
-        cov = self.covariance(x)
-        N, P_all = self.data.N, x.size
-        sel = np.arange(P_all) if free is None else np.asarray(free, dtype=np.intp)
-        dm, dd = dm[sel], dd[sel]
-        dg = {j: dg[p] for j, p in enumerate(sel) if p in dg}
-        P = sel.size
-        e = self.data.y - mom.mean
-        u = cov.filter(e)
-        z = cov.band_solve(u)
-        value = float(u @ z + cov.logdet)
-        Lm = cov.filter(dm.T)  # (N, P)
-        grad = -2 * (Lm.T @ z)
-        w = cov.width
-        n = cov.gamma.ar.size - 1 if cov.gamma is not None else 0
-        dgam, dar = np.zeros((P, N)), np.zeros((P, n + 1))
-        for p, (dgp, darp) in dg.items():
-            dgam[p], dar[p] = dgp, darp
-            grad[p] += 2 * (cov.dfilter(darp, e) @ z)
-        dB = cov.derivative_band(dd, dgam if dg else None, dar if dg else None)  # (P, w + 1, N)
-        twice = np.where(np.arange(w + 1) > 0, 2.0, 1.0)[:, None]
-        zz = np.zeros((w + 1, N))
-        for b in range(w + 1):
-            zz[b, : N - b] = z[b:] * z[: N - b]
-        grad += dB.reshape(P, -1) @ (twice * (cov.band_inverse - zz)).ravel()
-        Wm = cov._triangular(Lm, "N")
-        info = 2 * (Wm.T @ Wm)
-        if self._probes is None:
-            self._probes = np.random.default_rng(20240607).standard_normal((N, PROBES))
-        zeta = cov.colour(self._probes)  # (N, K)
-        K = zeta.shape[1]
-        V = dd.T[:, :, None] * zeta[:, None, :]  # (N, P, K): diag(dd_p) zeta
-        if dg:
-            keys = list(dg)
-            V[:, keys] += _toeplitz_products(np.array([dg[p][0] for p in keys]), zeta)
-        X = cov.whiten(V.reshape(N, P * K)).reshape(N, P, K).transpose(1, 0, 2).reshape(P, N * K)
-        info += (X @ X.T) / K
-        if P_all == P:
-            return value, grad, info
-        g_all, M_all = np.zeros(P_all), np.zeros((P_all, P_all))
-        g_all[sel], M_all[np.ix_(sel, sel)] = grad, info
-        return value, g_all, M_all
-
-    def _frequency(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-        """``asml-diag`` (23) and ``asml`` (22) with coloured noise: the OE formulas of
-        :mod:`jitterid.estimation.jacobians` with R = E Sigma_y E^H and dR = E dSigma_y E^H
-        (linear in d, gamma: :func:`toeplitz_dft`, :func:`toeplitz_dft_diagonal`)."""
-        x = np.asarray(x, float)
-        _, dm, dd, dg = self._derivatives(x)
-        d, f = self.data, self.freqs
-        P = x.size
-        dmu = dtft(dm, d.T, f)  # (P, F)
-        r, chol = self._weighted(x)
-        if self.method == "asml-diag":
-            rho = self.covariance(x).dft_diagonal(d.T, f)
-            drho = np.array([toeplitz_dft_diagonal(dd[p], dg[p][0] if p in dg else None, d.T, f) for p in range(P)])
-            rr = np.abs(r) ** 2
-            value = float(np.sum(rr / rho + np.log(rho)))
-            grad = -2 * (dmu @ (r.conj() / rho)).real + drho @ ((1 - rr / rho) / rho)
-            info = 2 * ((dmu / rho).conj() @ dmu.T).real + (drho / rho**2) @ drho.T
-            return value, grad, info
-        assert chol is not None
-        L = chol[0]
-        zz = solve_triangular(L, r, lower=True)
-        value = float(np.vdot(zz, zz).real + 2 * np.sum(np.log(np.diag(L).real)))
-        a = cho_solve(chol, r)
-        Rinv = cho_solve(chol, np.eye(r.size))
-        dR = np.array([toeplitz_dft(dd[p], dg[p][0] if p in dg else None, d.T, f, f) for p in range(P)])
-        grad = -2 * (dmu @ a.conj()).real
-        RdR = Rinv[None] @ dR
-        grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
-        flat = RdR.reshape(P, -1)
-        info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T).real
-        return value, grad, info
-
-    # ------------------------------------------------------------------ criteria
-    def _weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
+    def weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
+        """Residual Y - mu and, for the full-covariance criteria, the Cholesky factor of
+        R = E Sigma_y E^H (at ``weights_at`` if frozen, else at ``x``)."""
         d = self.data
         r = self.Y - dtft(self.moments(x).mean, d.T, self.freqs)
-        if self.method == "wbcls" and self.weights_at is not None:  # R frozen (module doc)
+        if self.frozen_weights:  # R frozen (module doc)
             if self._frozen is None:
                 R = self.covariance(np.asarray(self.weights_at, float)).dft(d.T, self.freqs)
                 self._frozen = cho_factor(R, lower=True)
             return r, self._frozen
-        if self.method in ("wbcls", "asml"):
+        if self.estimator.full_covariance:
             R = self.covariance(x).dft(d.T, self.freqs)
             return r, cho_factor(R, lower=True)
         return r, None
 
+    def dmu(self, dm: FloatArray) -> ComplexArray:
+        """d mu_Y(f) / dx over the frequency set, (P, F): the DTFT of dm_k (Lemma 1)."""
+        return dtft(dm, self.data.T, self.freqs)
+
+    def dR(self, dd: FloatArray, dg: dict[int, tuple[FloatArray, FloatArray]]) -> ComplexArray:
+        """dR_p = E dSigma_p E^H over the frequency set, (P, F, F), for dSigma_p =
+        diag(dd_p) + Toeplitz(dgamma_p) (:meth:`derivatives`)."""
+        T, f = self.data.T, self.freqs
+        return np.array(
+            [toeplitz_dft(dd[p], dg[p][0] if p in dg else None, T, f, f) for p in range(dd.shape[0])]
+        )
+
+    def R_diagonal(self, x: FloatArray) -> FloatArray:
+        """R(f, f) over the frequency set (what (23) weights by)."""
+        return self.covariance(x).dft_diagonal(self.data.T, self.freqs)
+
+    def dR_diagonal(self, dd: FloatArray, dg: dict[int, tuple[FloatArray, FloatArray]]) -> FloatArray:
+        """d R(f, f) / dx, (P, F) (:meth:`dR` on the diagonal only, O(N log N) each)."""
+        T, f = self.data.T, self.freqs
+        return np.array(
+            [toeplitz_dft_diagonal(dd[p], dg[p][0] if p in dg else None, T, f) for p in range(dd.shape[0])]
+        )
+
+    def adjoint(self, z: ComplexArray) -> FloatArray:
+        """Re F^H z: the time-domain image of a frequency-domain weight (for dV/dy)."""
+        return adjoint_dtft(z, self.data.T, self.freqs, self.data.N).real
+
+    def probes(self) -> FloatArray:
+        """``PROBES`` fixed standard normal probe vectors (N, PROBES) for the trace term of
+        the Gaussian criterion's Fisher matrix: the same at every point, so the expected
+        Hessian is smooth in x."""
+        if self._probes is None:
+            self._probes = np.random.default_rng(20240607).standard_normal((self.data.N, PROBES))
+        return self._probes
+
+    # ------------------------------------------------------------------ the criterion
+    # The estimator's coloured-noise form (``bj_*`` methods, one module each in
+    # :mod:`jitterid.estimation.estimators`) evaluated on this problem.
+    def objective(self, x: FloatArray) -> float:
+        """The criterion value V of the chosen estimator (module docstring)."""
+        return self.estimator.bj_objective(self, np.asarray(x, float))
+
+    def objective_gradient(
+        self, x: FloatArray, free: NDArray[np.intp] | None = None
+    ) -> tuple[float, FloatArray, FloatArray]:
+        """(V, dV/dx, expected Hessian M of V) of a Newton-searched estimator (``gaussian``,
+        ``asml``, ``asml-diag``): the input of :func:`jitterid.estimation.search
+        .newton_search`. ``free``: indices of the parameters searched; an estimator may then
+        form only their rows and columns (zeros elsewhere), e.g. the noise stage with the
+        system fixed."""
+        return self.estimator.bj_objective_gradient(self, np.asarray(x, float), free)
+
+    @property
+    def has_jacobian(self) -> bool:
+        """Whether :meth:`jacobian` is analytic here (least squares; wbcls: R frozen)."""
+        return self.estimator.bj_has_jacobian(self)
+
     def residuals(self, x: FloatArray) -> FloatArray:
-        """Real residual vector whose squared norm is the ``bcls``/``wbcls`` criterion."""
-        r, chol = self._weighted(x)
-        if chol is not None:
-            r = solve_triangular(chol[0], r, lower=True)
-        return np.concatenate([r.real, r.imag])
+        """Real residual vector whose squared norm is the criterion (least-squares estimators)."""
+        return self.estimator.bj_residuals(self, np.asarray(x, float))
 
     def jacobian(self, x: FloatArray) -> FloatArray:
-        """d :meth:`residuals` / dx, shape (2F, P), for ``bcls`` and ``wbcls`` with R frozen
-        (``weights_at``): -[Re; Im] L^{-1} dmu with R = L L^H, dmu = F dm from the OE pass
-        (the noise parameters, pinned, do not enter)."""
-        if self.method == "wbcls" and self.weights_at is None:
-            raise ValueError("jacobian: the literal wbcls (R at the searched point) has none here")
-        _, dm, _, _ = self._derivatives(x)
-        dmu = dtft(dm, self.data.T, self.freqs).T  # (F, P)
-        _, chol = self._weighted(x)
-        if chol is not None:
-            dmu = solve_triangular(chol[0], dmu, lower=True)
-        return -np.vstack([dmu.real, dmu.imag])
-
-    def objective(self, x: FloatArray) -> float:
-        """The criterion value V of the chosen method (module docstring)."""
-        m = self.method
-        if m in LEAST_SQUARES:
-            return float(np.sum(self.residuals(x) ** 2))
-        if m == "gaussian":
-            e = self.data.y - self.moments(x).mean
-            cov = self.covariance(x)
-            return float(e @ cov.solve(e) + cov.logdet)
-        r, chol = self._weighted(x)
-        if m == "asml":
-            assert chol is not None
-            z = solve_triangular(chol[0], r, lower=True)
-            return float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(chol[0]).real)))
-        rho = self.covariance(x).dft_diagonal(self.data.T, self.freqs)  # asml-diag (23)
-        return float(np.sum(np.abs(r) ** 2 / rho + np.log(rho)))
+        """d :meth:`residuals` / dx, shape (2F, P), analytic where :attr:`has_jacobian`."""
+        return self.estimator.bj_jacobian(self, np.asarray(x, float))
 
     def grad_y(self, x: FloatArray) -> FloatArray:
         """dV/dy at the data: the input to the delta-method covariance."""
-        d, m = self.data, self.method
-        if m == "gaussian":
-            return 2 * self.covariance(x).solve(d.y - self.moments(x).mean)
-        r, chol = self._weighted(x)
-        if chol is not None:
-            r = cho_solve(chol, r)
-        elif m == "asml-diag":
-            r = r / self.covariance(x).dft_diagonal(d.T, self.freqs)
-        return 2 * adjoint_dtft(r, d.T, self.freqs, d.N).real
+        return np.asarray(self.estimator.bj_grad_y(self, np.asarray(x, float)), dtype=float)
+
+    def grad_y_jacobian(self, x: FloatArray) -> FloatArray | None:
+        """d^2 V / dx dy^T (P, N) in closed form, or None (then :meth:`grad_y` is differenced)."""
+        return self.estimator.bj_grad_y_jacobian(self, np.asarray(x, float))
+
+    def gradient(self, x: FloatArray) -> FloatArray:
+        """dV/dx (Newton-searched estimators), without the expected Hessian."""
+        return self.estimator.bj_gradient(self, np.asarray(x, float))
 
 
-def _toeplitz_products(g: FloatArray, x: FloatArray) -> FloatArray:
-    """Toeplitz(g_p) x for every row g_p of g (P, N) and x (N, K): (N, P, K), by one FFT of
-    x and of each g_p on the circulant embedding of size 2N (matmul_toeplitz per p would
-    transform x again for each)."""
-    P, N = g.shape
-    c = np.zeros((P, 2 * N))
-    c[:, :N] = g
-    c[:, N + 1 :] = g[:, :0:-1]
-    fx = np.fft.rfft(x, n=2 * N, axis=0)  # (N + 1, K)
-    fc = np.fft.rfft(c, axis=1)  # (P, N + 1)
-    out = np.fft.irfft(fc.T[:, :, None] * fx[:, None, :], n=2 * N, axis=0)
-    return np.asarray(out[:N], dtype=float)
-
-
-def bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
+def bj_covariance(problem: BJProblem, x: FloatArray, fixed: tuple[int, ...] = ()) -> FloatArray:
     """Delta-method covariance H^{-1} G Sigma_y G^T H^{-1} (module docstring); NaN rows and
-    columns for parameters on a bound or pinned."""
+    columns for parameters on a bound, pinned, in ``fixed`` (held: none of their noise in
+    the others), or on which the criterion does not depend at ``x``."""
     # Small complex Cholesky factors run ~1000x slower on a multi-threaded BLAS (as in fit).
     with threadpool_limits(limits=1, user_api="blas"):
-        return _bj_covariance(problem, x)
+        return _bj_covariance(problem, x, fixed)
 
 
-def _bj_covariance(problem: BJProblem, x: FloatArray) -> FloatArray:
+def _bj_covariance(problem: BJProblem, x: FloatArray, fixed: tuple[int, ...] = ()) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
     _, free = _steps(x, problem.bounds)  # a parameter on (or next to) a bound: no error bar
+    free[list(fixed)] = False
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov
     x = np.asarray(x, float)
     bounds = problem.bounds
     with np.errstate(all="ignore"):
-        # G = d^2 V / dx dy^T and, for the joint criteria, H = d(analytic gradient)/dx: the
-        # one difference rule (finite_diff); least squares: H = 2 J^T J with J analytic
-        # (bcls, frozen wbcls) or by the same rule.
-        G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i]) for i in idx])
-        if problem.method in LEAST_SQUARES:
-            if problem.method == "bcls" or problem.weights_at is not None:
+        # G = d^2 V / dx dy^T (closed form where the estimator has one: gaussian) and, for
+        # the Newton-searched criteria, H = d(analytic gradient)/dx: the one difference rule
+        # (finite_diff); least squares: H = 2 J^T J with J analytic (bcls, frozen wbcls) or
+        # by the same rule.
+        closed = problem.grad_y_jacobian(x)
+        if closed is not None:
+            G = closed[idx]
+        else:
+            G = np.array([finite_diff.derivative(problem.grad_y, x, i, bounds[i]) for i in idx])
+        if problem.estimator.least_squares:
+            if problem.has_jacobian:
                 J = problem.jacobian(x)[:, idx]
             else:
                 J = np.array([finite_diff.derivative(problem.residuals, x, i, bounds[i]) for i in idx]).T
             H = 2 * J.T @ J
         else:
-            H = np.array(
-                [finite_diff.derivative(lambda z: problem.objective_gradient(z)[1][idx], x, i, bounds[i]) for i in idx]
-            )
+            H = np.array([finite_diff.derivative(lambda z: problem.gradient(z)[idx], x, i, bounds[i]) for i in idx])
             H = 0.5 * (H + H.T)
     # A parameter the criterion does not depend on (the pole of a noise model whose gain is
     # 0) has a vanishing row of H: no error bar for it, and none of its noise in the others.

@@ -9,8 +9,19 @@ restarts the system from the BCLS estimate and from the structure's starts (stro
 noise can put BCLS in a wrong basin, which the joint search would not leave); then the joint
 search: the project's one Newton (Fisher scoring) search
 (:func:`jitterid.estimation.search.newton_search`) with the criteria's analytic gradients and
-expected Hessians (trust-region least squares for ``wbcls``). ``bcls`` and ``wbcls`` keep the
-noise parameters of the residual fit (plug-in).
+expected Hessians (trust-region least squares for the least-squares estimators, ``wbcls``).
+Estimators that do not identify the noise model (``bcls``, ``wbcls``) keep the noise
+parameters of the residual fit (plug-in).
+
+As the OE search, it runs in the power-of-two units of :class:`checks.Scaling` (the noise
+structure's gain parameters scaled with y) and ends with :func:`checks.post_checks`, so that a
+fit's status is honest and does not depend on the data's units (:func:`fit_bj`).
+
+Every stage reads the estimator's declared properties (:class:`~jitterid.estimation
+.estimators.base.Estimator`: ``coloured_noise``, ``least_squares``,
+``identifies_noise_model``, ``weighs_by_noise``, ``freeze_rounds``), never its name; the
+stages that need a particular criterion use its object (the BCLS pre-fit, the Gaussian noise
+stage).
 """
 
 from __future__ import annotations
@@ -26,11 +37,13 @@ from scipy.optimize import least_squares
 
 from .._checks import real_array
 from ..jitter.laws import JitterFamily, JitterLaw
-from ..noise.models import NoiseModel, NoiseStructure, as_noise_structure
+from ..noise.models import KnownNoise, NoiseModel, NoiseStructure, as_noise_structure
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
-from .bjcriteria import BJ_METHODS, LEAST_SQUARES, BJProblem, bj_covariance
+from .bjcriteria import BJProblem, bj_covariance
+from .checks import PostContext, Scaling, post_checks
+from .estimators import BCLS, Estimator, GaussianCriterion, as_estimator, coloured_method_names
 from .jacobians import moment_derivatives
 from .problem import default_frequencies
 from .result import FitResult, FitStatus
@@ -39,6 +52,10 @@ from .search import damped_step, evaluator, newton_search
 __all__ = ["BJ_METHODS", "fit_bj", "fitted_noise"]
 
 FloatArray = NDArray[np.float64]
+
+#: The registered estimators with a coloured-noise form at import (``fit_bj`` asks the
+#: registry at each call, so an estimator registered later is accepted too).
+BJ_METHODS = coloured_method_names()
 
 _BAD = 1e10  # criterion value where the model cannot be evaluated (unstable, not PD)
 # Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
@@ -121,7 +138,7 @@ def _search(
 
     if idx.size == 0:
         return x0, value(x0), FitStatus.CONVERGED, "no free parameters", 1
-    if problem.method in LEAST_SQUARES:
+    if problem.estimator.least_squares:
 
         def resid(z: FloatArray) -> FloatArray:
             with np.errstate(all="ignore"):
@@ -132,7 +149,7 @@ def _search(
             return r if np.all(np.isfinite(r)) else np.full(r.size, _BAD)
 
         jac: str | Callable[[FloatArray], FloatArray] = "2-point"
-        if problem.method == "bcls" or problem.weights_at is not None:
+        if problem.has_jacobian:
 
             def jac(z: FloatArray) -> FloatArray:
                 try:
@@ -156,11 +173,13 @@ def _search(
         record: list[tuple[float, FloatArray]] = []
 
         n_eval = [0]
+        # a loose stage (tol above NEWTON_TOL) stalls as loosely: gains below its tolerance
+        stall_gain = STALL_GAIN if tol is None else max(STALL_GAIN, tol)
 
         def fun(z: FloatArray) -> tuple[float, FloatArray, FloatArray]:
             n_eval[0] += 1
-            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < STALL_GAIN:
-                raise _Stalled  # the last STALL_WINDOW accepted steps gained < STALL_GAIN
+            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < stall_gain:
+                raise _Stalled  # the last STALL_WINDOW accepted steps gained < stall_gain
             xs, jac = cz.forward(z)
             with np.errstate(all="ignore"):
                 try:
@@ -183,7 +202,7 @@ def _search(
             # amounts far below one unit of V; the estimate of every identifiable parameter
             # has converged. (search.newton_search has no relative-decrease test.)
             z, ok, nfev = record[-1][1], True, n_eval[0]
-            msg = f"converged: V decreased by < {STALL_GAIN:g} over {STALL_WINDOW} evaluations"
+            msg = f"converged: V decreased by < {stall_gain:g} over {STALL_WINDOW} evaluations"
         if not ok and msg.startswith("no step decreases") and z.tobytes() in seen:
             # Damping exhausted: no step, however short, lowers V. At a point whose Newton
             # decrement is already far below one unit of V (-2 log-likelihood), that is the
@@ -215,7 +234,7 @@ def _noise_stage(
     start converged to the same point in the tests while each search costs ~15 evaluations."""
     nfixed = problem.n_jitter + problem.n_system
     stage = BJProblem(
-        problem.data, problem.structure, problem.jitter, problem.noise, "gaussian",
+        problem.data, problem.structure, problem.jitter, problem.noise, GaussianCriterion(),
         problem.freqs, problem.white_std,
     )
     free = np.arange(len(stage.names)) >= nfixed
@@ -322,18 +341,21 @@ def _whitened_stage(
     return (x_i if moved else x_b), moved, nfev
 
 
-def _run_wbcls(
+def _run_frozen(
     problem: BJProblem, x0: FloatArray, max_nfev: int
 ) -> tuple[BJProblem, tuple[FloatArray, float, FitStatus, str, int]]:
-    """WBCLS (20) with R frozen at ``x0``, then re-frozen once at that estimate (iterated
-    feasible GLS, as :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside
-    the search and no ln det R, (20) is minimised partly by inflating R, which biases it."""
+    """A criterion with frozen weights (WBCLS (20)): R frozen at ``x0``, then re-frozen at
+    each estimate, ``estimator.freeze_rounds`` searches in all (iterated feasible GLS, as
+    :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside the search and
+    no ln det R, (20) is minimised partly by inflating R, which biases it."""
     nfev = 0
-    for _ in range(2):
+    out: tuple[FloatArray, float, FitStatus, str, int] | None = None
+    for _ in range(problem.estimator.freeze_rounds):
         problem = replace(problem, weights_at=np.array(x0, float))
         out = _search(problem, x0, max_nfev)
         nfev += out[4]
         x0 = out[0]
+    assert out is not None
     return problem, (*out[:4], nfev)
 
 
@@ -365,11 +387,54 @@ def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> Noise
     return structure.model([params[n] for n in structure.param_names])
 
 
+def _coloured_estimator(method: str | Estimator) -> Estimator:
+    """The estimator of ``method`` if it has a coloured-noise form, else a ValueError naming
+    ``method`` and ``noise``."""
+    names = coloured_method_names()
+    try:
+        est = as_estimator(method)
+    except ValueError:
+        raise ValueError(
+            f"method must be one of {names} (or an Estimator with a coloured-noise form) when a "
+            f"noise model is given (noise=...); got {method!r}"
+        ) from None
+    if not est.coloured_noise:
+        hint = " (it ignores the jitter)" if est.ignores_jitter else ""
+        raise ValueError(
+            f"method must be one of {names} when a noise model is given (noise=...); got "
+            f"{est.name!r}, which has no coloured-noise (Box-Jenkins) form{hint}: fit it with "
+            "noise=None"
+        )
+    return est
+
+
+def _scaling(
+    data: SampledData, structure: ModelStructure, noise: NoiseStructure, n_jitter: int
+) -> tuple[Scaling, NoiseStructure]:
+    """The unit scaling of :func:`jitterid.estimation.fit` (:class:`checks.Scaling`: y / sy,
+    u / su, powers of two) extended to the BJ layout, and the noise structure in the scaled
+    units. v / sy is H / sy: a structure's gain parameters (``gain_params``, the numerator of
+    ``RationalNoise``) scale by 1 / sy, a known model's intensity by 1 / sy^2 (exact). A
+    structure with parameters but no declared gains cannot absorb the scaling: identity."""
+    sc = Scaling.build(data, structure, n_jitter)
+    nn = len(noise.param_names)
+    gains = list(noise.gain_params)
+    if sc.identity or (nn and not gains):
+        n = sc.factors.size + nn
+        return Scaling(1.0, 1.0, np.ones(n)), noise
+    f = np.ones(nn)
+    f[gains] = 1.0 / sc.sy
+    if not nn:  # a known noise model
+        m = noise.model(())
+        noise = KnownNoise(NoiseModel(m.tf, m.intensity / sc.sy**2))
+    return replace(sc, factors=np.r_[sc.factors, f]), noise
+
+
 def fit_bj(
     data: SampledData,
     system: ModelStructure | TransferFunction,
     jitter: JitterLaw | JitterFamily,
-    method: str,
+    method: str | Estimator,
     start: ArrayLike | FitResult | None,
     *,
     noise: NoiseStructure | NoiseModel,
@@ -381,59 +446,105 @@ def fit_bj(
 ) -> FitResult:
     """:func:`jitterid.fit` with ``noise=``: the BJ (2b) and JBJ (2d) structures.
 
-    Parameters are those of :func:`jitterid.fit`; ``noise`` is a structure with free
+    Parameters are those of :func:`jitterid.fit`; ``method`` is an estimator with a
+    coloured-noise form (``coloured_noise``) or its name; ``noise`` is a structure with free
     parameters (``RationalNoise(0, 1)``) or a known :class:`~jitterid.NoiseModel`, and
     ``noise_std`` (default ``data.noise_std``) is the std of the additional white part,
-    estimated as parameter ``noise_std`` by ``asml``, ``asml-diag``, ``gaussian`` when neither
-    is given (``bcls``/``wbcls`` plug it in with the noise parameters). ``oe_fit`` is
-    :func:`jitterid.fit` itself, whose white-noise BCLS fit gives the start (Section 4.5);
-    ``cov_type`` is ``"sandwich"`` (the delta method with the coloured covariance) or
-    ``"none"``.
+    estimated as parameter ``noise_std`` by the estimators that identify the noise model
+    (``asml``, ``asml-diag``, ``gaussian``) when neither is given (``bcls``/``wbcls`` plug it
+    in with the noise parameters). ``oe_fit`` is :func:`jitterid.fit` itself, whose
+    white-noise BCLS fit gives the start (Section 4.5); ``cov_type`` is ``"sandwich"`` (the
+    delta method with the coloured covariance) or ``"none"``.
+
+    As for OE, the search runs on y and u divided by powers of two near their rms
+    (:func:`_scaling`), so that its tolerances and floors do not depend on the data's units;
+    estimates, criterion and covariance are reported in the data's units (exactly). A search
+    that converged to an answer that cannot be trusted gets the status of
+    :func:`jitterid.estimation.checks.post_checks` (``AT_BOUND``, ``UNSTABLE_MODEL``,
+    ``UNIDENTIFIABLE``, ``LOCAL_OPTIMUM``, ``NOT_SIGNIFICANT``).
     """
     fit = oe_fit
 
-    if method not in BJ_METHODS:
-        hint = " ('ls' ignores the jitter; fit it with noise=None)" if method == "ls" else ""
-        raise ValueError(
-            f"method must be one of {BJ_METHODS} when a noise model is given; got {method!r}{hint}"
-        )
+    est = _coloured_estimator(method)
     if cov_type not in ("sandwich", "none"):
         raise ValueError(
             f"cov_type must be 'sandwich' or 'none' with a noise model; got {cov_type!r} (the "
             "robust and observed-information forms are not implemented for Box-Jenkins yet)"
         )
     structure = as_structure(system)
+    if not isinstance(structure, ModelStructure):
+        raise ValueError(
+            "noise: coloured noise (Box-Jenkins) needs an LTI structure driven by a known input; "
+            f"got {type(structure).__name__}: fit it with noise=None"
+        )
     nstruct = as_noise_structure(noise)
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}")
     f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
     white = data.noise_std if noise_std is None else noise_std
     free_noise = len(nstruct.param_names) > 0 or white is None
-    make = partial(BJProblem, data, structure, jitter, nstruct, freqs=f, white_std=white)
-    problem = make(method=method)
+    # a criterion without a ln det term holds the noise parameters at plug-in values
+    plug_in = free_noise and not est.identifies_noise_model
+    nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    # The search runs in the units of checks.Scaling (as fit's OE search); every parameter,
+    # the criterion and the covariance map back exactly (powers of two).
+    scaling, noise_s = _scaling(data, structure, nstruct, nj)
+    sdata = scaling.data(data)
+    white_s = None if white is None else white / scaling.sy
+    make = partial(BJProblem, sdata, structure, jitter, noise_s, freqs=f, white_std=white_s)
+    problem = make(method=est)
+    k = problem.n_jitter + problem.n_system
+    prefits: list[FitResult] = []
+
+    def prefit() -> FitResult:
+        """The white-noise BCLS fit (Section 4.5), once; fit() scales the data exactly as
+        here, so its estimate maps to these units exactly."""
+        if not prefits:
+            given = start if isinstance(start, FitResult) else None
+            # its white-noise covariance is never used (the BJ one is computed below), nor
+            # does the white-noise lack-of-fit check apply where the noise is coloured: the
+            # BCLS criterion does not use the noise std, so it is not passed
+            white_data = replace(data, noise_std=None)
+            prefits.append(
+                fit(white_data, structure, jitter, BCLS(), given, freqs=f, max_nfev=max_nfev, cov_type="none")
+            )
+        return prefits[0]
+
+    # points of the default route that the final search did not start from, for the
+    # local-optimum check (lazily: they cost a pre-fit and a noise stage after a given start)
+    others: list[Callable[[], FloatArray | None]] = []
     nfev = 0
     if start is not None and not isinstance(start, FitResult):
         x0 = np.atleast_1d(real_array(start, "start"))
         if x0.size != len(problem.names):
             raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
-        if method in LEAST_SQUARES and free_noise:
-            k = problem.n_jitter + problem.n_system
-            problem = make(method=method, pinned=x0[k:])
-        if method == "wbcls":
-            problem, best = _run_wbcls(problem, x0, max_nfev)
+        x0 = scaling.to_scaled(x0)
+        if plug_in:
+            problem = make(method=est, pinned=x0[k:])
+        if est.freeze_rounds:
+            problem, best = _run_frozen(problem, x0, max_nfev)
         else:
             best = _search(problem, x0, max_nfev)
         nfev = best[4]
+
+        def default_start() -> FloatArray | None:
+            x_pre = scaling.to_scaled(prefit().x)
+            eta = _noise_stage(problem, x_pre, max_nfev)[0] if free_noise else np.zeros(0)
+            return np.r_[x_pre, eta]
+
+        others.append(default_start)
     else:
-        # the white-noise (OE) BCLS stage: its criterion does not use the noise, and the
-        # white-noise lack-of-fit check does not apply where the noise is coloured
-        oe_data = replace(data, noise_std=None)
-        pre = fit(oe_data, structure, jitter, "bcls", start, freqs=f, max_nfev=max_nfev)
+        pre = prefit()
         nfev = pre.nfev
-        x_pre = pre.x
+        x_pre = scaling.to_scaled(pre.x)
         eta, n = _noise_stage(problem, x_pre, max_nfev) if free_noise else (np.zeros(0), 0)
         nfev += n
-        if method != "bcls":  # bcls keeps its estimate; the others may start elsewhere
+        x_bcls = np.r_[x_pre, eta]
+        # The GLS stage picks the system's basin where coloured noise dominates some
+        # frequencies; a noise model white once sampled (a white record) weights as the OE
+        # criterion does, which starts from the BCLS estimate too: skipped. A criterion
+        # blind to Sigma_y keeps its estimate (below).
+        if est.weighs_by_noise and not _white_limit(problem, x_bcls)[0]:
             theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
             nfev += n
             x_pre = np.r_[x_pre[: problem.n_jitter], theta]  # the GLS system: a closer start
@@ -441,22 +552,78 @@ def fit_bj(
                 eta, n = _noise_stage(problem, x_pre, max_nfev, start=eta)
                 nfev += n
         x0 = np.r_[x_pre, eta]
-        if method in LEAST_SQUARES and free_noise:
-            problem = make(method=method, pinned=eta)
-        if method == "bcls":  # the noise model does not enter the BCLS criterion (14)
+        if not np.array_equal(x_bcls, x0):
+            others.append(lambda: x_bcls)
+        if plug_in:
+            problem = make(method=est, pinned=eta)
+        if not est.weighs_by_noise:
+            # The noise model does not enter the criterion (BCLS (14)): its BJ estimate is
+            # its white-noise one (the pre-fit itself for BCLS), the noise only its error bars.
+            if est != BCLS():
+                pre = fit(replace(data, noise_std=None), structure, jitter, est, pre, freqs=f, max_nfev=max_nfev)
+                nfev += pre.nfev
+                x0 = np.r_[scaling.to_scaled(pre.x)[:k], eta]
             best = (x0, problem.objective(x0), pre.status, pre.message, 0)
-        elif method == "wbcls":
-            problem, best = _run_wbcls(problem, x0, max_nfev)
+        elif est.freeze_rounds:
+            problem, best = _run_frozen(problem, x0, max_nfev)
             nfev += best[4]
         else:
             best = _search(problem, x0, max_nfev)
             nfev += best[4]
     x, cost, status, msg, _ = best
+    x = np.asarray(x, float)
+    cov = np.full((x.size, x.size), np.nan)
+    cov_error: str | None = None
+    # A noise model that is white once sampled (a white record: its gain at 0 or its pole
+    # run off) is the natural home of the estimate, as a jitter scale at 0 is on data
+    # without jitter. The noise parameters are then not identified (held in the covariance,
+    # whose other rows they would only fill with rounding), nor is the white std apart
+    # from them when both are white: no error bars for those, exempt from the
+    # identifiability check, said in the message; the system's are checked as usual.
+    held, white_limit = _white_limit(problem, x)
+    if cov_type == "sandwich":
+        try:
+            cov = bj_covariance(problem, x, held)
+        except (ValueError, np.linalg.LinAlgError) as exc:  # the checks below say why
+            cov_error = str(exc)
+    if white_limit:
+        cov[white_limit, :] = np.nan
+        cov[:, white_limit] = np.nan
+        msg = (
+            f"{msg}; the noise model is at its white limit (the sampled coloured noise is "
+            f"white or zero): {[problem.names[i] for i in white_limit]} not identified (no "
+            "standard errors)"
+        )
+    status, msg = post_checks(
+        PostContext(
+            data=sdata, structure=structure, jitter=jitter, names=problem.names,
+            bounds=problem.bounds, x=x, cost=float(cost), cov=cov,
+            objective=problem.objective, model_mean=lambda v: problem.moments(v).mean,
+            oe_system=lambda: scaling.to_scaled(prefit().x)[nj:],
+            starts=partial(_other_starts, problem, others), cov_error=cov_error,
+            exempt=white_limit,
+        ),
+        status,
+        msg,
+    )
+    if not scaling.identity:  # back to the data's units, exactly; the criterion is re-evaluated there
+        x = scaling.to_original(x)
+        cov = scaling.cov_to_original(cov)
+        w = problem.weights_at
+        problem = BJProblem(
+            data, structure, jitter, nstruct, est, f, white,
+            pinned=x[k:] if problem.pinned is not None else None,
+            weights_at=None if w is None else scaling.to_original(w),
+        )
+        try:
+            cost = problem.objective(x)
+        except (ValueError, np.linalg.LinAlgError):
+            cost = np.inf
     law, tf, noise_fitted, white_used = problem.split(x)
     return FitResult(
-        method=method,
+        method=est.name,
         names=problem.names,
-        x=np.asarray(x, float),
+        x=x,
         cost=float(cost),
         status=status,
         message=msg,
@@ -465,10 +632,55 @@ def fit_bj(
         jitter_law=law,
         noise_std=white_used,
         freqs=f,
-        cov=bj_covariance(problem, np.asarray(x, float)) if cov_type == "sandwich" else np.full((x.size, x.size), np.nan),
+        cov=cov,
         cov_type=cov_type,
         structure=structure,
         jitter_model=jitter,
         noise_structure=nstruct,
         noise_model=noise_fitted,
     )
+
+
+WHITE_LAG = 1e-3  # |gamma(1)| / gamma(0) below which the sampled coloured noise is white
+
+
+def _white_limit(problem: BJProblem, x: FloatArray) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """(held, unidentified): the parameters a noise model at its white limit leaves
+    unidentified at ``x``, to hold in the covariance and to report without error bars:
+
+    - no coloured noise (variance 0: its gains at 0): every noise parameter, in which the
+      criterion is then constant (the white std stays identified);
+    - coloured noise that is white once sampled (lag-1 autocovariance below ``WHITE_LAG``
+      of the variance: its pole run off): the noise parameters, and the white std too (the
+      two share one identified white variance).
+    """
+    k, nn = problem.n_jitter + problem.n_system, problem.n_noise
+    if not nn:
+        return (), ()
+    try:
+        g = problem.autocovariance(x).sequence(2)
+    except ValueError:
+        return (), ()
+    noise = tuple(range(k, k + nn))
+    if g[0] <= 0:
+        return noise, noise
+    if abs(g[1]) <= WHITE_LAG * g[0]:
+        return noise, tuple(range(k, x.size))
+    return (), ()
+
+
+def _other_starts(
+    problem: BJProblem, others: list[Callable[[], FloatArray | None]]
+) -> list[FloatArray]:
+    """The default route's points that the final search did not start from, inside the
+    problem's bounds (a pinned noise block takes its pinned values)."""
+    lo, hi = np.array(problem.bounds, float).reshape(-1, 2).T
+    out = []
+    for get in others:
+        try:
+            v = get()
+        except ValueError:
+            continue
+        if v is not None and v.size == lo.size:
+            out.append(np.clip(v, lo, hi))
+    return out

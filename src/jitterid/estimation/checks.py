@@ -17,9 +17,10 @@ These are errors of the call, not outcomes of a search, so they raise.
 point, so the parameters, criterion and covariance map back exactly), so that the
 optimisers' absolute tolerances do not depend on the units of the data.
 
-After the search (:func:`post_checks`) a converged search whose answer cannot be trusted
-gets its own non-success :class:`~jitterid.estimation.result.FitStatus`, and a message that
-says what to try:
+After the search (:func:`post_checks`; the OE search of :func:`jitterid.fit` and the
+Box-Jenkins one, :func:`jitterid.estimation.boxjenkins.fit_bj`) a converged search whose
+answer cannot be trusted gets its own non-success
+:class:`~jitterid.estimation.result.FitStatus`, and a message that says what to try:
 
 * ``UNSTABLE_MODEL``: the fitted system has a pole with Re >= 0 or non-finite coefficients;
 * ``AT_BOUND``: a system parameter on (or within a relative 1e-6 of) a finite bound, or the
@@ -256,6 +257,9 @@ class PostContext:
     # w_k = Var s(kT + tau) + the known noise variance, where the noise std is known and the
     # criterion models the jitter (else None: no lack-of-fit check)
     known_variance: Callable[[FloatArray], FloatArray] | None = None
+    # parameters without an error bar by design, not for want of information (Box-Jenkins:
+    # the pole of a noise model at its white limit, on which the criterion does not depend)
+    exempt: tuple[int, ...] = ()
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
@@ -366,6 +370,7 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     k = ctx.jitter.scale_index if isinstance(ctx.jitter, JitterFamily) else None
     if k is not None and ctx.x[k] <= SCALE_COLLAPSE * ctx.data.T:
         on[k] = True  # no jitter (checked by _at_bound): its scale has no finite variance
+    on[list(ctx.exempt)] = True
     free = ~on
     c = cov[np.ix_(free, free)]
     names = [n for n, f in zip(ctx.names, free, strict=True) if f]

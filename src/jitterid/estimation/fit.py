@@ -263,7 +263,7 @@ def _fit(
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         assert isinstance(system, (ModelStructure, TransferFunction))  # refused above otherwise
         return fit_bj(
-            data, system, jitter, method, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
+            data, system, jitter, est, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
             max_nfev=max_nfev, oe_fit=fit, cov_type=cov_type,
         )
     prefit = start if isinstance(start, FitResult) else None

@@ -101,10 +101,28 @@ def _offsets(coarse: float, fine: float) -> FloatArray:
     return np.concatenate([[0.0], steps, -steps])
 
 
+_RULE_MEMO: list[tuple[tuple[object, ...], tuple[FloatArray, FloatArray]]] = []
+
+
 def _rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tuple[FloatArray, FloatArray]:
     """Nodes and weights w = (GL weight) p(tau): the law's analytic pieces cut to ``coarse``,
     refined geometrically from ``fine`` around each of ``anchors``. Work O(log(coarse/fine))
-    per anchor however fast the noise, instead of O((hi - lo) / fine)."""
+    per anchor however fast the noise, instead of O((hi - lo) / fine). The last rule is
+    kept: gamma and its derivatives at one noise model ask for the same one."""
+    key = (law, coarse, fine, anchors.tobytes())
+    last = _RULE_MEMO[-1] if _RULE_MEMO else None  # one read: safe if another thread writes
+    if last is not None and last[0][1:] == key[1:]:
+        try:
+            if last[0][0] is law or bool(last[0][0] == law):
+                return last[1]
+        except (TypeError, ValueError):  # a law whose == is not a plain bool: no reuse
+            pass
+    out = _new_rule(law, coarse, anchors, fine)
+    _RULE_MEMO[:] = [(key, out)]
+    return out
+
+
+def _new_rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tuple[FloatArray, FloatArray]:
     lo, hi = law.support
     edges = np.concatenate([_relative_cuts(law, coarse), (anchors[:, None] + _offsets(coarse, fine)).ravel()])
     edges = np.unique(np.clip(edges, lo, hi))
@@ -492,13 +510,22 @@ class SampleCovariance:
         n = S.shape[1] - 1
         D = np.atleast_2d(dd)
         dg = np.zeros(w + n + 1) if dgamma is None else np.asarray(dgamma, dtype=float)[:, : w + n + 1]
-        out = _band(S, S, dg, D, w)
-        if dar is not None and np.any(dar):
-            dS = np.zeros((D.shape[0], *S.shape))
-            dS[:, n:] = np.asarray(dar, dtype=float)[:, None, :]
-            gam = self.gamma.sequence(w + n + 1) if self.gamma is not None else np.zeros(w + n + 1)
-            out += _band(dS, S, gam, self.d[None], w) + _band(S, dS, gam, self.d[None], w)
-        return out
+        if dar is None or not np.any(dar):
+            return _band(S, S, dg, D, w)
+        # L dSigma L^T, dL Sigma L^T and L Sigma dL^T in one batched pass (3P rows): the same
+        # products element by element as three passes, a third of the Python overhead
+        P = D.shape[0]
+        dS = np.zeros((P, *S.shape))
+        dS[:, n:] = np.asarray(dar, dtype=float)[:, None, :]
+        gam = self.gamma.sequence(w + n + 1) if self.gamma is not None else np.zeros(w + n + 1)
+        SS = np.broadcast_to(S, dS.shape)
+        G = np.broadcast_to(dg, (P, w + n + 1))
+        parts = _band(
+            np.concatenate([SS, dS, SS]), np.concatenate([SS, SS, dS]),
+            np.concatenate([G, np.broadcast_to(gam, (2 * P, w + n + 1))]),
+            np.concatenate([D, np.broadcast_to(self.d, (2 * P, self.N))]), w,
+        )
+        return parts[:P] + (parts[P : 2 * P] + parts[2 * P :])
 
     def matmul(self, x: ArrayLike) -> FloatArray:
         """Sigma_y x for x of shape (N,) or (N, p), by an FFT Toeplitz product."""
@@ -541,6 +568,20 @@ def toeplitz_dft_diagonal(d: FloatArray, g: FloatArray | None, T: float, f: Floa
         return np.full(f.shape, total)
     q = (d.size - np.arange(d.size)) * g
     return np.asarray(total + 2.0 * dtft(q, T, f).real - q[0], dtype=float)
+
+
+def toeplitz_products(g: FloatArray, x: FloatArray) -> FloatArray:
+    """Toeplitz(g_p) x for every row g_p of g (P, N) and x (N, K): (N, P, K), by one FFT of
+    x and of each g_p on the circulant embedding of size 2N (matmul_toeplitz per p would
+    transform x again for each)."""
+    P, N = g.shape
+    c = np.zeros((P, 2 * N))
+    c[:, :N] = g
+    c[:, N + 1 :] = g[:, :0:-1]
+    fx = np.fft.rfft(x, n=2 * N, axis=0)  # (N + 1, K)
+    fc = np.fft.rfft(c, axis=1)  # (P, N + 1)
+    out = np.fft.irfft(fc.T[:, :, None] * fx[:, None, :], n=2 * N, axis=0)
+    return np.asarray(out[:N], dtype=float)
 
 
 def toeplitz_dft(d: FloatArray, g: FloatArray | None, T: float, f: FloatArray, other: FloatArray) -> ComplexArray:

@@ -196,6 +196,13 @@ class NoiseStructure(abc.ABC):
     @abc.abstractmethod
     def starts(self, T: float, scale: float) -> list[FloatArray]: ...
 
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        """Indices of the parameters in which H is linear, which carry the noise level (v
+        scaled by c scales them by c), as ``ModelStructure.gain_params``; () when there are
+        none (a fit then cannot move the data's units into them and does not rescale)."""
+        return ()
+
     def _check(self, params: ArrayLike) -> FloatArray:
         return parameter_vector(params, self.param_names, self.bounds)
 
@@ -239,6 +246,11 @@ class RationalNoise(NoiseStructure):
     def bounds(self) -> Bounds:  # type: ignore[override]
         b = [(-np.inf, np.inf)] * self.num_order + [(0.0, np.inf)]
         return (*b, *[(_RATE_FLOOR, np.inf)] * self.den_order)
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        """The numerator coefficients hb*: H is linear in them."""
+        return tuple(range(self.num_order + 1))
 
     def model(self, params: ArrayLike) -> NoiseModel:
         x = self._check(params)

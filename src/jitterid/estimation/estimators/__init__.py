@@ -15,13 +15,23 @@ name            class                   criterion
 
 :func:`jitterid.fit` accepts an instance or its registered name. The white-noise problem
 (:class:`jitterid.estimation.problem.Problem`) gives each criterion the moments, their
-derivatives and the weights (:class:`~.base.CriterionContext`). Adding an estimator is one
-module with a subclass of :class:`~.base.Estimator` decorated with :func:`~.base.register`,
-imported here.
+derivatives and the weights (:class:`~.base.CriterionContext`); the coloured-noise problem
+(:class:`jitterid.estimation.bjcriteria.BJProblem`) gives the ``bj_*`` forms of the criteria
+(``bcls``, ``wbcls``, ``asml``, ``asml-diag``, ``gaussian``) the same with the sample
+covariance Sigma_y (:class:`~.base.ColouredContext`). Adding an estimator is one module with a
+subclass of :class:`~.base.Estimator` decorated with :func:`~.base.register`, imported here.
 """
 
 from .asml import AsML, AsMLDiag
-from .base import CriterionContext, Estimator, as_estimator, method_names, register
+from .base import (
+    ColouredContext,
+    CriterionContext,
+    Estimator,
+    as_estimator,
+    coloured_method_names,
+    method_names,
+    register,
+)
 from .exact import ML
 from .gaussian import GaussianCriterion
 from .leastsquares import BCLS, LS
@@ -34,10 +44,12 @@ __all__ = [
     "WBCLS",
     "AsML",
     "AsMLDiag",
+    "ColouredContext",
     "CriterionContext",
     "Estimator",
     "GaussianCriterion",
     "as_estimator",
+    "coloured_method_names",
     "method_names",
     "register",
 ]

@@ -1,15 +1,20 @@
 """Asymptotic maximum likelihood: (22) with the full frequency covariance R_Y, and the reduced
 (23) with its diagonal. By Lemma 2 in the time domain (notes 2), R_Y(f, f) = sum_k w_k is the
-same at every frequency, so (23) weights all frequencies equally."""
+same at every frequency, so (23) weights all frequencies equally.
+
+With coloured noise (Box-Jenkins) both keep their form with R = E Sigma_y E^H (Sigma_y of
+(C2)) and dR = E dSigma_y E^H (linear in d and gamma); R(f, f) of (23) then varies with f.
+Their ln det term identifies the noise model's parameters."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.linalg import cho_solve, solve_triangular
 
-from .base import CriterionContext, Estimator, FloatArray, register
+from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
 
 __all__ = ["AsML", "AsMLDiag"]
 
@@ -23,6 +28,8 @@ class AsML(Estimator):
     rank = 3
     equation = "(22)"
     full_covariance = True
+    coloured_noise = True
+    identifies_noise_model = True
 
     def objective(self, problem: CriterionContext, x: FloatArray) -> float:
         r, chol = problem.weighted(x)
@@ -58,6 +65,44 @@ class AsML(Estimator):
         assert chol is not None
         return 2 * problem.adjoint(cho_solve(chol, r))
 
+    # ------------------------------------------------------------------ coloured noise
+    def bj_objective(self, problem: ColouredContext, x: FloatArray) -> float:
+        r, chol = problem.weighted(x)
+        assert chol is not None
+        z = solve_triangular(chol[0], r, lower=True)
+        return float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(chol[0]).real)))
+
+    def bj_objective_gradient(
+        self, problem: ColouredContext, x: FloatArray, free: NDArray[np.intp] | None = None
+    ) -> tuple[float, FloatArray, FloatArray]:
+        """The formulas of :meth:`objective_gradient` with dR = E dSigma_y E^H
+        (:meth:`BJProblem.dR`); O(F^3) as the criterion itself, all parameters."""
+        x = np.asarray(x, float)
+        _, dm, dd, dg = problem.derivatives(x)
+        P = x.size
+        dmu = problem.dmu(dm)  # (P, F)
+        r, chol = problem.weighted(x)
+        assert chol is not None
+        L = chol[0]
+        zz = solve_triangular(L, r, lower=True)
+        value = float(np.vdot(zz, zz).real + 2 * np.sum(np.log(np.diag(L).real)))
+        a = cho_solve(chol, r)
+        Rinv = cho_solve(chol, np.eye(r.size))
+        dR = problem.dR(dd, dg)
+        grad = -2 * (dmu @ a.conj()).real
+        RdR = Rinv[None] @ dR
+        grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
+        flat = RdR.reshape(P, -1)
+        info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (
+            flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T
+        ).real
+        return value, grad, info
+
+    def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        r, chol = problem.weighted(x)
+        assert chol is not None
+        return 2 * problem.adjoint(cho_solve(chol, r))
+
 
 @register
 @dataclass(frozen=True)
@@ -67,6 +112,8 @@ class AsMLDiag(Estimator):
     name = "asml-diag"
     rank = 4
     equation = "(23)"
+    coloured_noise = True
+    identifies_noise_model = True
 
     def objective(self, problem: CriterionContext, x: FloatArray) -> float:
         r, _ = problem.weighted(x)
@@ -98,3 +145,30 @@ class AsMLDiag(Estimator):
         base = 2 * problem.adjoint(r)
         dmu = problem.dmu(dm)
         return np.array([-2 * problem.adjoint(row) / rho - base * dr / rho**2 for row, dr in zip(dmu, drho, strict=True)])
+
+    # ------------------------------------------------------------------ coloured noise
+    # R(f, f) of (23) is no longer the same at every frequency: rho(f) and its derivatives
+    # (:meth:`BJProblem.R_diagonal`, :meth:`BJProblem.dR_diagonal`), O(N log N) each.
+    def bj_objective(self, problem: ColouredContext, x: FloatArray) -> float:
+        r, _ = problem.weighted(x)
+        rho = problem.R_diagonal(x)
+        return float(np.sum(np.abs(r) ** 2 / rho + np.log(rho)))
+
+    def bj_objective_gradient(
+        self, problem: ColouredContext, x: FloatArray, free: NDArray[np.intp] | None = None
+    ) -> tuple[float, FloatArray, FloatArray]:
+        x = np.asarray(x, float)
+        _, dm, dd, dg = problem.derivatives(x)
+        dmu = problem.dmu(dm)  # (P, F)
+        r, _ = problem.weighted(x)
+        rho = problem.R_diagonal(x)
+        drho = problem.dR_diagonal(dd, dg)
+        rr = np.abs(r) ** 2
+        value = float(np.sum(rr / rho + np.log(rho)))
+        grad = -2 * (dmu @ (r.conj() / rho)).real + drho @ ((1 - rr / rho) / rho)
+        info = 2 * ((dmu / rho).conj() @ dmu.T).real + (drho / rho**2) @ drho.T
+        return value, grad, info
+
+    def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        r, _ = problem.weighted(x)
+        return 2 * problem.adjoint(r / problem.R_diagonal(x))

@@ -18,18 +18,24 @@ name            class        criterion
 ``ml``          :class:`ML`        the exact likelihood (notes 4)
 ==============  ===========  =============================================================
 
-The criteria themselves are :class:`jitterid.estimation.problem.Problem` (white noise) and
-:class:`jitterid.estimation.bjcriteria.BJProblem` (coloured noise). Adding an estimator is a
-subclass here with :func:`register`, and its criterion in the problem.
+Each estimator carries its criterion in two forms: the white-noise one, reading
+:class:`jitterid.estimation.problem.Problem` through :class:`CriterionContext`, and (if it has
+one) the coloured-noise (Box-Jenkins) one, the ``bj_*`` methods, reading
+:class:`jitterid.estimation.bjcriteria.BJProblem` through :class:`ColouredContext`. Adding an
+estimator is a subclass with :func:`register`, its criteria in its own module.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from ...moments.sample import SampleMoments
+    from ...noise.covariance import SampleCovariance
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -54,7 +60,45 @@ class CriterionContext(Protocol):
     @property
     def frozen_weights(self) -> bool: ...
 
-__all__ = ["CriterionContext", "Estimator", "as_estimator", "method_names", "register"]
+
+# d gamma(0..N-1) and d(ar) of the jittered noise autocovariance, by parameter index
+GammaDerivatives = dict[int, tuple[FloatArray, FloatArray]]
+
+
+class ColouredContext(Protocol):
+    """What a coloured-noise (Box-Jenkins) criterion reads of its problem
+    (:class:`jitterid.estimation.bjcriteria.BJProblem`): the data, the signal moments, the
+    sample covariance Sigma_y = diag(d) + Toeplitz(gamma) of (C2) and its DFT R = E Sigma_y
+    E^H, and their parameter derivatives."""
+
+    data: Any
+    freqs: FloatArray
+
+    def moments(self, x: FloatArray) -> SampleMoments: ...
+    def covariance(self, x: FloatArray) -> SampleCovariance: ...
+    def derivatives(
+        self, x: FloatArray
+    ) -> tuple[SampleMoments, FloatArray, FloatArray, GammaDerivatives]: ...
+    def weighted(self, x: FloatArray) -> tuple[ComplexArray, Chol | None]: ...
+    def dmu(self, dm: FloatArray) -> ComplexArray: ...
+    def dR(self, dd: FloatArray, dg: GammaDerivatives) -> ComplexArray: ...
+    def R_diagonal(self, x: FloatArray) -> FloatArray: ...
+    def dR_diagonal(self, dd: FloatArray, dg: GammaDerivatives) -> FloatArray: ...
+    def adjoint(self, z: ComplexArray) -> FloatArray: ...
+    def probes(self) -> FloatArray: ...
+    @property
+    def frozen_weights(self) -> bool: ...
+
+
+__all__ = [
+    "ColouredContext",
+    "CriterionContext",
+    "Estimator",
+    "as_estimator",
+    "coloured_method_names",
+    "method_names",
+    "register",
+]
 
 
 @dataclass(frozen=True)
@@ -84,10 +128,23 @@ class Estimator:
     uses_variances : bool
         The criterion (or its derivatives) reads the sample variances w_k; False lets the
         problem skip their pass (LS, BCLS).
+    coloured_noise : bool
+        The criterion has a coloured-noise (Box-Jenkins) form, the ``bj_*`` methods, so that
+        ``fit(..., noise=...)`` accepts it. False (the default): those methods refuse.
+    identifies_noise_model : bool
+        With coloured noise, the criterion identifies the noise model's parameters (and an
+        unknown white std): a ln det term. False: they are plug-in values held fixed (fitted
+        to the BCLS residuals by the Gaussian criterion), with NaN standard errors.
+    weighs_by_noise : bool
+        With coloured noise, the criterion depends on the noise covariance Sigma_y. False
+        (BCLS (14)): its Box-Jenkins estimate of the system is its white-noise one, and the
+        noise model enters only the error bars.
 
     A least-squares estimator implements :meth:`residuals` and :meth:`jacobian`; any other
     :meth:`objective_gradient`; every one :meth:`objective` and :meth:`grad_y` (dV/dy, for
-    the delta-method covariance).
+    the delta-method covariance). The coloured-noise form (``coloured_noise = True``) is
+    :meth:`bj_residuals` and :meth:`bj_jacobian`, or :meth:`bj_objective_gradient`, and
+    :meth:`bj_objective`, :meth:`bj_grad_y`.
     """
 
     name: ClassVar[str]
@@ -100,6 +157,9 @@ class Estimator:
     full_covariance: ClassVar[bool] = False
     uses_variances: ClassVar[bool] = True
     rank: ClassVar[int] = 100  # position in listings (the paper's order first)
+    coloured_noise: ClassVar[bool] = False
+    identifies_noise_model: ClassVar[bool] = False
+    weighs_by_noise: ClassVar[bool] = True
 
     # ------------------------------------------------------------------ the criterion
     def objective(self, problem: CriterionContext, x: FloatArray) -> float:
@@ -140,6 +200,70 @@ class Estimator:
         return None
 
     @property
+    def freeze_rounds(self) -> int:
+        """Searches with the criterion's weights frozen at the previous estimate (iterated
+        feasible GLS, :mod:`.wbcls`); 0: the weights are evaluated at the searched point."""
+        return 0
+
+    # ------------------------------------------------------------------ coloured noise
+    # The Box-Jenkins form of the criterion (:mod:`jitterid.estimation.bjcriteria`): the same
+    # criterion with the sample covariance Sigma_y of (C2) in place of the white-noise one.
+    def refuse_coloured_noise(self) -> NoReturn:
+        """Raise the ValueError of an estimator without a coloured-noise form."""
+        raise ValueError(
+            f"method {self.name!r} has no coloured-noise (Box-Jenkins) form, so it cannot be "
+            f"used with noise=...: fit it with noise=None, or use one of "
+            f"{coloured_method_names()} with the noise model"
+        )
+
+    def _no_bj(self, what: str) -> NoReturn:
+        if not self.coloured_noise:
+            self.refuse_coloured_noise()
+        kind = "least-squares" if self.least_squares else "Newton-searched"
+        raise NotImplementedError(f"{self.name} is a {kind} criterion: it has no {what}")
+
+    def bj_objective(self, problem: ColouredContext, x: FloatArray) -> float:
+        """The coloured-noise criterion value V(theta)."""
+        if self.coloured_noise and self.least_squares:
+            return float(np.sum(self.bj_residuals(problem, x) ** 2))
+        self._no_bj("bj_objective")
+
+    def bj_residuals(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """Real residuals whose squared norm is the coloured-noise V (least squares)."""
+        self._no_bj("bj_residuals")
+
+    def bj_has_jacobian(self, problem: ColouredContext) -> bool:
+        """Whether :meth:`bj_jacobian` applies to ``problem`` (else the residuals are
+        differenced)."""
+        return self.coloured_noise and self.least_squares
+
+    def bj_jacobian(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """d :meth:`bj_residuals` / dx, shape (n_residuals, P) (least squares)."""
+        self._no_bj("bj_jacobian")
+
+    def bj_objective_gradient(
+        self, problem: ColouredContext, x: FloatArray, free: NDArray[np.intp] | None = None
+    ) -> tuple[float, FloatArray, FloatArray]:
+        """(V, dV/dx, expected Hessian of V) with coloured noise (Newton-searched). ``free``:
+        the indices searched; an estimator may then form only their rows and columns (zeros
+        elsewhere)."""
+        self._no_bj("bj_objective_gradient")
+
+    def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """dV/dy at the data, coloured noise (for the delta-method covariance)."""
+        self._no_bj("bj_grad_y")
+
+    def bj_grad_y_jacobian(self, problem: ColouredContext, x: FloatArray) -> FloatArray | None:
+        """d^2 V / dx dy^T, shape (P, N), in closed form, or None: the covariance then
+        differences :meth:`bj_grad_y` (as :meth:`grad_y_jacobian` for white noise)."""
+        return None
+
+    def bj_gradient(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """dV/dx alone (what the covariance differences for the Hessian of a Newton-searched
+        criterion); by default from :meth:`bj_objective_gradient`."""
+        return self.bj_objective_gradient(problem, x)[1]
+
+    @property
     def default_cov_type(self) -> str:
         return self.cov_types[0]
 
@@ -163,6 +287,11 @@ def register(cls: type[Estimator]) -> type[Estimator]:
     """Class decorator: make ``cls`` available to :func:`as_estimator` under ``cls.name``."""
     if cls.name in _REGISTRY and _REGISTRY[cls.name] is not cls:
         raise ValueError(f"an estimator named {cls.name!r} is registered already")
+    if cls.coloured_noise and cls.bj_grad_y is Estimator.bj_grad_y:
+        raise TypeError(
+            f"estimator {cls.__name__} declares coloured_noise = True but implements no "
+            "coloured-noise criterion (bj_objective, bj_grad_y, ...; see Estimator)"
+        )
     _REGISTRY[cls.name] = cls
     return cls
 
@@ -170,6 +299,11 @@ def register(cls: type[Estimator]) -> type[Estimator]:
 def method_names() -> tuple[str, ...]:
     """The registered estimator names, the paper's order first."""
     return tuple(sorted(_REGISTRY, key=lambda n: (_REGISTRY[n].rank, n)))
+
+
+def coloured_method_names() -> tuple[str, ...]:
+    """The registered estimators with a coloured-noise (Box-Jenkins) form, in listing order."""
+    return tuple(n for n in method_names() if _REGISTRY[n].coloured_noise)
 
 
 def as_estimator(method: str | Estimator) -> Estimator:

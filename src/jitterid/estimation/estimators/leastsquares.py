@@ -1,5 +1,9 @@
 """Least squares on the DFT: LS (8), which ignores the jitter, and BCLS (14), which compares
-with the jittered mean mu_Y(f) = DTFT of m_k (Lemma 1 in the time domain, notes 1)."""
+with the jittered mean mu_Y(f) = DTFT of m_k (Lemma 1 in the time domain, notes 1).
+
+With coloured noise (Box-Jenkins) BCLS is (14) unchanged: the noise model does not enter the
+criterion, only its error bars (the noise parameters are plug-in values). LS has no
+coloured-noise form."""
 
 from __future__ import annotations
 
@@ -7,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import CriterionContext, Estimator, FloatArray, register
+from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
 
 __all__ = ["BCLS", "LS"]
 
@@ -58,3 +62,21 @@ class BCLS(_DFTResidual):
     name = "bcls"
     rank = 1
     equation = "(14)"
+    coloured_noise = True
+    weighs_by_noise = False  # (14) has no weights: the BJ system estimate is the OE one
+
+    # ------------------------------------------------------------------ coloured noise
+    def bj_residuals(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        r, _ = problem.weighted(x)
+        return np.concatenate([r.real, r.imag])
+
+    def bj_jacobian(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """-[Re; Im] dmu, dmu = F dm from the OE pass (the pinned noise parameters do not
+        enter)."""
+        _, dm, _, _ = problem.derivatives(x)
+        dmu = problem.dmu(dm).T  # (F, P)
+        return -np.vstack([dmu.real, dmu.imag])
+
+    def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        r, _ = problem.weighted(x)
+        return 2 * problem.adjoint(r)

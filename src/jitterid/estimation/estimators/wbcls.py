@@ -6,6 +6,9 @@ realizations: k0 7.12, pr -1.29, pi 2.26 against 6.25, -1.5, 2; 6-14 standard er
 problem therefore freezes R at ``weights_at`` (feasible generalised least squares);
 :func:`jitterid.fit` sets it to the BCLS estimate and re-freezes ``refreeze`` times at the
 new estimate. ``Problem(weights_at=None)`` keeps the literal form, for comparison.
+
+With coloured noise (Box-Jenkins) R = E Sigma_y E^H with Sigma_y of (C2), frozen the same
+way (:func:`jitterid.estimation.boxjenkins.fit_bj`); the noise parameters are plug-in values.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cho_solve, solve_triangular
 
-from .base import CriterionContext, Estimator, FloatArray, register
+from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
 
 __all__ = ["WBCLS"]
 
@@ -32,11 +35,16 @@ class WBCLS(Estimator):
     least_squares = True
     estimates_noise = False
     full_covariance = True
+    coloured_noise = True
     refreeze: int = 1
 
     def __post_init__(self) -> None:
         if not isinstance(self.refreeze, int) or self.refreeze < 0:
             raise ValueError(f"refreeze must be a whole number >= 0; got {self.refreeze!r}")
+
+    @property
+    def freeze_rounds(self) -> int:
+        return 1 + self.refreeze
 
     def residuals(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
         r, chol = problem.weighted(x)
@@ -73,3 +81,30 @@ class WBCLS(Estimator):
         assert chol is not None
         dmu = problem.dmu(problem.derivatives(x)[2])
         return np.array([-2 * problem.adjoint(cho_solve(chol, row)) for row in dmu])
+
+    # ------------------------------------------------------------------ coloured noise
+    def bj_residuals(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        r, chol = problem.weighted(x)
+        assert chol is not None
+        z = solve_triangular(chol[0], r, lower=True)
+        return np.concatenate([z.real, z.imag])
+
+    def bj_has_jacobian(self, problem: ColouredContext) -> bool:
+        return problem.frozen_weights
+
+    def bj_jacobian(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        """-[Re; Im] L^{-1} dmu with R = L L^H frozen (``weights_at``); the literal (20), R at
+        the searched point, has none here (its residuals are differenced)."""
+        if not problem.frozen_weights:
+            raise ValueError("jacobian: the literal wbcls (R at the searched point) has none here")
+        _, dm, _, _ = problem.derivatives(x)
+        dmu = problem.dmu(dm).T  # (F, P)
+        _, chol = problem.weighted(x)
+        assert chol is not None
+        dmu = solve_triangular(chol[0], dmu, lower=True)
+        return -np.vstack([dmu.real, dmu.imag])
+
+    def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
+        r, chol = problem.weighted(x)
+        assert chol is not None
+        return 2 * problem.adjoint(cho_solve(chol, r))
