@@ -473,7 +473,7 @@ def fit_bj(
         )
     structure = as_structure(system)
     if not isinstance(structure, ModelStructure):
-        raise ValueError(
+        raise ValueError(  # noqa: TRY004 (a ValueError naming the argument, as fit() raises)
             "noise: coloured noise (Box-Jenkins) needs an LTI structure driven by a known input; "
             f"got {type(structure).__name__}: fit it with noise=None"
         )
