@@ -104,8 +104,11 @@ def moments(problem: Problem, x: FloatArray) -> SampleMoments:
     assert isinstance(d.u, PiecewiseConstant)
     tf = sig.system
     d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
-    mean, var, _, _ = modal_moments(_plan(problem, x, law, tf), tables(tf, d.u))
-    assert var is not None
+    plan, tab = _plan(problem, x, law, tf), tables(tf, d.u)
+    need_var = problem.needs_variances
+    mean, var, _, _ = modal_moments(plan, tab, variance=need_var)
+    if var is None:  # ls, bcls: the criterion reads the means; the variances if asked for
+        return LazyMoments(mean, partial(_variances, plan, tab))
     return SampleMoments(mean, var)
 
 
