@@ -61,6 +61,7 @@ from ..noise.covariance import (
     toeplitz_dft_diagonal,
 )
 from ..noise.models import NoiseModel, NoiseStructure
+from ..params import ParamLayout
 from ..simulate import SampledData
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
@@ -74,7 +75,6 @@ __all__ = ["BJProblem", "bj_covariance"]
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
-WHITE_FLOOR = 1e-12  # lower bound of an estimated white-noise std
 PROBES = 16  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
 
 
@@ -96,6 +96,7 @@ class BJProblem:
     pinned: FloatArray | None = None
     weights_at: FloatArray | None = None  # wbcls: the point at which R is frozen
     estimator: Estimator = field(init=False)
+    layout: ParamLayout = field(init=False)  # the one parameter layout (pinned: closed bounds)
     names: tuple[str, ...] = field(init=False)
     bounds: tuple[tuple[float, float], ...] = field(init=False)
     Y: ComplexArray = field(init=False)
@@ -114,25 +115,24 @@ class BJProblem:
         self.estimator = as_estimator(self.method)
         if not self.estimator.coloured_noise:
             self.estimator.refuse_coloured_noise()
-        jn: tuple[str, ...] = ()
-        jb: tuple[tuple[float, float], ...] = ()
-        if isinstance(self.jitter, JitterFamily):
-            jn, jb = tuple(self.jitter.param_names), tuple(self.jitter.bounds)
-        nn, nb = tuple(self.noise.param_names), tuple(self.noise.bounds)
-        if self.white_std is None:
-            nn, nb = (*nn, "noise_std"), (*nb, (WHITE_FLOOR, np.inf))
-        clash = set(nn) & set(jn + self.structure.param_names)
+        own = set(self.noise.param_names) | ({"noise_std"} if self.white_std is None else set())
+        clash = own & (set(getattr(self.jitter, "param_names", ())) | set(self.structure.param_names))
         if clash:
             raise ValueError(
                 f"noise: its parameter names {sorted(clash)} clash with the system's or jitter's; "
                 "rename them in the noise structure"
             )
+        lay = ParamLayout.build(self.jitter, self.structure, self.noise, noise_std=self.white_std is None)
+        k = len(lay.jitter) + len(lay.system)  # the noise block and noise_std follow
         if self.pinned is not None:
+            nn = lay.names[k:]
             if self.pinned.size != len(nn):
                 raise ValueError(f"pinned must hold {len(nn)} values {nn}; got {self.pinned.size}")
-            nb = tuple((float(v), float(v)) for v in self.pinned)
-        self.names = jn + self.structure.param_names + nn
-        self.bounds = jb + tuple(self.structure.bounds) + nb
+            pinned = tuple((float(v), float(v)) for v in self.pinned)
+            lay = ParamLayout(lay.jitter, lay.system, lay.noise, lay.noise_std, lay.bounds[:k] + pinned)
+        self.layout = lay
+        self.names = lay.names
+        self.bounds = lay.bounds
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
         self._oe = Problem(
             self.data, self.structure, self.jitter, BCLS.name, self.freqs, None, with_variances=True
