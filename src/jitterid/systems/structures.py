@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -211,12 +210,3 @@ def as_structure(system: Model | TransferFunction) -> Model:
         "system must be a model structure (PolePairGain(), RationalModel(m, n)), a signal "
         f"model (SignalModel) or a known TransferFunction; got {type(system).__name__}"
     )
-
-
-def names_and_bounds(parts: Sequence[ModelStructure]) -> tuple[tuple[str, ...], Bounds]:
-    names: tuple[str, ...] = ()
-    bounds: Bounds = ()
-    for p in parts:
-        names += p.param_names
-        bounds += p.bounds
-    return names, bounds
