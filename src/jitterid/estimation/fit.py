@@ -410,7 +410,11 @@ def _fit(
         known_noise = float(given_noise)
 
         def known_variance(v: FloatArray) -> FloatArray:
-            return np.asarray(problem.moments(v).var + known_noise**2, dtype=float)
+            # Var y_k plus the spread of the fitted mean, dm_k^T Cov dm_k: an inefficient
+            # estimator (bcls) leaves residuals of many noise stds where Var s_k is tiny
+            mom, _, dm, _ = problem.derivatives(v)
+            spread = np.einsum("pk,pq,qk->k", dm, np.nan_to_num(cov), dm)
+            return np.asarray(mom.var + known_noise**2 + spread, dtype=float)
 
     status, msg = post_checks(
         PostContext(
