@@ -63,6 +63,11 @@ class SignalModel(Model):
         in-phase/quadrature components, an offset): they are rescaled with the data's
         units, and each start gets its least-squares value. Declare none if unsure.
 
+    Notes
+    -----
+    A FitResult keeps its model: to pickle it (or to run it on Dask workers) give module-level
+    functions, not lambdas; the JSON form refuses functions with a clear error.
+
     Examples
     --------
     >>> import numpy as np
