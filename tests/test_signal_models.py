@@ -229,3 +229,17 @@ def test_a_sinusoid_search_that_ends_at_the_wrong_frequency_is_not_a_success():
     assert "times what the model allows" in far.message
     near = ji.fit(data, sine(), law, "bcls", noise_std=0.05)
     assert near.status is ji.FitStatus.CONVERGED
+
+
+def test_ml_error_bars_of_a_frequency_over_a_long_record():
+    """The covariance's difference steps follow each parameter's own scale: with the old
+    relative step 1e-4 |f| the phase at the end of N = 4000 samples moved by 0.6 rad, and
+    the observed information of (phi, f) came out singular (UNIDENTIFIABLE). The stated
+    errors now agree with the Cramer-Rao bound at the truth."""
+    law = ji.Uniform(0.8)
+    data = record(law, 4000, 0.05, np.random.default_rng(0))
+    res = ji.fit(data, sine(), law, "ml")
+    assert res.success, res.message
+    bound = ji.crb(sine(), law, None, T, 4000, 0.05, TRUTH, estimate_noise=True)
+    se = np.array([res.stderr[n] for n in ("A", "phi", "f", "c", "noise_std")])
+    np.testing.assert_allclose(se, np.sqrt(np.diag(bound)), rtol=0.15)

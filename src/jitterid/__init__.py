@@ -19,6 +19,7 @@ from .analysis.diagnostics import (
 )
 from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
 from .data import SampledData
+from .estimation.bounds import crb, gaussian_bound
 from .estimation.boxjenkins import fitted_noise
 from .estimation.estimators import (
     BCLS,
@@ -31,7 +32,7 @@ from .estimation.estimators import (
     GaussianCriterion,
 )
 from .estimation.fit import fit
-from .estimation.likelihood import ExactLikelihood, crb, gaussian_bound, log_density
+from .estimation.likelihood import ExactLikelihood, log_density
 from .estimation.problem import default_frequencies
 from .estimation.result import FitResult, FitStatus
 from .inputs import Input, Multisine, PiecewiseConstant, telegraph_input, zoh_input

@@ -52,12 +52,13 @@ def forward(
 
 
 def central_pair(
-    x: FloatArray, i: int | np.integer, bounds: tuple[float, float], rel: float
+    x: FloatArray, i: int | np.integer, bounds: tuple[float, float], rel: float,
+    h: float | None = None,
 ) -> tuple[FloatArray, FloatArray, float]:
     """(x + h e_i, x - h e_i, 2 h) with the pair's centre moved inside ``bounds`` where x_i is
     within h of one: for callers that difference many quantities at the same two points
-    (the Fisher information (L3), the Gaussian bound (L4))."""
-    h = step(x, i, rel)
+    (the Fisher information (L3)); ``h`` overrides the step."""
+    h = step(x, i, rel) if h is None else float(h)
     centre = float(np.clip(x[i], bounds[0] + h, bounds[1] - h))
     xp, xm = np.array(x, dtype=float), np.array(x, dtype=float)
     xp[i], xm[i] = centre + h, centre - h
@@ -72,13 +73,16 @@ def derivative(
     f0: FloatArray | None = None,
     rel: float = REL_STEP,
     floor: float = 1e-2,
+    h: float | None = None,
 ) -> FloatArray:
     """d fun / d x_i at ``x`` (``fun`` returns an array), O(h^2), never outside ``bounds``.
 
-    ``f0`` = fun(x), if known, saves an evaluation in the one-sided case.
+    ``f0`` = fun(x), if known, saves an evaluation in the one-sided case; ``h`` overrides
+    the step (e.g. a fraction of the parameter's standard error, where ``rel * |x_i|`` is
+    far beyond the function's scale: a frequency over a long record).
     """
     x = np.asarray(x, dtype=float)
-    h = step(x, i, rel, floor)
+    h = step(x, i, rel, floor) if h is None else float(h)
     lo, hi = bounds
 
     def at(dx: float) -> FloatArray:

@@ -39,7 +39,8 @@ in :func:`jitterid.estimation.search.newton_search`. The Fisher information of o
 computed by the trapezoidal rule in y (spacing sigma_v / 2 over [min s - 9 sigma_v,
 max s + 9 sigma_v]: p_k is a mixture of Gaussians of width sigma_v, for which the rule is
 spectrally accurate) on top of the tau quadrature, with g_k from central differences of
-ln p_k on the y-grid. :func:`crb` returns I^{-1}. :func:`gaussian_bound` returns the bound of
+ln p_k on the y-grid. :func:`jitterid.estimation.bounds.crb` returns I^{-1};
+:func:`jitterid.estimation.bounds.gaussian_bound` returns the bound of
 the second-moment model y_k ~ N(m_k, w_k) (notes 1-3), which the paper's estimators, using
 only m_k and w_k, cannot beat:
 
@@ -59,7 +60,6 @@ from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import jitter_nodes
-from ..moments.sample import sample_moments
 from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
@@ -71,8 +71,6 @@ __all__ = [
     "DEFAULT_ORDER",
     "DEFAULT_PANEL",
     "ExactLikelihood",
-    "crb",
-    "gaussian_bound",
     "log_density",
 ]
 
@@ -87,7 +85,8 @@ _Y_STEP = 0.5  # y-grid spacing of (L3) in units of sigma_v
 _Y_TAIL = 9.0  # y-grid margin in units of sigma_v
 _LOG_SQRT_2PI = 0.5 * np.log(2 * np.pi)
 _SCORE_STEP = 1e-7  # relative forward step of the differenced scores (finite_diff.forward)
-_FISHER_STEP = 1e-4  # relative central step of (L3) and (L4) (finite_diff.central_pair)
+_FISHER_STEP = 1e-4  # relative central step of (L3) (finite_diff.central_pair)
+FISHER_SCALE_STEP = 0.05  # ... or at most this fraction of a parameter's natural scale
 
 
 # ---------------------------------------------------------------------------- signal at nodes
@@ -756,15 +755,24 @@ class ExactLikelihood:
         loglik = -values[x.tobytes()] if x.tobytes() in values else self.loglik(x, y)
         return x, loglik, ok, msg, n
 
-    def fisher(self, x: ArrayLike) -> FloatArray:
-        """Fisher information (L3) of the N samples at ``x``, in :attr:`names` order."""
+    def fisher(self, x: ArrayLike, scale: ArrayLike | None = None) -> FloatArray:
+        """Fisher information (L3) of the N samples at ``x``, in :attr:`names` order.
+
+        The scores are central differences of ln p_k, step 1e-4 max(|x_i|, 1e-2), or at most
+        ``FISHER_SCALE_STEP`` of ``scale[i]`` (each parameter's natural scale, e.g. from the
+        Gaussian bound (L4), :func:`jitterid.estimation.bounds.crb`): a frequency over a long
+        record is far more sensitive than its magnitude says."""
         x = np.atleast_1d(real_array(x, "x"))
         sigma = self.split(x)[2]
         p = x.size
+        sc = None if scale is None else np.broadcast_to(np.asarray(scale, dtype=float), (p,))
         # Variants: the base point, then a pair of shifted points per parameter.
         variants, steps = [x], np.empty(p)
         for i in range(p):
-            xp, xm, steps[i] = finite_diff.central_pair(x, i, self.bounds[i], _FISHER_STEP)
+            h = finite_diff.step(x, i, _FISHER_STEP)
+            if sc is not None and np.isfinite(sc[i]) and sc[i] > 0:
+                h = min(h, FISHER_SCALE_STEP * float(sc[i]))
+            xp, xm, steps[i] = finite_diff.central_pair(x, i, self.bounds[i], _FISHER_STEP, h=h)
             variants += [xp, xm]
         per_variant = []
         for xv in variants:
@@ -853,133 +861,3 @@ def log_density(
     yv = real_array(y, "y", ndim=1)
     lik = ExactLikelihood(system, jitter, u, T, yv.size, noise_std, order=order, panel=panel)
     return lik.logpdf(np.zeros(0), yv)
-
-
-def _problem_setup(
-    system_structure: Model | TransferFunction,
-    jitter: JitterLaw | JitterFamily,
-    T: float,
-    N: int,
-    noise_std: float,
-    true_params: ArrayLike,
-) -> tuple[Model, FloatArray]:
-    structure = as_structure(system_structure)
-    # a dict by name, a vector (jitter-family then system parameters; noise_std is passed
-    # separately) or a FitResult, whose entries are taken by name
-    x = ParamLayout.build(jitter, structure).vector(true_params, "true_params")
-    positive(T, "T")
-    count(N, "N", minimum=1)
-    positive(noise_std, "noise_std")
-    return structure, x
-
-
-def _inverse(info: FloatArray, names: tuple[str, ...]) -> FloatArray:
-    scale = np.sqrt(np.abs(np.diag(info)))
-    if np.any(scale == 0) or np.linalg.cond(info / np.outer(scale, scale)) > 1e14:
-        raise ValueError(
-            f"the Fisher information of parameters {names} is singular: some parameter is not "
-            "identifiable from this experiment (fix it, or change the input or the structure)"
-        )
-    return np.asarray(np.linalg.inv(info), dtype=float)
-
-
-def crb(
-    system_structure: Model | TransferFunction,
-    jitter: JitterLaw | JitterFamily,
-    input: Input | None,  # the name is part of the documented signature
-    T: float,
-    N: int,
-    noise_std: float,
-    true_params: ArrayLike,
-    *,
-    estimate_noise: bool = False,
-    order: int = DEFAULT_ORDER,
-    panel: float = DEFAULT_PANEL,
-) -> FloatArray:
-    """Cramer-Rao bound: the inverse Fisher information (L3) of the exact likelihood.
-
-    Parameters
-    ----------
-    system_structure : Model or TransferFunction
-        The structure (``PolePairGain()``), a signal model (``SignalModel``), or a known
-        system (no system parameters).
-    jitter : JitterLaw or JitterFamily
-        A known jitter law, or a family whose parameters are estimated (JOE).
-    input : Input or None
-        The known input (None for a signal model).
-    T : float
-        Nominal sampling interval.
-    N : int
-        Number of samples.
-    noise_std : float
-        The measurement-noise std (> 0).
-    true_params : dict, array_like or FitResult
-        The point of evaluation: a dict by name, a vector in :func:`jitterid.fit`'s order
-        (jitter-family parameters if ``jitter`` is a family, then the system parameters;
-        without ``noise_std``), or a FitResult (its values taken by name).
-    estimate_noise : bool
-        Default False: the noise std is known (as in the paper's experiments). True adds it
-        as a last parameter (the bound of an estimator that also estimates it).
-    order, panel : int, float
-        Accuracy controls of the quadrature over tau (see :class:`ExactLikelihood`).
-
-    Returns
-    -------
-    ndarray, shape (p, p)
-        Lower bound on the covariance of any unbiased estimator, rows and columns in the
-        order of ``true_params`` (plus ``noise_std`` last if ``estimate_noise``).
-    """
-    structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
-    lik = ExactLikelihood(
-        structure,
-        jitter,
-        input,
-        T,
-        N,
-        None if estimate_noise else noise_std,
-        order=order,
-        panel=panel,
-    )
-    if estimate_noise:
-        x = np.r_[x, float(noise_std)]
-    return _inverse(lik.fisher(x), lik.names)
-
-
-def gaussian_bound(
-    system_structure: Model | TransferFunction,
-    jitter: JitterLaw | JitterFamily,
-    input: Input | None,  # same signature as crb
-    T: float,
-    N: int,
-    noise_std: float,
-    true_params: ArrayLike,
-    *,
-    estimate_noise: bool = False,
-) -> FloatArray:
-    """The Cramer-Rao bound of the second-moment model y_k ~ N(m_k, w_k), eq. (L4).
-
-    m_k = E[s(kT + tau)] and w_k = Var[s(kT + tau)] + noise_std^2 (notes 1-2) carry all that
-    the paper's estimators use; (L4) is the best covariance a Gaussian (second-moment)
-    criterion attains when the samples really are Gaussian with those moments. Arguments as
-    in :func:`crb`; derivatives by central differences (relative step 1e-4).
-    """
-    structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
-    if input is not None and not isinstance(input, Input):
-        raise TypeError(f"input must be a jitterid input or None; got {type(input).__name__}")
-    lik = ExactLikelihood(structure, jitter, input, T, N, None if estimate_noise else noise_std)
-    if estimate_noise:
-        x = np.r_[x, float(noise_std)]
-
-    def moments(xv: FloatArray) -> tuple[FloatArray, FloatArray]:
-        law, sig, sigma = lik.split(xv)
-        mom = sample_moments(sig, law, T, N)
-        return mom.mean, mom.var + sigma**2
-
-    w0 = moments(x)[1]
-    dm, dw = np.empty((x.size, N)), np.empty((x.size, N))
-    for i in range(x.size):
-        xp, xm, h = finite_diff.central_pair(x, i, lik.bounds[i], _FISHER_STEP)
-        (mp, wp), (mm, wm) = moments(xp), moments(xm)
-        dm[i], dw[i] = (mp - mm) / h, (wp - wm) / h
-    info = (dm / w0) @ dm.T + 0.5 * (dw / w0**2) @ dw.T
-    return _inverse(info, lik.names)

@@ -37,8 +37,8 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from .. import finite_diff
+from ..estimation.bounds import crb
 from ..estimation.fit import fit
-from ..estimation.likelihood import crb
 from ..estimation.result import FitResult
 from ..inputs import Input
 from ..jitter.laws import JitterFamily, JitterLaw
