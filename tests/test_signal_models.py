@@ -243,3 +243,29 @@ def test_ml_error_bars_of_a_frequency_over_a_long_record():
     bound = ji.crb(sine(), law, None, T, 4000, 0.05, TRUTH, estimate_noise=True)
     se = np.array([res.stderr[n] for n in ("A", "phi", "f", "c", "noise_std")])
     np.testing.assert_allclose(se, np.sqrt(np.diag(bound)), rtol=0.15)
+
+
+@pytest.mark.slow
+def test_ml_on_a_sinusoid_attains_the_cramer_rao_bound_with_honest_intervals():
+    """64 records (N = 300, U(-0.8, 0.8), noise 0.05 estimated). Measured: std / sqrt(CRB)
+    0.9-1.1 for every parameter, 95 % coverage 0.92-0.97 for A, phi, f, c; BCLS's std of A
+    is ~6x ML's. The noise std's stated error matches its spread (0.0075 / 0.0072) but ML
+    estimates it low (mean 0.0458, 4.6 SEM below 0.05: beside the jitter's variance, about
+    20 samples' worth of information on it, the maximum-likelihood bias of a variance
+    component with 5 parameters fitted), so its interval covers 0.84."""
+    law = ji.Uniform(0.8)
+    names = ("A", "phi", "f", "c", "noise_std")
+    est, se = [], []
+    for seed in range(64):
+        res = ji.fit(record(law, 300, 0.05, np.random.default_rng(2000 + seed)), sine(), law, "ml")
+        assert res.success, (seed, res.message)
+        est.append([res.params[n] for n in names])
+        se.append([res.stderr[n] for n in names])
+    est, se = np.array(est), np.array(se)
+    truth = np.r_[TRUTH, 0.05]
+    bound = np.sqrt(np.diag(ji.crb(sine(), law, None, T, 300, 0.05, TRUTH, estimate_noise=True)))
+    ratio = est.std(axis=0) / bound
+    assert np.all((ratio > 0.85) & (ratio < 1.25)), ratio
+    cover = np.mean(np.abs(est - truth) <= 1.96 * se, axis=0)
+    assert np.all(cover[:4] >= 0.875), cover
+    assert 0.8 < se[:, 4].mean() / est[:, 4].std() < 1.25
