@@ -44,6 +44,7 @@ def _rate(th: np.ndarray) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[400, 4000])
     args = ap.parse_args()
     law = ji.Uniform(0.8)
     model = ji.SignalModel(
@@ -53,7 +54,7 @@ def main() -> None:
     )
     print(f"# signal model fits, CPU s per fit (median of {args.runs}), load {os.getloadavg()[0]:.1f}")
     print(f"{'N':>6} {'method':<10} {'CPU s':>8} {'success':>8}")
-    for N in (400, 4000):
+    for N in args.sizes:
         for method in ("ls", "bcls", "gaussian", "ml"):
             times, ok = [], 0
             for seed in range(args.runs):

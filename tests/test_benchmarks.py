@@ -39,3 +39,11 @@ def test_core_benchmark_runs():
     ).stdout
     assert "bcls" in out
     assert "gaussian" in out
+
+
+def test_signal_benchmark_runs():
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_signal.py"), "--runs", "1", "--sizes", "200"],
+        capture_output=True, text=True, check=True, timeout=300,
+    ).stdout
+    assert "   200 ml" in out and "1/1" in out, out
