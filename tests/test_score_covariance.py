@@ -1,11 +1,13 @@
 """The sandwich's middle matrix B = Cov(dV/dx) at the truth against the covariance of the
 criterion's gradient over simulated data sets (the referee: the scores themselves).
 
-For the gaussian criterion (per-sample terms quadratic in y) the first-order delta method
-(G diag(w) G^T at the data) counts the quadratic part twice for Gaussian samples and ignores
-the skewness and kurtosis of jittered samples;
-:func:`jitterid.estimation.covariance._per_sample_score_covariance` uses the model's third
-and fourth moments.
+For the criteria quadratic in y (gaussian: per sample; asml, asml-diag: in the DTFT
+residual) the first-order delta method (G diag(w) G^T at the data) counts the quadratic part
+twice for Gaussian samples and ignores the skewness and kurtosis of jittered samples;
+:func:`jitterid.estimation.covariance._per_sample_score_covariance` and
+``_frequency_score_covariance`` use the model's third and fourth moments. Measured (R = 400):
+asml-diag within 4 %, asml 5-10 % below the simulated standard deviations (the first-order
+form was up to 2x above: 7.5 for 3.7, 197 for 111).
 """
 
 from __future__ import annotations
@@ -29,7 +31,10 @@ def _scores(method, jitter, x0, law, R, rng, u):
     p = prob(ji.simulate(SYSTEM, u, law, T=T, N=N, noise_std=0.01, rng=rng).y)
     G = C._grad_y_jacobian(p, x0, np.arange(x0.size))
     A = p.estimator.y_hessian_diagonal(p, x0)
-    new = C._per_sample_score_covariance(p, x0, G, A, False)
+    if A is not None:
+        new = C._per_sample_score_covariance(p, x0, G, A, False)
+    else:
+        new = C._frequency_score_covariance(p, x0, G, np.asarray(p.estimator.frequency_kernel(p, x0)))
     return np.cov(np.array(psi).T), new, (G * p.variances(x0)) @ G.T
 
 
@@ -38,6 +43,8 @@ def _scores(method, jitter, x0, law, R, rng, u):
     [
         ("gaussian", ji.UniformFamily(), np.array([0.5, 6.25, -1.5, 2.0, 0.01])),
         ("gaussian", ji.Uniform(0.5), np.array([6.25, -1.5, 2.0, 0.01])),
+        ("asml-diag", ji.UniformFamily(), np.array([0.5, 6.25, -1.5, 2.0, 0.01])),
+        ("asml", ji.Uniform(0.5), np.array([6.25, -1.5, 2.0, 0.01])),
     ],
 )
 def test_score_covariance_matches_simulated_scores(method, jitter, x0):

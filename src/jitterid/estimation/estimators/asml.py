@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_solve, solve_triangular
 
-from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
+from .base import ColouredContext, ComplexArray, CriterionContext, Estimator, FloatArray, register
 
 __all__ = ["AsML", "AsMLDiag"]
 
@@ -64,6 +64,14 @@ class AsML(Estimator):
         r, chol = problem.weighted(x)
         assert chol is not None
         return 2 * problem.adjoint(cho_solve(chol, r))
+
+    def frequency_kernel(self, problem: CriterionContext, x: FloatArray) -> ComplexArray | None:
+        # the quadratic part of dV/dx_p: -a^H dR_p a = r^H (-R^{-1} dR_p R^{-1}) r
+        _, _, _, dw = problem.derivatives(x)
+        r, chol = problem.weighted(x)
+        assert chol is not None
+        Rinv = cho_solve(chol, np.eye(r.size))
+        return np.asarray(-(Rinv[None] @ problem.dR(dw) @ Rinv[None]), dtype=complex)
 
     # ------------------------------------------------------------------ coloured noise
     def bj_objective(self, problem: ColouredContext, x: FloatArray) -> float:
@@ -137,6 +145,13 @@ class AsMLDiag(Estimator):
     def grad_y(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
         r, _ = problem.weighted(x)
         return 2 * problem.adjoint(r / float(np.sum(problem.variances(x))))
+
+    def frequency_kernel(self, problem: CriterionContext, x: FloatArray) -> ComplexArray | None:
+        # the quadratic part of dV/dx_p: -|r|^2 drho_p / rho^2, a diagonal kernel
+        _, w, _, dw = problem.derivatives(x)
+        rho = float(np.sum(w))
+        F = problem.freqs.size
+        return np.repeat((-dw.sum(axis=1) / rho**2)[:, None], F, axis=1).astype(complex)
 
     def grad_y_jacobian(self, problem: CriterionContext, x: FloatArray) -> FloatArray | None:
         _, w, dm, dw = problem.derivatives(x)  # d(2 F^H r / rho), rho = sum w

@@ -263,6 +263,15 @@ class Estimator:
         criterion); by default from :meth:`bj_objective_gradient`."""
         return self.bj_objective_gradient(problem, x)[1]
 
+    def frequency_kernel(self, problem: CriterionContext, x: FloatArray) -> ComplexArray | None:
+        """For a frequency-domain criterion whose gradient dV/dx is quadratic in the DTFT
+        residual r = Y - mu: K, with the quadratic part of dV/dx_p equal to r^H K_p r; shape
+        (P, F, F), or (P, F) for a diagonal K. The covariance then uses the samples' second,
+        third and fourth moments exactly (:mod:`jitterid.estimation.covariance`). None (the
+        default): linear in y, or not of that form.
+        """
+        return None
+
     @property
     def default_cov_type(self) -> str:
         return self.cov_types[0]
