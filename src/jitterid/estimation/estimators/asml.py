@@ -19,6 +19,27 @@ from .base import ColouredContext, ComplexArray, CriterionContext, Estimator, Fl
 __all__ = ["AsML", "AsMLDiag"]
 
 
+def _value_gradient_information(
+    dmu: ComplexArray, r: ComplexArray, chol: tuple[FloatArray, bool], dR: ComplexArray
+) -> tuple[float, FloatArray, FloatArray]:
+    """(V, dV/dx, expected Hessian) of (22), V = r^H R^{-1} r + ln det R, from the DTFT
+    residual r, R's Cholesky factor, dmu (P, F) and dR (P, F, F), white or coloured noise."""
+    L = chol[0]
+    z = solve_triangular(L, r, lower=True)
+    value = float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(L).real)))
+    a = cho_solve(chol, r)
+    Rinv = cho_solve(chol, np.eye(r.size))
+    grad = -2 * (dmu @ a.conj()).real
+    RdR = Rinv[None] @ dR  # R^{-1} dR_i as BLAS products (einsum loops in C, ~10x slower)
+    grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
+    # tr(R^{-1} dR_i R^{-1} dR_j) = sum_kl (R^{-1} dR_i)_kl (R^{-1} dR_j)_lk
+    flat = RdR.reshape(RdR.shape[0], -1)
+    info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (
+        flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T
+    ).real
+    return value, grad, info
+
+
 @register
 @dataclass(frozen=True)
 class AsML(Estimator):
@@ -41,24 +62,9 @@ class AsML(Estimator):
         self, problem: CriterionContext, x: FloatArray
     ) -> tuple[float, FloatArray, FloatArray]:
         _, _, dm, dw = problem.derivatives(x)
-        dmu = problem.dmu(dm)
         r, chol = problem.weighted(x)
         assert chol is not None
-        L = chol[0]
-        z = solve_triangular(L, r, lower=True)
-        value = float(np.vdot(z, z).real + 2 * np.sum(np.log(np.diag(L).real)))
-        a = cho_solve(chol, r)
-        Rinv = cho_solve(chol, np.eye(r.size))
-        dR = problem.dR(dw)
-        grad = -2 * (dmu @ a.conj()).real
-        RdR = Rinv[None] @ dR  # R^{-1} dR_i as BLAS products (einsum loops in C, ~10x slower)
-        grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
-        # tr(R^{-1} dR_i R^{-1} dR_j) = sum_kl (R^{-1} dR_i)_kl (R^{-1} dR_j)_lk
-        flat = RdR.reshape(RdR.shape[0], -1)
-        info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (
-            flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T
-        ).real
-        return value, grad, info
+        return _value_gradient_information(problem.dmu(dm), r, chol, problem.dR(dw))
 
     def grad_y(self, problem: CriterionContext, x: FloatArray) -> FloatArray:
         r, chol = problem.weighted(x)
@@ -87,24 +93,9 @@ class AsML(Estimator):
         (:meth:`BJProblem.dR`); O(F^3) as the criterion itself, all parameters."""
         x = np.asarray(x, float)
         _, dm, dd, dg = problem.derivatives(x)
-        P = x.size
-        dmu = problem.dmu(dm)  # (P, F)
         r, chol = problem.weighted(x)
         assert chol is not None
-        L = chol[0]
-        zz = solve_triangular(L, r, lower=True)
-        value = float(np.vdot(zz, zz).real + 2 * np.sum(np.log(np.diag(L).real)))
-        a = cho_solve(chol, r)
-        Rinv = cho_solve(chol, np.eye(r.size))
-        dR = problem.dR(dd, dg)
-        grad = -2 * (dmu @ a.conj()).real
-        RdR = Rinv[None] @ dR
-        grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
-        flat = RdR.reshape(P, -1)
-        info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (
-            flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T
-        ).real
-        return value, grad, info
+        return _value_gradient_information(problem.dmu(dm), r, chol, problem.dR(dd, dg))
 
     def bj_grad_y(self, problem: ColouredContext, x: FloatArray) -> FloatArray:
         r, chol = problem.weighted(x)
