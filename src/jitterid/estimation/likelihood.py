@@ -380,7 +380,7 @@ def _evaluate(
 
 def _has_slope(sig: Signal, analytic: bool) -> bool:
     """Whether s'(t) is available at the nodes: from the modal form, or the signal's own."""
-    return analytic or sig.slope(np.zeros(0)) is not None
+    return analytic or sig.has_slope
 
 
 # ---------------------------------------------------------------------------- the likelihood
@@ -630,7 +630,7 @@ class ExactLikelihood:
             assert isinstance(self.model, ModelStructure)
             dmodal = _modal_gradient(self.model, x[nj : nj + ns], sig.system)
             dX = _pole_sensitivity(sig.system, self.u) if dmodal is not None else None
-        own_gradient = not analytic and ns and sig.gradient(np.zeros(0)) is not None
+        own_gradient = not analytic and ns and sig.has_gradient
         # parameters differenced (forward steps): jitter parameters without an analytic
         # score, and the system's where neither the modal form nor the model gives ds/dtheta
         differenced = [i for i in range(nj) if i not in inner]

@@ -152,9 +152,8 @@ def moment_pass(
     :class:`~jitterid.systems.signals.SignalModel`). A derivative the signal does not declare
     is left ``None``: the caller differences the moments.
     """
-    none = np.zeros(0)
-    gradient = gradient and signal.gradient(none) is not None
-    if scale is not None and signal.slope(none) is None:
+    gradient = gradient and signal.has_gradient
+    if not signal.has_slope:
         scale = None
     mean = np.empty(N)
     var = np.empty(N) if variance else None

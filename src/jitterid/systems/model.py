@@ -66,6 +66,16 @@ class Signal(abc.ABC):
     def __call__(self, t: ArrayLike) -> FloatArray:
         """s(t) at the instants ``t`` (any shape)."""
 
+    @property
+    def has_gradient(self) -> bool:
+        """Whether :meth:`gradient` gives ds/dtheta in closed form."""
+        return False
+
+    @property
+    def has_slope(self) -> bool:
+        """Whether :meth:`slope` gives ds/dt in closed form."""
+        return False
+
     def gradient(self, t: FloatArray) -> FloatArray | None:
         """ds/dtheta at the instants ``t`` (1-D), shape (P, t.size), or None: no closed form
         (the declared finite-difference route of the moments and the likelihood)."""

@@ -172,6 +172,14 @@ class FunctionSignal(Signal):
         flat = self._values(self.model.function, tt.ravel(), (tt.size,), "function")
         return flat.reshape(tt.shape)
 
+    @property
+    def has_gradient(self) -> bool:
+        return self.model.gradient is not None
+
+    @property
+    def has_slope(self) -> bool:
+        return self.model.slope is not None
+
     def gradient(self, t: FloatArray) -> FloatArray | None:
         if self.model.gradient is None:
             return None
