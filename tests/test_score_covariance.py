@@ -58,3 +58,18 @@ def test_score_covariance_matches_simulated_scores(method, jitter, x0):
     ratio = np.sqrt(np.diag(new) / np.diag(emp))
     # the sd of a standard deviation estimated from R = 300 draws is ~4 %
     assert np.all(np.abs(ratio - 1) < 0.15), ratio
+
+
+@pytest.mark.parametrize(("n", "T"), [(200, 1.0), (201, 0.5)])
+def test_fft_products_of_the_squared_covariances_match_the_matrices(n, T):
+    """(|S|^2 + |C|^2) k by FFT convolutions on consecutive DFT bins, against the F x F
+    matrices of covariance_from_variances (also the route for any other frequency set)."""
+    from jitterid.moments.sample import covariance_from_variances
+
+    rng = np.random.default_rng(0)
+    w = rng.uniform(0.1, 2.0, n)
+    for f in (np.arange(n // 2) / (n * T), (3 + np.arange(20)) / (n * T), np.linspace(0.01, 0.2, 15)):
+        k = rng.standard_normal((f.size, 3))
+        S, Cp = covariance_from_variances(w, T, f, f), covariance_from_variances(w, T, f, -f)
+        ref = (np.abs(S) ** 2 + np.abs(Cp) ** 2) @ k
+        np.testing.assert_allclose(C._squared_covariance_products(w, T, f, k), ref, atol=1e-12 * np.abs(ref).max())

@@ -22,8 +22,8 @@ maximum-likelihood value given the residuals (:func:`noise_variance_ml`) is used
   ``asml-diag`` in the DTFT residual) the exact Cov(dV/dx) with the samples' third and
   fourth moments instead of the first-order G diag(w) G^T, which doubles the Gaussian
   quadratic part and ignores the jittered samples' kurtosis
-  (:func:`_per_sample_score_covariance`, :func:`_frequency_score_covariance`; the latter up
-  to KERNEL_MAX_FREQUENCIES frequencies, the first-order form beyond);
+  (:func:`_per_sample_score_covariance`, :func:`_frequency_score_covariance`; asml's full
+  kernel up to KERNEL_MAX_FREQUENCIES frequencies, the first-order form beyond);
 - ``"robust"``: w_k = (y_k - m_k)^2 (White's HC0), honest when the jitter law or the noise
   level is misspecified (default for ``ls``, whose model has no jitter); for ``ml`` the
   Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores;
@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
+from scipy import optimize, signal
 from threadpoolctl import threadpool_limits
 
 from .. import finite_diff
@@ -168,8 +168,10 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
         return cov
     A = problem.estimator.y_hessian_diagonal(problem, x)
     K = None
-    if A is None and cov_type != "robust" and problem.freqs.size <= KERNEL_MAX_FREQUENCIES:
+    if A is None and cov_type != "robust":
         K = problem.estimator.frequency_kernel(problem, x)
+        if K is not None and np.ndim(K) == 3 and problem.freqs.size > KERNEL_MAX_FREQUENCIES:
+            K = None  # a full kernel costs O(P F^3): the first-order form beyond
     if A is not None:
         B = _per_sample_score_covariance(problem, x, G, np.asarray(A, float)[idx], cov_type == "robust")
     elif K is not None:
@@ -246,21 +248,23 @@ def _frequency_score_covariance(
     and C = E W E^T (R_Y and the pseudo-covariance, (17)-(19)). The first-order form
     G W G^T (G = b + 2 A e at the data) doubles the Gaussian quadratic part and ignores the
     jittered samples' kurtosis (asml-diag, noise estimated: score standard deviations 1.4-1.55
-    times the simulated ones). O(P F^3): used up to KERNEL_MAX_FREQUENCIES frequencies.
+    times the simulated ones). A diagonal kernel (asml-diag) costs O(N log N) on the DFT grid
+    (:func:`_squared_covariance_products`); a full one (asml) O(P F^3), used up to
+    KERNEL_MAX_FREQUENCIES frequencies.
     """
     d = problem.data
     f = problem.freqs
     w = problem.variances(x)
     r = problem.weighted(x)[0]
-    S = covariance_from_variances(w, d.T, f, f)
-    C = covariance_from_variances(w, d.T, f, -f)
     P = K.shape[0]
     if K.ndim == 2:  # diagonal (real) kernels k_p: tr(K_p S K_q S) = k_p^T |S|^2 k_q
         k = K.real
-        Q = k @ (np.abs(S) ** 2 + np.abs(C) ** 2) @ k.T
+        Q = k @ _squared_covariance_products(w, d.T, f, k.T)
         Ae = np.array([problem.adjoint(kp * r) for kp in k])
         Akk = np.repeat(k.sum(axis=1)[:, None], d.N, axis=1)
     else:
+        S = covariance_from_variances(w, d.T, f, f)
+        C = covariance_from_variances(w, d.T, f, -f)
         KS, KC = K @ S[None], K @ C[None]
         Q = (np.einsum("pfg,qgf->pq", KS, KS) + np.einsum("pfg,qgf->pq", KC, KC.conj())).real
         Ae = np.array([problem.adjoint(Kp @ r) for Kp in K])
@@ -276,6 +280,31 @@ def _frequency_score_covariance(
     mu3, mu4 = problem.central_moments(x)
     cross = (b * mu3) @ Akk.T
     return (b * w) @ b.T + Q + (Akk * (mu4 - 3 * w * w)) @ Akk.T + cross + cross.T
+
+
+def _squared_covariance_products(w: FloatArray, T: float, f: FloatArray, k: FloatArray) -> FloatArray:
+    """(|S|^2 + |C|^2) k for the columns of ``k`` (F, P), S and C the covariance and
+    pseudo-covariance of the DTFT over ``f`` from the variances ``w`` ((17)-(19)).
+
+    On consecutive DFT bins f_a = (a0 + a) / (N T) (the set (24)), S_ab = W[a - b] and
+    C_ab = W[2 a0 + a + b] with W the DFT of w (indices mod N): |S|^2 is Toeplitz and |C|^2
+    Hankel, so the products are FFT convolutions, O(N log N) (no F x F matrix); elsewhere
+    the matrices are formed (O(F^2))."""
+    N = w.size
+    bins = np.asarray(f, float) * N * T
+    a = np.round(bins)
+    F = f.size
+    if F and np.all(np.abs(bins - a) < 1e-9) and np.all(np.diff(a) == 1):
+        a0 = int(a[0])
+        W2 = np.abs(np.fft.fft(w)) ** 2
+        t = W2[np.arange(-(F - 1), F) % N]  # |S|^2 along a - b = -(F-1) .. F-1
+        h = W2[(2 * a0 + np.arange(2 * F - 1)) % N]  # |C|^2 along a + b
+        toe = signal.fftconvolve(t[:, None], k, axes=0)[F - 1 : 2 * F - 1]
+        han = signal.fftconvolve(h[:, None], k[::-1], axes=0)[F - 1 : 2 * F - 1]
+        return np.asarray(toe + han, dtype=float)
+    S = covariance_from_variances(w, T, f, f)
+    C = covariance_from_variances(w, T, f, -f)
+    return np.asarray((np.abs(S) ** 2 + np.abs(C) ** 2) @ k, dtype=float)
 
 
 def _ml_covariance(
