@@ -406,7 +406,8 @@ def _fit(
         return [np.clip(v, lo, hi) for v in out]
 
     known_variance = None
-    if given_noise is not None and not est.ignores_jitter and not problem.estimates_noise:
+    # (a noise std of 0, e.g. noise-free simulated data, leaves nothing to standardise by)
+    if given_noise and not est.ignores_jitter and not problem.estimates_noise:
         known_noise = float(given_noise)
 
         def known_variance(v: FloatArray) -> FloatArray:
