@@ -72,6 +72,7 @@ from .systems.model import Model, Signal
 from .systems.signals import SignalModel
 from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
 from .systems.tf import Response, TransferFunction
+from .systems.tones import MultiTone, SineWave
 
 __version__ = "0.1.0"
 
@@ -87,6 +88,7 @@ __all__ = [
     "KnownSystem",
     "Model",
     "ModelStructure",
+    "MultiTone",
     "Multisine",
     "NoJitter",
     "PiecewiseConstant",
@@ -97,6 +99,7 @@ __all__ = [
     "SampledData",
     "Signal",
     "SignalModel",
+    "SineWave",
     "SumOfUniforms",
     "SumOfUniformsFamily",
     "TransferFunction",

@@ -150,8 +150,14 @@ def moment_pass(
     the scale of a jitter family (tau = a xi), dm_k/da = E[s'(kT + tau) tau] / a and
     dVar_k/da = 2 E[(s - m_k) s' tau] / a from the signal's slope (the signal must be smooth:
     :class:`~jitterid.systems.signals.SignalModel`). A derivative the signal does not declare
-    is left ``None``: the caller differences the moments.
+    is left ``None``: the caller differences the moments. A signal with closed-form
+    moments (:meth:`~jitterid.systems.model.Signal.jitter_moments`) gives them instead.
     """
+    closed = signal.jitter_moments(
+        jitter, T, N, variance=variance, gradient=gradient, scale=scale, higher=higher
+    )
+    if closed is not None:
+        return closed
     gradient = gradient and signal.has_gradient
     if not signal.has_slope:
         scale = None

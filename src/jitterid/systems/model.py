@@ -35,6 +35,8 @@ from .._checks import parameter_vector
 if TYPE_CHECKING:
     from ..data import SampledData
     from ..inputs import Input
+    from ..jitter.laws import JitterLaw
+    from ..moments.sample import MomentPass
 
 __all__ = ["Bounds", "Model", "Signal"]
 
@@ -84,6 +86,24 @@ class Signal(abc.ABC):
     def slope(self, t: FloatArray) -> FloatArray | None:
         """ds/dt at the instants ``t`` (1-D), or None: no closed form (a jitter family's
         scale is then differenced like its other parameters)."""
+        return None
+
+    def jitter_moments(
+        self,
+        jitter: JitterLaw,
+        T: float,
+        N: int,
+        *,
+        variance: bool = True,
+        gradient: bool = False,
+        scale: float | None = None,
+        higher: bool = False,
+    ) -> MomentPass | None:
+        """The moments of s(kT + tau) in closed form, as
+        :func:`jitterid.moments.sample.moment_pass` defines them, or None: no closed form
+        (the default; the moments are then quadratures over the jitter at nodes). A signal
+        that has one (a sum of tones, through the jitter's characteristic function:
+        :class:`jitterid.systems.tones.ToneSignal`) overrides this."""
         return None
 
     def check_covers(self, t_max: float, what: str) -> None:

@@ -1,0 +1,476 @@
+"""Sinusoidal signal models with no input: :class:`SineWave` (a sinusoid of unknown
+amplitude, phase, frequency and offset, optionally with harmonics) and :class:`MultiTone`
+(given frequencies, unknown amplitudes and phases): the paper's Section 3.4 signal, and the
+sine-wave test of data converters and sampling oscilloscopes (IEEE 1057 / 1241).
+
+Both are sums of tones s(t) = c + sum_h Im(a_h exp(i w_h t)), a_h = A_h exp(i phi_h), i.e.
+A_h sin(w_h t + phi_h). Under jitter their moments are closed forms in the characteristic
+function chi(w) = E[exp(i w tau)] (Lemma 1 in the time domain, notes section 1):
+
+    m_k   = c + sum_h Im(a_h e^{i w_h kT} chi(w_h))                                     (S1)
+    Var_k = sum_{h,g} Re(a_h conj(a_g) P-_hg - a_h a_g P+_hg) / 2 - (m_k - c)^2,        (S2)
+            P-+_hg = e^{i (w_h -+ w_g) kT} chi(w_h -+ w_g),
+
+with their derivatives through chi'(w) = E[i tau exp(i w tau)], and in a jitter family's
+scale a (the law of a xi) through d chi(w) / da = (w / a) chi'(w). chi and chi' are
+quadratures of the law at a handful of frequencies, once per evaluation, so the moments
+cost O(N H^2) with no quadrature per sample (:meth:`ToneSignal.jitter_moments`); the
+third and fourth moments (the exact covariance) take the generic quadrature path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._checks import positive
+from .model import Bounds, Model, Signal
+
+if TYPE_CHECKING:
+    from ..data import SampledData
+    from ..inputs import Input
+    from ..jitter.laws import JitterLaw
+    from ..moments.sample import MomentPass
+
+__all__ = ["MultiTone", "SineWave", "ToneSignal"]
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+_FORMS = ("polar", "iq")
+
+
+@dataclass(frozen=True)
+class _ToneMap:
+    """theta -> (c, a_h, w_h) and their derivatives, one row per parameter."""
+
+    c: float
+    a: ComplexArray  # complex amplitudes a_h, shape (H,)
+    w: FloatArray  # angular frequencies w_h (rad/s), shape (H,)
+    dc: FloatArray  # (P,)
+    da: ComplexArray  # (P, H)
+    dw: FloatArray  # (P, H)
+
+
+class ToneSignal(Signal):
+    """s(t) = c + sum_h Im(a_h exp(i w_h t)) at one parameter vector, with closed-form
+    gradient, slope and jittered moments."""
+
+    def __init__(self, tones: _ToneMap) -> None:
+        self.tones = tones
+        self.rate = float(max(np.max(np.abs(tones.w)), 1e-300))
+        self.breaks = np.zeros(0)
+        self.start, self.end = -np.inf, np.inf
+
+    def _phasors(self, t: FloatArray) -> ComplexArray:
+        return np.exp(1j * self.tones.w[:, None] * t[None, :])  # (H, n)
+
+    def _cos_sin(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """cos(w_h t), sin(w_h t), shape (H, n): real arithmetic (numpy's complex exp is
+        several times slower)."""
+        arg = self.tones.w[:, None] * t[None, :]
+        return np.cos(arg), np.sin(arg)
+
+    def __call__(self, t: ArrayLike) -> FloatArray:
+        tt = np.asarray(t, dtype=float)
+        c, s = self._cos_sin(tt.ravel())
+        a = self.tones.a
+        # Im(a e^{i w t}) = Re(a) sin(w t) + Im(a) cos(w t)
+        out = self.tones.c + a.real @ s + a.imag @ c
+        return np.asarray(out, dtype=float).reshape(tt.shape)
+
+    @property
+    def has_gradient(self) -> bool:
+        return True
+
+    @property
+    def has_slope(self) -> bool:
+        return True
+
+    def gradient(self, t: FloatArray) -> FloatArray:
+        tn = self.tones
+        c, s = self._cos_sin(t)
+        # d Im(a_h e^{i w_h t}) = Im((da_h + i t a_h dw_h) e^{i w_h t})
+        out = tn.dc[:, None] + tn.da.real @ s + tn.da.imag @ c
+        b = tn.dw * tn.a[None, :]  # i t b e^{iwt}: Im = t (Re b cos - Im b sin)
+        out += t[None, :] * (b.real @ c - b.imag @ s)
+        return np.asarray(out, dtype=float)
+
+    def slope(self, t: FloatArray) -> FloatArray:
+        tn = self.tones
+        c, s = self._cos_sin(t)
+        b = tn.w * tn.a  # Im(i w a e^{iwt}) = Re(w a) cos - Im(w a) sin
+        return np.asarray(b.real @ c - b.imag @ s, dtype=float)
+
+    def jitter_moments(
+        self,
+        jitter: JitterLaw,
+        T: float,
+        N: int,
+        *,
+        variance: bool = True,
+        gradient: bool = False,
+        scale: float | None = None,
+        higher: bool = False,
+    ) -> MomentPass | None:
+        """m_k, Var_k and their derivatives by (S1)-(S2) (module doc); None with ``higher``
+        (the third and fourth moments take the generic quadrature path)."""
+        from ..moments.sample import MomentPass
+
+        if higher:
+            return None
+        tn = self.tones
+        H = tn.w.size
+        t = np.arange(N, dtype=float) * T
+        wm = tn.w[:, None] - tn.w[None, :]
+        wp = tn.w[:, None] + tn.w[None, :]
+        nus = np.concatenate([tn.w, wm.ravel(), wp.ravel()])
+        chi, dchi = _chi(jitter, nus)  # E[e^{i nu tau}], E[i tau e^{i nu tau}]
+        c1, c1d = chi[:H], dchi[:H]
+        cm, cmd = chi[H : H + H * H].reshape(H, H), dchi[H : H + H * H].reshape(H, H)
+        cp, cpd = chi[H + H * H :].reshape(H, H), dchi[H + H * H :].reshape(H, H)
+        z = self._phasors(t)  # (H, N)
+        E = z * c1[:, None]  # e^{i w t} chi(w)
+        dev = np.imag(tn.a @ E)  # m - c
+        mean = tn.c + dev
+        var = dmean = dvar = scale_mean = scale_var = None
+        aa_m = tn.a[:, None] * np.conj(tn.a)[None, :]
+        aa_p = tn.a[:, None] * tn.a[None, :]
+        zm = z[:, None, :] * np.conj(z)[None, :, :]  # e^{i (w_h - w_g) t}
+        zp = z[:, None, :] * z[None, :, :]
+        Pm, Pp = zm * cm[:, :, None], zp * cp[:, :, None]
+        if variance:
+            second = 0.5 * np.real(np.einsum("hg,hgn->n", aa_m, Pm) - np.einsum("hg,hgn->n", aa_p, Pp))
+            var = np.maximum(second - dev**2, 0.0)
+        if gradient:
+            # dE_h = dw_h (i t E_h + z_h chi'(w_h)); dP = (dw_h -+ dw_g)(i t P + z.. chi'(.))
+            dEw = 1j * t[None, :] * E + z * c1d[:, None]  # per unit dw_h, (H, N)
+            dmean = tn.dc[:, None] + np.imag(tn.da @ E + (tn.dw * tn.a[None, :]) @ dEw)
+            if variance:
+                dPm = 1j * t * Pm + zm * cmd[:, :, None]
+                dPp = 1j * t * Pp + zp * cpd[:, :, None]
+                rows = []
+                for i in range(tn.dc.size):
+                    da, dw = tn.da[i], tn.dw[i]
+                    d_aam = da[:, None] * np.conj(tn.a)[None, :] + tn.a[:, None] * np.conj(da)[None, :]
+                    d_aap = da[:, None] * tn.a[None, :] + tn.a[:, None] * da[None, :]
+                    dwm = dw[:, None] - dw[None, :]
+                    dwp = dw[:, None] + dw[None, :]
+                    d2 = 0.5 * np.real(
+                        np.einsum("hg,hgn->n", d_aam, Pm)
+                        + np.einsum("hg,hgn->n", aa_m * dwm, dPm)
+                        - np.einsum("hg,hgn->n", d_aap, Pp)
+                        - np.einsum("hg,hgn->n", aa_p * dwp, dPp)
+                    )
+                    rows.append(d2 - 2 * dev * (dmean[i] - tn.dc[i]))
+                dvar = np.array(rows).reshape(-1, N)
+        if scale is not None:
+            # d chi(nu) / da = (nu / a) chi'(nu): the law of a xi
+            dE = z * (tn.w / scale * c1d)[:, None]
+            scale_mean = np.imag(tn.a @ dE)
+            if variance:
+                dPm = zm * (wm / scale * cmd)[:, :, None]
+                dPp = zp * (wp / scale * cpd)[:, :, None]
+                d2 = 0.5 * np.real(np.einsum("hg,hgn->n", aa_m, dPm) - np.einsum("hg,hgn->n", aa_p, dPp))
+                scale_var = d2 - 2 * dev * scale_mean
+        return MomentPass(mean, var, dmean, dvar, scale_mean, scale_var)
+
+
+def _chi(law: JitterLaw, nus: FloatArray) -> tuple[ComplexArray, ComplexArray]:
+    """chi(nu) = E[e^{i nu tau}] and chi'(nu) = E[i tau e^{i nu tau}] by the law's own
+    quadrature, with enough nodes per panel for the fastest oscillation."""
+    lo, hi = law.support
+    if not hi > lo:
+        tau0 = float(lo)
+        e = np.exp(1j * nus * tau0)
+        return e, 1j * tau0 * e
+    bp = np.asarray(law.breakpoints(), dtype=float)
+    widest = float(np.max(np.diff(bp))) if bp.size > 1 else hi - lo
+    order = int(min(max(64, 0.75 * float(np.max(np.abs(nus))) * widest + 32), 4096))
+    vals = law.expect(
+        lambda tau: np.concatenate(
+            [np.exp(1j * np.outer(nus, tau)), 1j * tau * np.exp(1j * np.outer(nus, tau))]
+        ),
+        nodes_per_panel=order,
+    )
+    vals = np.asarray(vals)
+    return vals[: nus.size], vals[nus.size :]
+
+
+# ------------------------------------------------------------------------------ the models
+def _frequency_bounds(band_hz: tuple[float, float] | None) -> tuple[float, float]:
+    if band_hz is None:
+        return (0.0, np.inf)
+    try:
+        lo, hi = (float(v) for v in band_hz)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"band_hz must be a pair (low, high) in Hz; got {band_hz!r}") from exc
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo < hi):
+        raise ValueError(f"band_hz must satisfy 0 <= low < high < inf (Hz); got {band_hz!r}")
+    return (lo, hi)
+
+
+def _linear_tones(y: FloatArray, t: FloatArray, w: FloatArray) -> tuple[float, ComplexArray]:
+    """Least-squares offset and complex amplitudes of tones at known w (IEEE 1057's
+    three-parameter fit, one cos/sin pair per tone)."""
+    cols = [np.ones_like(t)]
+    for wh in w:
+        cols += [np.cos(wh * t), np.sin(wh * t)]
+    coef = np.linalg.lstsq(np.column_stack(cols), y, rcond=None)[0]
+    cos_, sin_ = coef[1::2], coef[2::2]
+    return float(coef[0]), sin_ + 1j * cos_  # a cos + b sin = Im((b + i a) e^{i w t})
+
+
+@dataclass(frozen=True, eq=False)
+class SineWave(Model):
+    """A sinusoid with no input, s(t) = offset + sum_h A_h sin(2 pi h f t + phi_h).
+
+    Parameters
+    ----------
+    frequency_hz : float, optional
+        A known frequency in Hz (coherent sampling from a known source): it is then not a
+        parameter. Default None: the frequency is estimated (parameter ``frequency_hz``).
+    harmonics : int
+        Number of harmonics h = 1..harmonics (1: a pure sinusoid).
+    form : {"polar", "iq"}
+        ``"polar"``: parameters ``amplitude``, ``phase_rad`` (and ``amplitude_h``,
+        ``phase_rad_h`` for h >= 2), A_h sin(w_h t + phi_h); ``"iq"``: ``in_phase``,
+        ``quadrature`` (``in_phase_h``, ``quadrature_h``), I_h cos(w_h t) + Q_h sin(w_h t).
+        The in-phase/quadrature form is linear in its amplitudes (better conditioned when an
+        amplitude may be near zero).
+    band_hz : (float, float), optional
+        Bounds on the estimated frequency in Hz; may lie above the Nyquist frequency
+        1/(2T) (equivalent-time sampling). Default (0, inf). The starting frequency is the
+        periodogram's peak refined by the four-parameter sine fit
+        (:func:`jitterid.metrology.sinefit.sine_fit_4`), folded into the band: every alias
+        f0 + m/T or m/T - f0 in the band is a start (without jitter the aliases fit the
+        samples equally well; see :func:`jitterid.measure_jitter` to tell them apart).
+
+    Notes
+    -----
+    Time is measured from the first sample, t = kT. The jittered moments are closed forms
+    in the jitter's characteristic function (module doc, (S1)-(S2)).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> model = ji.SineWave()
+    >>> model.param_names
+    ('amplitude', 'phase_rad', 'frequency_hz', 'offset')
+    >>> s = model.signal([2.0, 0.0, 0.25, 0.5])
+    >>> s(np.array([0.0, 1.0]))
+    array([0.5, 2.5])
+    """
+
+    frequency_hz: float | None = None
+    harmonics: int = 1
+    form: str = "polar"
+    band_hz: tuple[float, float] | None = None
+
+    uses_input = False
+
+    def __post_init__(self) -> None:
+        if self.frequency_hz is not None:
+            object.__setattr__(self, "frequency_hz", positive(self.frequency_hz, "frequency_hz"))
+        if isinstance(self.harmonics, bool) or not isinstance(self.harmonics, (int, np.integer)):
+            raise TypeError(f"harmonics must be a whole number >= 1; got {self.harmonics!r}")
+        if not 1 <= self.harmonics <= 64:
+            raise ValueError(f"harmonics must lie in 1..64; got {self.harmonics}")
+        if self.form not in _FORMS:
+            raise ValueError(f"form must be one of {_FORMS}; got {self.form!r}")
+        band = _frequency_bounds(self.band_hz)
+        if self.band_hz is not None:
+            object.__setattr__(self, "band_hz", band)
+        if self.frequency_hz is not None and self.band_hz is not None:
+            raise ValueError("give either frequency_hz (known) or band_hz (estimated), not both")
+
+    # ---------------------------------------------------------------- layout
+    def _suffix(self, h: int) -> str:
+        return "" if h == 1 else f"_{h}"
+
+    @property
+    def param_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        pair = ("amplitude", "phase_rad") if self.form == "polar" else ("in_phase", "quadrature")
+        names: list[str] = []
+        for h in range(1, self.harmonics + 1):
+            names += [p + self._suffix(h) for p in pair]
+        if self.frequency_hz is None:
+            names.append("frequency_hz")
+        return (*names, "offset")
+
+    @property
+    def bounds(self) -> Bounds:  # type: ignore[override]
+        free = (-np.inf, np.inf)
+        out = [free] * (2 * self.harmonics)
+        if self.frequency_hz is None:
+            lo, hi = _frequency_bounds(self.band_hz)
+            out.append((max(lo, 1e-300), hi))
+        return (*out, free)
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        H = self.harmonics
+        amps = tuple(range(0, 2 * H, 2)) if self.form == "polar" else tuple(range(2 * H))
+        return (*amps, len(self.param_names) - 1)
+
+    def tones(self, params: ArrayLike) -> _ToneMap:
+        x = self._check(params)
+        H, P = self.harmonics, x.size
+        f = self.frequency_hz if self.frequency_hz is not None else float(x[2 * H])
+        h = np.arange(1, H + 1)
+        w = np.asarray(2 * np.pi * f * h, dtype=float)
+        da = np.zeros((P, H), complex)
+        dw = np.zeros((P, H))
+        dc = np.zeros(P)
+        dc[-1] = 1.0
+        if self.form == "polar":
+            A, ph = x[0 : 2 * H : 2], x[1 : 2 * H : 2]
+            a = A * np.exp(1j * ph)
+            da[2 * h - 2, h - 1] = np.exp(1j * ph)
+            da[2 * h - 1, h - 1] = 1j * a
+        else:
+            inph, quad = x[0 : 2 * H : 2], x[1 : 2 * H : 2]
+            a = quad + 1j * inph
+            da[2 * h - 2, h - 1] = 1j
+            da[2 * h - 1, h - 1] = 1.0
+        if self.frequency_hz is None:
+            dw[2 * H] = 2 * np.pi * h
+        return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, dw)
+
+    def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
+        """s(t; params); ``u`` is ignored (the model has no input)."""
+        return ToneSignal(self.tones(params))
+
+    # ---------------------------------------------------------------- starts
+    def start_frequencies(self, data: SampledData) -> list[float]:
+        """The starting frequencies in Hz: the known one, or the four-parameter fit's at the
+        periodogram's peak, with every alias inside ``band_hz``."""
+        if self.frequency_hz is not None:
+            return [float(self.frequency_hz)]
+        from ..metrology.sinefit import periodogram_peak, sine_fit_4
+
+        y, T = np.asarray(data.y, dtype=float), float(data.T)
+        t = np.arange(y.size, dtype=float) * T
+        fit4 = sine_fit_4(y, t, periodogram_peak(y, T))
+        f0 = abs(float(fit4.frequency)) if fit4.converged else periodogram_peak(y, T)
+        base = f0 % (1 / T)
+        lo, hi = _frequency_bounds(self.band_hz)
+        if self.band_hz is None:
+            return [f0]
+        cands: list[float] = []
+        for m in range(int(np.floor(lo * T)) - 1, int(np.ceil(hi * T)) + 2):
+            for f in (m / T + base, m / T - base):
+                if lo <= f <= hi and f > 0 and all(abs(f - g) > 1e-9 / T for g in cands):
+                    cands.append(f)
+        if not cands:
+            raise ValueError(
+                f"no alias of the record's frequency {base:g} Hz (+ m/T, T = {T:g} s) lies in "
+                f"band_hz = {self.band_hz}; widen the band or check T"
+            )
+        return sorted(cands)
+
+    def initial_points(self, data: SampledData) -> list[FloatArray]:
+        y, T = np.asarray(data.y, dtype=float), float(data.T)
+        t = np.arange(y.size, dtype=float) * T
+        out = []
+        for f in self.start_frequencies(data):
+            h = np.arange(1, self.harmonics + 1)
+            c, a = _linear_tones(y, t, np.asarray(2 * np.pi * f * h, dtype=float))
+            pairs = np.column_stack(
+                [np.abs(a), np.angle(a)] if self.form == "polar" else [a.imag, a.real]
+            ).ravel()
+            freq = [f] if self.frequency_hz is None else []
+            out.append(np.array([*pairs, *freq, c]))
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class MultiTone(Model):
+    """Tones at given frequencies with unknown amplitudes and phases and an offset:
+    s(t) = offset + sum_j A_j sin(2 pi f_j t + phi_j).
+
+    Parameters
+    ----------
+    frequencies_hz : sequence of float
+        The tones' frequencies in Hz (distinct, > 0; may lie above the Nyquist frequency).
+    form : {"polar", "iq"}
+        As for :class:`SineWave`: ``amplitude_j``, ``phase_rad_j`` or ``in_phase_j``,
+        ``quadrature_j``, j = 1..J.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> ji.MultiTone([0.1, 0.3]).param_names
+    ('amplitude_1', 'phase_rad_1', 'amplitude_2', 'phase_rad_2', 'offset')
+    """
+
+    frequencies_hz: Sequence[float]
+    form: str = "polar"
+
+    uses_input = False
+
+    def __post_init__(self) -> None:
+        try:
+            f = np.atleast_1d(np.asarray(self.frequencies_hz, dtype=float))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"frequencies_hz must be a sequence of frequencies in Hz; got {self.frequencies_hz!r}"
+            ) from exc
+        if f.ndim != 1 or f.size < 1 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+            raise ValueError(f"frequencies_hz must hold one or more finite frequencies > 0 Hz; got {f}")
+        if np.unique(f).size != f.size:
+            raise ValueError(f"frequencies_hz must be distinct; got {f}")
+        if self.form not in _FORMS:
+            raise ValueError(f"form must be one of {_FORMS}; got {self.form!r}")
+        object.__setattr__(self, "frequencies_hz", tuple(float(v) for v in f))
+
+    @property
+    def param_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        pair = ("amplitude", "phase_rad") if self.form == "polar" else ("in_phase", "quadrature")
+        names = [f"{p}_{j}" for j in range(1, len(self.frequencies_hz) + 1) for p in pair]
+        return (*names, "offset")
+
+    @property
+    def bounds(self) -> Bounds:  # type: ignore[override]
+        return tuple((-np.inf, np.inf) for _ in self.param_names)
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        J = len(self.frequencies_hz)
+        amps = tuple(range(0, 2 * J, 2)) if self.form == "polar" else tuple(range(2 * J))
+        return (*amps, 2 * J)
+
+    def tones(self, params: ArrayLike) -> _ToneMap:
+        x = self._check(params)
+        J, P = len(self.frequencies_hz), x.size
+        j = np.arange(J)
+        w = 2 * np.pi * np.asarray(self.frequencies_hz)
+        da = np.zeros((P, J), complex)
+        dc = np.zeros(P)
+        dc[-1] = 1.0
+        if self.form == "polar":
+            a = x[0 : 2 * J : 2] * np.exp(1j * x[1 : 2 * J : 2])
+            da[2 * j, j] = np.exp(1j * x[1 : 2 * J : 2])
+            da[2 * j + 1, j] = 1j * a
+        else:
+            a = x[1 : 2 * J : 2] + 1j * x[0 : 2 * J : 2]
+            da[2 * j, j] = 1j
+            da[2 * j + 1, j] = 1.0
+        return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, np.zeros((P, J)))
+
+    def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
+        """s(t; params); ``u`` is ignored (the model has no input)."""
+        return ToneSignal(self.tones(params))
+
+    def initial_points(self, data: SampledData) -> list[FloatArray]:
+        y, T = np.asarray(data.y, dtype=float), float(data.T)
+        t = np.arange(y.size, dtype=float) * T
+        c, a = _linear_tones(y, t, 2 * np.pi * np.asarray(self.frequencies_hz, dtype=float))
+        pairs = np.column_stack(
+            [np.abs(a), np.angle(a)] if self.form == "polar" else [a.imag, a.real]
+        ).ravel()
+        return [np.array([*pairs, c])]

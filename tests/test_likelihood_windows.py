@@ -1,0 +1,81 @@
+"""The windowed quadrature rule of the exact likelihood (jitterid.estimation.likelihood):
+per sample, only the pieces of the jitter window where s(t) comes near y_k.
+
+Referees: the full rule (every panel of the window) with the panels quartered and twice
+the nodes, and the windowed rule itself refined the same way; the score against
+differences of the log-likelihood; and the re-design when the parameters move far.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import jitterid as ji
+from jitterid.estimation.likelihood import ExactLikelihood
+
+T = 1.0
+
+
+def _record(law, theta, noise, N=200, seed=2):
+    rng = np.random.default_rng(seed)
+    t = np.arange(N) * T + law.sample(N, rng)
+    return ji.SineWave().signal(theta)(t) + noise * rng.standard_normal(N)
+
+
+CASES = [
+    (0.05, ji.Uniform(0.5), [1.0, 0.1, 0.61, 0.0]),  # above Nyquist
+    (1e-3, ji.Gaussian(0.05), [1.0, 0.0, 0.2, 0.0]),
+    (1e-4, ji.Gaussian(0.02), [1.0, 0.0, 0.2, 0.0]),
+    (1e-2, ji.SumOfUniforms(2, 0.5), [2.0, 0.4, 0.23, 0.5]),
+]
+
+
+@pytest.mark.parametrize(("noise", "law", "theta"), CASES, ids=lambda v: str(v)[:12])
+def test_windowed_rule_matches_a_four_times_finer_full_rule(noise, law, theta):
+    y = _record(law, theta, noise)
+    m = ji.SineWave()
+    win = ExactLikelihood(m, law, None, T, y.size, noise, window=True).logpdf(theta, y)
+    fine = ExactLikelihood(m, law, None, T, y.size, noise, window=False, panel=1.0, order=16)
+    np.testing.assert_allclose(win, fine.logpdf(theta, y), rtol=0, atol=1e-8)
+
+
+def test_windowed_rule_converges_where_the_full_rule_is_too_large():
+    """Steep signal, tiny noise: the full rule would need ~2e5 nodes per sample."""
+    law, theta, noise = ji.Gaussian(0.7), [1.0, 0.4, 0.23, 0.0], 1e-4
+    y = _record(law, theta, noise, N=100)
+    m = ji.SineWave()
+    a = ExactLikelihood(m, law, None, T, y.size, noise).logpdf(theta, y)
+    b = ExactLikelihood(m, law, None, T, y.size, noise, window=True, panel=1.0, order=16)
+    np.testing.assert_allclose(a, b.logpdf(theta, y), rtol=0, atol=1e-8)
+
+
+def test_windowed_scores_match_differences_of_the_log_likelihood():
+    law, theta, noise = ji.Gaussian(0.1), np.array([1.2, 0.3, 0.21, 0.1]), 5e-3
+    y = _record(law, theta, noise)
+    lik = ExactLikelihood(ji.SineWave(), ji.GaussianFamily(), None, T, y.size, None, window=True)
+    x = np.r_[0.1, theta, noise]
+    _, G = lik.scores(x, y)
+    for i in range(x.size):
+        h = 1e-6 * max(abs(x[i]), 1e-2)
+        up, dn = x.copy(), x.copy()
+        up[i] += h
+        dn[i] -= h
+        lik.design(x)  # the same rule on both sides
+        num = (lik.loglik(up, y) - lik.loglik(dn, y)) / (2 * h)
+        assert G[:, i].sum() == pytest.approx(num, rel=2e-5, abs=1e-3)
+
+
+def test_windowed_rule_redesigns_when_the_signal_moves_far():
+    """A point whose signal is many noise std's from the design's would be evaluated on
+    windows that miss its peaks (a gross underestimate): the rule is re-designed there."""
+    law, theta, noise = ji.Gaussian(0.05), np.array([1.0, 0.0, 0.2, 0.0]), 1e-3
+    y = _record(law, theta, noise)
+    m = ji.SineWave()
+    lik = ExactLikelihood(m, law, None, T, y.size, noise, window=True)
+    far = theta + np.array([0.0, 0.05, 0.0, 0.0])  # 50 noise std's of phase
+    lik.design(theta)
+    moved = lik.logpdf(far, y)
+    fresh = ExactLikelihood(m, law, None, T, y.size, noise, window=True)
+    fresh.design(far)
+    np.testing.assert_allclose(moved, fresh.logpdf(far, y), rtol=0, atol=1e-8)
