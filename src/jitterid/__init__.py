@@ -49,6 +49,7 @@ from .jitter.laws import (
     Uniform,
     UniformFamily,
 )
+from .metrology.meter import JitterMeasurement, measure_jitter
 from .moments.reference import dirichlet, dtft
 from .moments.sample import (
     SampleMoments,
@@ -85,6 +86,7 @@ __all__ = [
     "Input",
     "JitterFamily",
     "JitterLaw",
+    "JitterMeasurement",
     "KnownSystem",
     "Model",
     "ModelStructure",
@@ -112,6 +114,7 @@ __all__ = [
     "dtft",
     "expected_dft",
     "fit",
+    "measure_jitter",
     "sample_moments",
     "simulate",
     "telegraph_input",

@@ -1,0 +1,449 @@
+"""The jitter meter: the sampling jitter's std, law and interval from a sine record.
+
+:func:`measure_jitter` fits a :class:`~jitterid.systems.tones.SineWave` with the jitter law
+estimated (the JOE structure (2c) with a signal model, the paper's (1a)), by the exact
+likelihood (notes 4), for each candidate jitter family, and keeps the family with the
+lowest BIC. Starting values, in the order a test engineer trusts them:
+
+1. the frequency: the periodogram's peak refined by the IEEE 1057 four-parameter fit
+   (:mod:`jitterid.metrology.sinefit`), or the given one;
+2. jitter and noise std's: the IEEE 1057 slope regression of the squared residuals on the
+   squared slope; the amplitude divided by the damping exp(-(2 pi f sigma)^2 / 2) that the
+   jitter puts on the fitted sine (Lemma 1: E[sin(w (t + tau))] = chi(w) sin(w t));
+3. the exact Gaussian criterion (closed-form moments, O(N)), then the exact likelihood.
+
+With a band above the Nyquist frequency (equivalent-time sampling) every alias
+f0 + m/T or m/T - f0 in the band is fitted; without jitter they fit the samples equally
+well, with jitter each damps the sine by its own |chi(2 pi f)| (the paper's Section 3.4),
+and the likelihood ranks them (:attr:`JitterMeasurement.aliases`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._checks import positive, real_array
+from ..data import SampledData
+from ..estimation.fit import fit
+from ..estimation.result import FitResult, FitStatus
+from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
+from ..systems.tones import SineWave
+from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
+
+__all__ = ["AliasCandidate", "JitterMeasurement", "LawCandidate", "measure_jitter"]
+
+FloatArray = NDArray[np.float64]
+
+#: Fewest samples and whole periods a record must hold.
+MIN_SAMPLES = 32
+#: Families tried by default, by name.
+DEFAULT_LAWS = ("gaussian", "uniform")
+
+
+def _families(T: float) -> dict[str, JitterFamily]:
+    """The jitter families :func:`measure_jitter` knows, by name (bounded by the record's
+    own scale: a jitter std beyond 10 T is not a jitter)."""
+    out: dict[str, JitterFamily] = {
+        "gaussian": GaussianFamily(sigma_max=10 * T),
+        "uniform": UniformFamily(a_max=20 * T),
+    }
+    try:  # the regular shape families, where available
+        from ..jitter.regular import DualDiracFamily, GeneralizedNormalFamily
+
+        out["generalized-normal"] = GeneralizedNormalFamily()
+        out["dual-dirac"] = DualDiracFamily()
+    except ImportError:  # pragma: no cover - depends on the installed version
+        pass
+    return out
+
+
+@dataclass(frozen=True)
+class LawCandidate:
+    """One jitter family fitted to the record.
+
+    Attributes
+    ----------
+    name : str
+        The family's name (``"gaussian"``, ``"uniform"``, ...).
+    loglik : float
+        The maximised log-likelihood (NaN if the fit failed).
+    n_params : int
+        Free parameters of the whole model (sine, jitter family, noise std).
+    aic, bic : float
+        -2 ln L + 2 p and -2 ln L + p ln N.
+    jitter_std_s : float
+        The fitted law's standard deviation, seconds.
+    status : FitStatus
+        The fit's status; only a candidate whose status is a success can be chosen.
+    """
+
+    name: str
+    loglik: float
+    n_params: int
+    aic: float
+    bic: float
+    jitter_std_s: float
+    status: FitStatus
+
+
+@dataclass(frozen=True)
+class AliasCandidate:
+    """One alias of the record's frequency, fitted with the chosen family.
+
+    Attributes
+    ----------
+    frequency_hz : float
+        The fitted frequency.
+    loglik : float
+        Its maximised log-likelihood.
+    jitter_std_s : float
+        The jitter std this alias implies.
+    """
+
+    frequency_hz: float
+    loglik: float
+    jitter_std_s: float
+
+
+@dataclass(frozen=True, eq=False)
+class JitterMeasurement:
+    """What :func:`measure_jitter` measured. Times in seconds, frequencies in Hz.
+
+    Attributes
+    ----------
+    jitter_std, jitter_std_stderr : float
+        The jitter's standard deviation and its standard error (delta method through the
+        chosen family, from the fit's covariance).
+    noise_std, noise_std_stderr : float
+        The additive noise std (units of y) and its standard error.
+    frequency, frequency_stderr : float
+        The sine's frequency and its standard error.
+    amplitude, phase_rad, offset : float
+        The sine, s(t) = amplitude sin(2 pi frequency t + phase_rad) + offset, t = kT.
+    law : JitterLaw
+        The fitted jitter law of the chosen family.
+    family : str
+        The chosen family's name (lowest BIC among :attr:`laws`).
+    laws : tuple of LawCandidate
+        Every family tried.
+    aliases : tuple of AliasCandidate
+        Every alias fitted (one entry unless a band holds several).
+    fit : FitResult
+        The chosen fit (parameters, covariance, status).
+    status : FitStatus
+        The chosen fit's status; anything but CONVERGED says why in :attr:`message`.
+    message : str
+    slope_regression_std : float
+        The IEEE 1057 slope-regression jitter std the search started from (for comparison).
+    T : float
+        The nominal sampling interval.
+    """
+
+    jitter_std: float
+    jitter_std_stderr: float
+    noise_std: float
+    noise_std_stderr: float
+    frequency: float
+    frequency_stderr: float
+    amplitude: float
+    phase_rad: float
+    offset: float
+    law: JitterLaw
+    family: str
+    laws: tuple[LawCandidate, ...]
+    aliases: tuple[AliasCandidate, ...]
+    fit: FitResult = field(repr=False)
+    status: FitStatus
+    message: str
+    slope_regression_std: float
+    T: float
+
+    def interval(self, level: float = 0.95) -> tuple[float, float]:
+        """Normal-approximation interval of the jitter std, cut at 0."""
+        if not 0 < level < 1:
+            raise ValueError(f"level must lie in (0, 1); got {level!r}")
+        from scipy.stats import norm
+
+        z = float(norm.ppf(0.5 + level / 2))
+        lo = self.jitter_std - z * self.jitter_std_stderr
+        return (max(lo, 0.0), self.jitter_std + z * self.jitter_std_stderr)
+
+    def summary(self) -> str:
+        """A plain-text report: the jitter std with its interval, the law, the sine."""
+        lo, hi = self.interval()
+        lines = [
+            "jitterid jitter measurement",
+            f"  status            {self.status.name}: {self.message}",
+            f"  jitter std        {_time(self.jitter_std)}  +- {_time(self.jitter_std_stderr)}"
+            f"  (95 % interval {_time(lo)} .. {_time(hi)})",
+            f"  jitter law        {self.family}: {self.law}",
+            f"  noise std         {self.noise_std:.6g}  +- {self.noise_std_stderr:.3g}",
+            f"  frequency         {self.frequency:.10g} Hz  +- {self.frequency_stderr:.3g}",
+            f"  amplitude         {self.amplitude:.6g}   offset {self.offset:.6g}",
+            f"  2 pi f sigma      {2 * math.pi * self.frequency * self.jitter_std:.4g} rad",
+            f"  IEEE 1057 slope regression (start): {_time(self.slope_regression_std)}",
+            "  families (lowest BIC chosen):",
+        ]
+        for c in self.laws:
+            mark = "*" if c.name == self.family else " "
+            lines.append(
+                f"   {mark} {c.name:<20s} ln L = {c.loglik:12.3f}  BIC = {c.bic:12.3f}  "
+                f"std = {_time(c.jitter_std_s)}  [{c.status.name}]"
+            )
+        if len(self.aliases) > 1:
+            lines.append("  aliases (highest likelihood chosen):")
+            best = max(a.loglik for a in self.aliases)
+            for a in self.aliases:
+                lines.append(
+                    f"     f = {a.frequency_hz:.8g} Hz  ln L = {a.loglik:12.3f}  "
+                    f"(ln L - best = {a.loglik - best:9.3f})  std = {_time(a.jitter_std_s)}"
+                )
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+def _time(x: float) -> str:
+    """A time in s with an SI prefix."""
+    if not np.isfinite(x):
+        return "nan"
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9), ("ps", 1e-12)):
+        if abs(x) >= scale or unit == "ps":
+            return f"{x / scale:.4g} {unit}"
+    return f"{x:.4g} s"  # pragma: no cover
+
+
+def _record(y: ArrayLike) -> FloatArray:
+    yv = real_array(y, "y", ndim=1)
+    if yv.size < MIN_SAMPLES:
+        raise ValueError(
+            f"y must hold at least {MIN_SAMPLES} samples of the sine record; got {yv.size}"
+        )
+    if not np.all(np.isfinite(yv)):
+        raise ValueError("y must be finite: remove or interpolate the NaN/inf samples first")
+    if float(np.std(yv)) <= 1e-12 * max(1.0, float(np.max(np.abs(yv)))):
+        raise ValueError("y is constant: a sine record is needed (check the input channel)")
+    return yv
+
+
+def _start(
+    y: FloatArray, T: float, f0: float, band: tuple[float, float]
+) -> tuple[FloatArray, float, float, float]:
+    """(sine start [A, phase, f, c], jitter std start, noise std start, slope-regression std)."""
+    t = np.arange(y.size, dtype=float) * T
+    fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
+    if not fit4.converged:
+        raise ValueError(
+            f"the four-parameter sine fit did not converge from {f0:g} Hz ({fit4.message}); "
+            "give the frequency (frequency=...) or check that y is a sine record"
+        )
+    reg = slope_regression_jitter(y, t, fit4)
+    w = 2 * math.pi * fit4.frequency
+    resid = float(np.std(fit4.residuals))
+    sj = reg.jitter_std if np.isfinite(reg.jitter_std) and reg.jitter_std > 0 else 0.0
+    # a jitter that damps the fitted sine by less than ~1e-4 is below what the regression
+    # resolves: start from a small value the likelihood can grow from
+    sj = max(sj, 1e-3 / w)
+    sv = reg.noise_std if np.isfinite(reg.noise_std) and reg.noise_std > 0 else 0.0
+    sv = max(sv, 1e-3 * resid, 1e-9 * fit4.amplitude)
+    damping = math.exp(-0.5 * (w * sj) ** 2)
+    theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
+    return theta, sj, sv, float(reg.jitter_std)
+
+
+def _family_start(family: JitterFamily, std: float) -> FloatArray:
+    """Family parameters whose law has the standard deviation ``std``: the family's own
+    starts scaled to it (its scale parameter carries the std)."""
+    starts = family.default_starts(1.0)
+    base = np.asarray(starts[len(starts) // 2], dtype=float)
+    law_std = float(family.law(base).std)
+    idx = family.scale_index
+    if idx is None or not law_std > 0:
+        return base
+    x = base.copy()
+    lo, hi = family.bounds[idx]
+    x[idx] = min(max(base[idx] * std / law_std, lo), hi)
+    return x
+
+
+def _fit_one(
+    data: SampledData,
+    model: SineWave,
+    family: JitterFamily,
+    theta: FloatArray,
+    sj: float,
+    sv: float,
+) -> FitResult:
+    """The Gaussian criterion from the starts, then the exact likelihood from there."""
+    x0 = np.r_[_family_start(family, sj), theta, sv]
+    gauss = fit(data, model, family, method="gaussian", start=x0)
+    xg = np.asarray(gauss.x, dtype=float).copy()
+    if not (gauss.success and np.all(np.isfinite(xg))):
+        xg = x0
+    if not xg[-1] > 0.1 * sv:  # the Gaussian criterion put the noise at its bound 0
+        xg[-1] = sv
+    return fit(data, model, family, method="ml", start=xg)
+
+
+def _stderr(result: FitResult, name: str) -> float:
+    return float(result.stderr.get(name, float("nan")))
+
+
+def measure_jitter(
+    y: ArrayLike,
+    T: float,
+    frequency: float | None = None,
+    *,
+    laws: Sequence[str] = DEFAULT_LAWS,
+    band_hz: tuple[float, float] | None = None,
+    harmonics: int = 1,
+) -> JitterMeasurement:
+    """Measure the sampling jitter from a record of a sine wave.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The samples, taken at the nominal instants kT (k = 0..N-1) plus the unknown jitter.
+    T : float
+        The nominal sampling interval, seconds.
+    frequency : float, optional
+        The sine's frequency in Hz, a start the fit refines (it may lie above the Nyquist
+        frequency 1/(2T): equivalent-time sampling). Default: the periodogram's peak
+        refined by the IEEE 1057 four-parameter fit (the baseband alias, below 1/(2T),
+        unless ``band_hz`` says where to look).
+    laws : sequence of str
+        Jitter families to fit: ``"gaussian"``, ``"uniform"`` and, where installed,
+        ``"generalized-normal"``, ``"dual-dirac"``. The one with the lowest BIC is chosen.
+    band_hz : (float, float), optional
+        Where the frequency lies, in Hz; every alias of the record's frequency in the band
+        is fitted and the one with the highest likelihood kept (:attr:`JitterMeasurement.
+        aliases` lists them all). Without jitter the aliases are indistinguishable.
+    harmonics : int
+        Harmonics of the sine model (1: a pure sine; more for a distorted source).
+
+    Returns
+    -------
+    JitterMeasurement
+
+    Raises
+    ------
+    ValueError
+        A record that is too short, not finite or constant, an unknown law, a band with no
+        alias of the record's frequency, or a sine fit that does not converge; each
+        message names the fix.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> rng = np.random.default_rng(0)
+    >>> T, N, f = 1e-3, 400, 123.0  # 1 kHz sampling, a 123 Hz sine
+    >>> tau = 50e-6 * rng.standard_normal(N)  # 50 us rms jitter
+    >>> y = np.sin(2 * np.pi * f * (np.arange(N) * T + tau)) + 1e-3 * rng.standard_normal(N)
+    >>> m = ji.measure_jitter(y, T, laws=["gaussian"])
+    >>> bool(abs(m.jitter_std - 50e-6) < 4 * m.jitter_std_stderr)
+    True
+    """
+    yv = _record(y)
+    T = positive(T, "T")
+    if isinstance(laws, str):
+        laws = (laws,)
+    known = _families(T)
+    unknown = [name for name in laws if name not in known]
+    if unknown or not laws:
+        raise ValueError(f"laws must name families among {sorted(known)}; got {list(laws)}")
+    N = yv.size
+    if frequency is not None:
+        f_start = positive(frequency, "frequency")
+    else:
+        f_start = periodogram_peak(yv, T)
+    data = SampledData(yv, T, None)
+    if band_hz is not None:
+        cands = SineWave(band_hz=band_hz, harmonics=harmonics).start_frequencies(data)
+    else:
+        cands = [f_start]
+    cycles = cands[0] * N * T
+    if cycles < 2 and frequency is None:
+        raise ValueError(
+            f"the record holds {cycles:.3g} periods of its sine; at least 2 are needed "
+            "(record longer, or give frequency= if the sine is faster than it looks)"
+        )
+    half_bin = 1.0 / (N * T)
+    # every alias with the family chosen on the first one; then the families on the best
+    first_family = laws[0]
+    alias_fits: list[tuple[float, FitResult]] = []
+    slope_std = float("nan")
+    for fc in cands:
+        lo = max(fc - 4 * half_bin, 0.5 * fc)
+        band = (lo, fc + 4 * half_bin)
+        theta, sj, sv, slope_std_c = _start(yv, T, fc, band)
+        model = SineWave(band_hz=band, harmonics=harmonics)
+        theta_h = _harmonic_start(model, yv, T, theta)
+        res = _fit_one(data, model, known[first_family], theta_h, sj, sv)
+        alias_fits.append((fc, res))
+        if len(alias_fits) == 1 or res.cost < min(r.cost for _, r in alias_fits[:-1]):
+            slope_std = slope_std_c
+    best_f, best = min(alias_fits, key=lambda item: item[1].cost)
+    aliases = tuple(
+        AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, r.jitter_std)
+        for _, r in alias_fits
+    )
+    # the other families at the chosen alias, from the first family's fit
+    fitted: dict[str, FitResult] = {first_family: best}
+    model = best.structure
+    assert isinstance(model, SineWave)
+    sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
+    for name in laws[1:]:
+        fitted[name] = _fit_one(data, model, known[name], sine, best.jitter_std, best.x[-1])
+    cands_law = []
+    for name, r in fitted.items():
+        p = r.x.size
+        ll = -0.5 * r.cost
+        cands_law.append(
+            LawCandidate(name, ll, p, 2 * p - 2 * ll, p * math.log(N) - 2 * ll, r.jitter_std, r.status)
+        )
+    ok = [c for c in cands_law if c.status is FitStatus.CONVERGED]
+    chosen = min(ok or cands_law, key=lambda c: c.bic)
+    r = fitted[chosen.name]
+    status, message = r.status, r.message
+    if not ok:
+        message = f"no family's fit converged; the lowest BIC is reported: {message}"
+    return JitterMeasurement(
+        jitter_std=r.jitter_std,
+        jitter_std_stderr=r.jitter_std_stderr,
+        noise_std=float(r.params["noise_std"]),
+        noise_std_stderr=_stderr(r, "noise_std"),
+        frequency=float(r.params["frequency_hz"]),
+        frequency_stderr=_stderr(r, "frequency_hz"),
+        amplitude=float(r.params["amplitude"]),
+        phase_rad=float(r.params["phase_rad"]),
+        offset=float(r.params["offset"]),
+        law=r.jitter_law,
+        family=chosen.name,
+        laws=tuple(cands_law),
+        aliases=aliases,
+        fit=r,
+        status=status,
+        message=message,
+        slope_regression_std=slope_std,
+        T=T,
+    )
+
+
+def _harmonic_start(model: SineWave, y: FloatArray, T: float, theta: FloatArray) -> FloatArray:
+    """The sine start [A, phase, f, c] extended to the model's harmonics (their
+    least-squares amplitudes at the start frequency)."""
+    if model.harmonics == 1:
+        return theta
+    pts = model.initial_points(SampledData(y, T, None))
+    f = theta[2]
+    best = min(pts, key=lambda p: abs(p[2 * model.harmonics] - f))
+    out = np.asarray(best, dtype=float).copy()
+    out[0], out[1] = theta[0], theta[1]
+    return out
