@@ -49,7 +49,7 @@ from .jitter.laws import (
     Uniform,
     UniformFamily,
 )
-from .metrology.meter import JitterMeasurement, measure_jitter
+from .metrology.meter import JitterMeasurement, alias_likelihoods, measure_jitter
 from .moments.reference import dirichlet, dtft
 from .moments.sample import (
     SampleMoments,
@@ -107,6 +107,7 @@ __all__ = [
     "TransferFunction",
     "Uniform",
     "UniformFamily",
+    "alias_likelihoods",
     "default_frequencies",
     "dft_covariance",
     "dft_pseudo_covariance",

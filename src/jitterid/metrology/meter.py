@@ -32,15 +32,24 @@ from ..data import SampledData
 from ..estimation.fit import fit
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
+from ..systems.model import Model
 from ..systems.tones import SineWave
 from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
 
-__all__ = ["AliasCandidate", "JitterMeasurement", "LawCandidate", "measure_jitter"]
+__all__ = [
+    "AliasCandidate",
+    "JitterMeasurement",
+    "LawCandidate",
+    "alias_likelihoods",
+    "measure_jitter",
+]
 
 FloatArray = NDArray[np.float64]
 
 #: Fewest samples and whole periods a record must hold.
 MIN_SAMPLES = 32
+#: ln L difference below which two aliases are a tie.
+_ALIAS_TIE = 1e-3
 #: Families tried by default, by name.
 DEFAULT_LAWS = ("gaussian", "uniform")
 
@@ -179,8 +188,10 @@ class JitterMeasurement:
         lines = [
             "jitterid jitter measurement",
             f"  status            {self.status.name}: {self.message}",
-            f"  jitter std        {_time(self.jitter_std)}  +- {_time(self.jitter_std_stderr)}"
-            f"  (95 % interval {_time(lo)} .. {_time(hi)})",
+            (
+                f"  jitter std        {_time(self.jitter_std)}  +- "
+                f"{_time(self.jitter_std_stderr)}  (95 % interval {_time(lo)} .. {_time(hi)})"
+            ),
             f"  jitter law        {self.family}: {self.law}",
             f"  noise std         {self.noise_std:.6g}  +- {self.noise_std_stderr:.3g}",
             f"  frequency         {self.frequency:.10g} Hz  +- {self.frequency_stderr:.3g}",
@@ -262,7 +273,7 @@ def _family_start(family: JitterFamily, std: float) -> FloatArray:
     starts scaled to it (its scale parameter carries the std)."""
     starts = family.default_starts(1.0)
     base = np.asarray(starts[len(starts) // 2], dtype=float)
-    law_std = float(family.law(base).std)
+    law_std = float(family.law(base.tolist()).std)
     idx = family.scale_index
     if idx is None or not law_std > 0:
         return base
@@ -274,7 +285,7 @@ def _family_start(family: JitterFamily, std: float) -> FloatArray:
 
 def _fit_one(
     data: SampledData,
-    model: SineWave,
+    model: Model,
     family: JitterFamily,
     theta: FloatArray,
     sj: float,
@@ -345,7 +356,7 @@ def measure_jitter(
     >>> rng = np.random.default_rng(0)
     >>> T, N, f = 1e-3, 400, 123.0  # 1 kHz sampling, a 123 Hz sine
     >>> tau = 50e-6 * rng.standard_normal(N)  # 50 us rms jitter
-    >>> y = np.sin(2 * np.pi * f * (np.arange(N) * T + tau)) + 1e-3 * rng.standard_normal(N)
+    >>> y = np.sin(2 * np.pi * f * (np.arange(N) * T + tau)) + 1e-2 * rng.standard_normal(N)
     >>> m = ji.measure_jitter(y, T, laws=["gaussian"])
     >>> bool(abs(m.jitter_std - 50e-6) < 4 * m.jitter_std_stderr)
     True
@@ -359,10 +370,7 @@ def measure_jitter(
     if unknown or not laws:
         raise ValueError(f"laws must name families among {sorted(known)}; got {list(laws)}")
     N = yv.size
-    if frequency is not None:
-        f_start = positive(frequency, "frequency")
-    else:
-        f_start = periodogram_peak(yv, T)
+    f_start = positive(frequency, "frequency") if frequency is not None else periodogram_peak(yv, T)
     data = SampledData(yv, T, None)
     if band_hz is not None:
         cands = SineWave(band_hz=band_hz, harmonics=harmonics).start_frequencies(data)
@@ -389,18 +397,17 @@ def measure_jitter(
         alias_fits.append((fc, res))
         if len(alias_fits) == 1 or res.cost < min(r.cost for _, r in alias_fits[:-1]):
             slope_std = slope_std_c
-    best_f, best = min(alias_fits, key=lambda item: item[1].cost)
+    _, best = min(alias_fits, key=lambda item: item[1].cost)
     aliases = tuple(
         AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, r.jitter_std)
         for _, r in alias_fits
     )
     # the other families at the chosen alias, from the first family's fit
     fitted: dict[str, FitResult] = {first_family: best}
-    model = best.structure
-    assert isinstance(model, SineWave)
+    chosen_model = best.structure
     sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
     for name in laws[1:]:
-        fitted[name] = _fit_one(data, model, known[name], sine, best.jitter_std, best.x[-1])
+        fitted[name] = _fit_one(data, chosen_model, known[name], sine, best.jitter_std, best.x[-1])
     cands_law = []
     for name, r in fitted.items():
         p = r.x.size
@@ -414,6 +421,16 @@ def measure_jitter(
     status, message = r.status, r.message
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
+    lls = sorted((a.loglik for a in aliases), reverse=True)
+    if len(lls) > 1 and lls[0] - lls[1] < _ALIAS_TIE:
+        status = FitStatus.UNIDENTIFIABLE
+        message = (
+            f"the frequency is not identified among {len(lls)} aliases in band_hz (their ln L "
+            f"differ by {lls[0] - lls[1]:.2g}): with the jitter's scale free, the samples see "
+            "only f times the jitter std, so each alias fits with its own jitter std. Give "
+            "the frequency (frequency=...), or rank the aliases under a known jitter law "
+            "(alias_likelihoods)"
+        )
     return JitterMeasurement(
         jitter_std=r.jitter_std,
         jitter_std_stderr=r.jitter_std_stderr,
@@ -447,3 +464,75 @@ def _harmonic_start(model: SineWave, y: FloatArray, T: float, theta: FloatArray)
     out = np.asarray(best, dtype=float).copy()
     out[0], out[1] = theta[0], theta[1]
     return out
+
+
+def alias_likelihoods(
+    y: ArrayLike,
+    T: float,
+    band_hz: tuple[float, float],
+    jitter: JitterLaw,
+    *,
+    noise_std: float | None = None,
+) -> tuple[AliasCandidate, ...]:
+    """The exact log-likelihood of every alias of a sine record's frequency in a band,
+    under a known jitter law (the paper's Section 3.4).
+
+    Without jitter the aliases f0 + m/T and m/T - f0 fit the samples equally well; under a
+    known jitter law each is damped by its own |chi(2 pi f)| (Lemma 1) and its samples
+    spread by their own variance (Lemma 2), so the likelihood tells them apart. (With the
+    law's scale free they are a tie again: :func:`measure_jitter` says so.)
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The samples at the nominal instants kT.
+    T : float
+        Nominal sampling interval, s.
+    band_hz : (float, float)
+        The band holding the candidate aliases, Hz.
+    jitter : JitterLaw
+        The known jitter law.
+    noise_std : float, optional
+        The known noise std; default: estimated with each alias.
+
+    Returns
+    -------
+    tuple of AliasCandidate
+        One per alias, highest likelihood first; ``jitter_std_s`` is the known law's std.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> rng = np.random.default_rng(1)
+    >>> T, N = 2.0, 300
+    >>> tau = ji.Uniform(1.0).sample(N, rng)
+    >>> y = np.sin(2 * np.pi * 0.14 * (np.arange(N) * T + tau)) + 0.05 * rng.standard_normal(N)
+    >>> ranked = ji.alias_likelihoods(y, T, (0.05, 0.7), ji.Uniform(1.0))
+    >>> round(ranked[0].frequency_hz, 2)
+    0.14
+    """
+    yv = _record(y)
+    T = positive(T, "T")
+    if not isinstance(jitter, JitterLaw):
+        raise TypeError(
+            f"jitter must be a known jitter law (e.g. jitterid.Uniform(1.0)); got {type(jitter).__name__}"
+        )
+    data = SampledData(yv, T, None, noise_std=noise_std)
+    cands = SineWave(band_hz=band_hz).start_frequencies(data)
+    half_bin = 1.0 / (yv.size * T)
+    out = []
+    for fc in cands:
+        band = (max(fc - 4 * half_bin, 0.5 * fc), fc + 4 * half_bin)
+        theta, _, sv, _ = _start(yv, T, fc, band)
+        fit4 = sine_fit_4(yv, np.arange(yv.size, dtype=float) * T, fc, frequency_bounds=band)
+        # the fitted sine is the true one damped by chi(2 pi f) (Lemma 1): undo it
+        chi = complex(np.asarray(jitter.cf(np.array([fit4.frequency])))[0]).conjugate()
+        if abs(chi) > 1e-3:
+            theta[0] = fit4.amplitude / abs(chi)
+            theta[1] = fit4.phase - float(np.angle(chi))
+        model = SineWave(band_hz=band)
+        x0 = theta if noise_std is not None else np.r_[theta, sv]
+        r = fit(data, model, jitter, method="ml", start=x0)
+        out.append(AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, float(jitter.std)))
+    return tuple(sorted(out, key=lambda a: -a.loglik))
