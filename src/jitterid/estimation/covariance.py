@@ -317,8 +317,26 @@ def _ml_covariance(
     robust: bool,
     cov: FloatArray,
 ) -> FloatArray:
-    """Inverse observed information of the exact likelihood (or its Huber-White sandwich)."""
-    H = finite_diff.hessian(lambda z: problem.objective(embed(z)), z0, hz)  # of V = -2 ln L
+    """Inverse observed information of the exact likelihood (or its Huber-White sandwich).
+
+    The Hessian of V = -2 ln L is the Jacobian of its analytic gradient (the scores (L2)),
+    by central differences (2 p score evaluations), where every parameter's score is
+    analytic; else (a jitter shape differenced inside the score) second differences of V
+    (2 p^2 evaluations)."""
+    lik = problem.likelihood
+    assert lik is not None
+    if lik.analytic_scores(x):
+        y = problem.data.y
+
+        def grad(z: FloatArray) -> FloatArray:
+            return -2 * lik.scores(embed(z), y)[1].sum(axis=0)[idx]
+
+        H = np.empty((z0.size, z0.size))
+        for i in range(z0.size):
+            H[:, i] = finite_diff.derivative(grad, z0, i, (-np.inf, np.inf), h=float(hz[i]))
+        H = 0.5 * (H + H.T)
+    else:
+        H = finite_diff.hessian(lambda z: problem.objective(embed(z)), z0, hz)  # of V
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:

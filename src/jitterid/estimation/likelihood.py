@@ -25,8 +25,8 @@ smooth signal, steep relative to the noise: a sine record with small noise) and 
 has no breaks, each sample gets its own rule (:func:`_window_panels`): the slope grid's
 cells inside its jitter window are halved until the panel criterion holds, with the
 tighter bound |s'| <= |s'(mid)| + 1.25 rate S |t - mid|, and every piece on which the
-integrand cannot reach e^-36 of the sample's largest piece is dropped on the way. The
-pieces left surround the instants where s(t) comes within ~9 sigma_v of y_k, so the cost
+integrand cannot reach e^-24 of the sample's largest piece is dropped on the way. The
+pieces left surround the instants where s(t) comes within ~8 sigma_v of y_k, so the cost
 is O(N) whatever sigma_v (tests: against the full rule with the panels quartered and
 twice the order, within 1e-8 in each ln p(y_k)). The windows depend on y and on the
 parameters where they were designed; the rule is re-designed at any parameter whose
@@ -98,11 +98,12 @@ _Y_STEP = 0.5  # y-grid spacing of (L3) in units of sigma_v
 _Y_TAIL = 9.0  # y-grid margin in units of sigma_v
 _LOG_SQRT_2PI = 0.5 * np.log(2 * np.pi)
 _WINDOW_FROM = 32.0  # windowed rule when the full rule has more panels per sample
-_WINDOW_CUT = 36.0  # drop pieces below e^-36 of the sample's largest
-_WINDOW_MARGIN = 2.0  # ... with the distance |y - s| shortened by this many sigma
+_WINDOW_CUT = 24.0  # drop pieces below e^-24 of the sample's largest (ln p to ~1e-10)
+_WINDOW_MARGIN = 1.0  # ... with the distance |y - s| shortened by this many sigma
 _WINDOW_ROUNDS = 48  # halvings at most
 _WINDOW_FLOOR = 1e-12  # ... and no piece shorter than this times T
 _WINDOW_PDF = 0.6  # no piece longer than this many jitter std's
+_WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby scales)
 _WINDOW_EXTRA_ORDER = 4  # Gauss-Legendre nodes per piece: order + this (pieces span 4 sigma
 #                          of the Gaussian factor by a tight slope bound; near an extremum of
 #                          s the exponent is quartic in t, where 8 nodes give ~1e-7)
@@ -512,6 +513,36 @@ def _has_slope(sig: Signal, analytic: bool) -> bool:
     return analytic or sig.has_slope
 
 
+@dataclass(frozen=True, eq=False)
+class _Pieces:
+    """The windowed rule's pieces of samples k0..k1-1 (before the law's support cuts them)
+    and the design signal at their midpoints (the re-design test)."""
+
+    k0: int
+    k1: int
+    owner: NDArray[np.int64]
+    a: FloatArray
+    b: FloatArray
+    probe: tuple[FloatArray, FloatArray]
+
+
+class _Stretched:
+    """The law of ``factor * tau``: the windowed rule's pieces are built for it, so that
+    they serve every scale of a family between 1 / 2 and 1 of it."""
+
+    def __init__(self, law: JitterLaw, factor: float) -> None:
+        self.law, self.factor = law, factor
+        lo, hi = law.support
+        self.support = (lo * factor, hi * factor)
+        self.std = float(law.std) * factor
+
+    def breakpoints(self) -> FloatArray:
+        return np.asarray(self.law.breakpoints(), dtype=float) * self.factor
+
+    def pdf(self, tau: ArrayLike) -> FloatArray:
+        return np.asarray(self.law.pdf(np.asarray(tau, dtype=float) / self.factor)) / self.factor
+
+
 # ---------------------------------------------------------------------------- the likelihood
 @dataclass(eq=False)
 class ExactLikelihood:
@@ -564,6 +595,9 @@ class ExactLikelihood:
     _profile: _SlopeProfile | None = field(init=False, default=None, repr=False)
     _design: tuple[Signal, float] | None = field(init=False, default=None, repr=False)
     _window_y: FloatArray | None = field(init=False, default=None, repr=False)
+    _pieces: tuple[tuple[float, float, float], list[_Pieces]] | None = field(
+        init=False, default=None, repr=False
+    )
     _cache: dict[tuple[float, ...], list[_Nodes]] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -631,6 +665,7 @@ class ExactLikelihood:
         else:
             self._cuts = _panel_cuts(profile, sigma, self.panel)
             check_likelihood(self, law, sig)  # the rule's memory, before any node is built
+        self._pieces = None
         self._cache.clear()
 
     def _windowed(
@@ -674,6 +709,7 @@ class ExactLikelihood:
                 return list(self._make_nodes(law, sig))
             if self._window_y is None or not np.array_equal(self._window_y, y):
                 self._cache.clear()
+                self._pieces = None
                 self._window_y = np.array(y, dtype=float)
         key = tuple(x[: self.n_jitter])
         if key not in self._cache:
@@ -695,46 +731,76 @@ class ExactLikelihood:
             if moved:
                 self._design = (sig, max(sigma, 0.25 * d_sigma))
                 self._cache.clear()
+                self._pieces = None
                 nodes = self._cache[key] = list(self._make_windowed(law, sig, y))
         return nodes
 
-    def _make_windowed(self, law: JitterLaw, sig: Signal, y: FloatArray) -> Iterator[_Nodes]:
-        """The windowed rule (module doc): the full rule's panels without the slope cuts,
-        halved around the samples (:func:`_window_panels`)."""
-        sig.check_covers((self.N - 1) * self.T + law.support[1], "the last jittered instant")
+    def _window_pieces(self, law: JitterLaw, sig: Signal, y: FloatArray) -> list[_Pieces]:
+        """The windowed rule's pieces for ``law``: kept from the last build where that was
+        made for a law whose support holds this one's and whose std is at most twice this
+        one's (a law with no knots inside its support: the pieces are then cut only at the
+        support's edges); else built (:func:`_window_panels`) for the law stretched by
+        ``_WINDOW_STRETCH``, so that nearby scales of a family reuse them."""
+        lo, hi = law.support
+        simple = np.asarray(law.breakpoints()).size <= 2
+        held = self._pieces
+        if (
+            simple
+            and held is not None
+            and held[0][0] <= lo
+            and hi <= held[0][1]
+            and float(law.std) >= 0.5 * held[0][2]
+        ):
+            return held[1]
         assert self._design is not None
         assert self._profile is not None
         design_sig, design_sigma = self._design
+        build: JitterLaw | _Stretched = _Stretched(law, _WINDOW_STRETCH) if simple else law
+        knots = np.unique(np.asarray(build.breakpoints(), dtype=float))
+        fixed = np.union1d(np.asarray(sig.breaks, dtype=float), self._profile.grid)
+        pieces = []
+        for pch in jitter_panels(law, self.T, self.N, fixed, knots, chunk=_CHUNK):
+            o, a, b = _window_panels(
+                pch, self.T, y, design_sig, design_sigma, self.panel, self._profile, build  # type: ignore[arg-type]
+            )
+            mid = 0.5 * (a + b)
+            pieces.append(_Pieces(pch.k0, pch.k1, o, a, b, (mid, design_sig(mid))))
+        blo, bhi = build.support
+        self._pieces = ((float(blo), float(bhi), float(build.std)), pieces) if simple else None
+        return pieces
+
+    def _make_windowed(self, law: JitterLaw, sig: Signal, y: FloatArray) -> Iterator[_Nodes]:
+        """The windowed rule (module doc): its pieces (:meth:`_window_pieces`) cut to the
+        law's support, with ``order + _WINDOW_EXTRA_ORDER`` Gauss-Legendre nodes each."""
+        sig.check_covers((self.N - 1) * self.T + law.support[1], "the last jittered instant")
         lo, hi = law.support
         split = bool(self._weight_params()) and hi > lo
         clip = rule_frame(law)[2]
         order = self.order + _WINDOW_EXTRA_ORDER
         xg, wg = np.polynomial.legendre.leggauss(order)
-        knots = np.unique(np.asarray(law.breakpoints(), dtype=float))
-        fixed = np.union1d(np.asarray(sig.breaks, dtype=float), self._profile.grid)
-        for pch in jitter_panels(law, self.T, self.N, fixed, knots, chunk=_CHUNK):
-            o, a, b = _window_panels(
-                pch, self.T, y, design_sig, design_sigma, self.panel, self._profile, law
-            )
+        for pc in self._window_pieces(law, sig, y):
+            base = (pc.k0 + pc.owner) * self.T
+            a, b = np.maximum(pc.a, base + lo), np.minimum(pc.b, base + hi)
+            live = b > a
+            o, a, b = pc.owner[live], a[live], b[live]
             half, mid = 0.5 * (b - a), 0.5 * (a + b)
             t = (mid[:, None] + half[:, None] * xg[None, :]).ravel()
             owner = np.repeat(o, order)
             gw = (half[:, None] * wg[None, :]).ravel()
-            tau = t - (pch.k0 + owner) * self.T
+            tau = t - (pc.k0 + owner) * self.T
             w = gw * _density(law, np.clip(tau, *clip))
             keep = w > 0
             owner = owner[keep]
             starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
-            if starts.size != pch.k1 - pch.k0:
+            if starts.size != pc.k1 - pc.k0:
                 raise ValueError(
                     "the jitter pdf vanishes at every quadrature node of some sample; check "
                     "that the jitter law has positive density inside its support"
                 )
             tk = t[keep]
             logrule = np.log(gw[keep]) if split else None
-            probe = (mid, design_sig(mid))
             yield _Nodes(
-                pch.k0, pch.k1, tk, np.log(w[keep]), owner, starts, _NodeSignal(sig, tk), logrule, probe
+                pc.k0, pc.k1, tk, np.log(w[keep]), owner, starts, _NodeSignal(sig, tk), logrule, pc.probe
             )
 
     def _make_nodes(self, law: JitterLaw, sig: Signal) -> Iterator[_Nodes]:
@@ -809,6 +875,19 @@ class ExactLikelihood:
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
         logp, G, _ = self._terms(x, y, information=False)
         return logp, G
+
+    def analytic_scores(self, x: ArrayLike) -> bool:
+        """Whether every parameter's score at ``x`` is analytic ((L2) with ds/dtheta from
+        the modal form or the model's gradient, the jitter scale from the slope, the noise
+        std in closed form): no forward difference inside the score."""
+        x = np.atleast_1d(real_array(x, "x"))
+        _, sig, _ = self.split(x)
+        analytic = _NodeSignal(sig, np.zeros(0)).analytic
+        ns = len(self.model.param_names)
+        if ns and not (analytic or sig.has_gradient):
+            return False
+        scale = self._scale_index(_has_slope(sig, analytic))
+        return all(i == scale for i in range(self.n_jitter))
 
     def _scale_index(self, analytic: bool) -> int | None:
         """Index of the jitter family's scale parameter a (the law of a xi, xi fixed), whose
