@@ -685,6 +685,7 @@ def load(
     *,
     T: float | str | None = None,
     noise_std: float | None = None,
+    require_input: bool = True,
 ) -> Dataset:
     """Read a data file (and its input) into a :class:`Dataset`.
 
@@ -700,6 +701,10 @@ def load(
         when the metadata do not give it. Must agree with the metadata if both are given.
     noise_std : float, optional
         Measurement-noise std (y units), overriding the metadata's ``noise_std``.
+    require_input : bool
+        False for a signal record with no input (a sine for :func:`jitterid.measure_jitter`):
+        a data file without a ``u`` column and no input file then loads with ``data.u``
+        None. True (the default) refuses it, since a system fit needs the input.
 
     Returns
     -------
@@ -750,13 +755,15 @@ def load(
         tail = max(n, _U_TAIL)
         times = T_s * np.arange(n + 1.0)
         times[-1] = T_s * (n - 1 + tail)
-        u: Input = PiecewiseConstant(times, tab.columns["u"])
+        u: Input | None = PiecewiseConstant(times, tab.columns["u"])
         notes.append(
             f"the input column 'u' is a zero-order hold; its last value u = "
             f"{tab.columns['u'][-1]:g} is assumed to hold after the last sample (for "
             f"{tail} intervals), where the jittered last instants may fall"
         )
         u_unit = str(tab.meta.get("u_unit", ""))
+    elif input is None and not require_input:
+        u, u_unit = None, ""
     elif input is None:
         raise tab.fail(
             "has no input column 'u' and no input file was given; give the input file "

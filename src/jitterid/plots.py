@@ -1,4 +1,4 @@
-"""Matplotlib figures for the diagnostics; computing lives in :mod:`jitterid.analysis.diagnostics`.
+"""Matplotlib figures for the diagnostics; computing lives in :mod:`jitterid.analysis`.
 
 Every function takes ``ax=None`` (new axes are created) or the axes to draw on, and returns
 a :class:`Plot`: the artists it made by name (a dict), with ``figure``, ``axes`` and
@@ -7,8 +7,9 @@ a :class:`Plot`: the artists it made by name (a dict), with ``figure``, ``axes``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -18,7 +19,17 @@ from .analysis.uncertainty import BodeBand, PdfBand
 from .jitter.laws import JitterLaw
 from .systems.tf import TransferFunction
 
-__all__ = ["Plot", "plot_bode", "plot_gain_factor", "plot_jitter_pdf", "plot_residuals"]
+if TYPE_CHECKING:
+    from .metrology.meter import JitterMeasurement
+
+__all__ = [
+    "Plot",
+    "plot_bode",
+    "plot_gain_factor",
+    "plot_jitter_pdf",
+    "plot_jitter_phase",
+    "plot_residuals",
+]
 
 
 class Plot(dict[str, Any]):
@@ -159,40 +170,69 @@ def _db_limits(ax: Any, curves: list[Any], lo: Any, hi: Any) -> None:
     ax.set_ylim(bottom - pad, top + pad)
 
 
+def _time_unit(seconds: float) -> tuple[str, float]:
+    """The SI time unit (name, scale in s) that writes ``seconds`` as a number >= 1."""
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9)):
+        if abs(seconds) >= scale:
+            return unit, scale
+    return "ps", 1e-12
+
+
 def plot_jitter_pdf(
-    band: PdfBand,
+    band: PdfBand | JitterMeasurement,
     truth: JitterLaw | None = None,
     *,
     label: str = "estimated pdf",
     ax: Any = None,
+    rng: Any = None,
 ) -> Plot:
     """The estimated jitter density with its band (and the true one, if known).
 
     Parameters
     ----------
-    band : PdfBand
-        From :func:`jitterid.analysis.diagnostics.jitter_pdf_band`.
+    band : PdfBand or JitterMeasurement
+        From :func:`jitterid.analysis.diagnostics.jitter_pdf_band`, drawn in seconds; or a
+        :class:`~jitterid.JitterMeasurement` (:func:`jitterid.measure_jitter`), whose fitted
+        law is drawn with its band (``measurement.fit.jitter_pdf_band``) over +-4 std, the
+        time axis in a readable SI unit (ms, µs, ns, ps) and the density per that unit.
     truth : JitterLaw, optional
         A reference law drawn dashed.
     label : str
         Legend label of the estimate.
     ax : Axes, optional
+    rng : int or Generator, optional
+        For the band's draws with a measurement (default: seed 0, a reproducible figure).
 
     Returns
     -------
     Plot
         ``pdf``, ``band`` (absent for a known law, whose band is empty) and ``truth``.
     """
+    from .metrology.meter import JitterMeasurement
+
+    unit, scale = "s", 1.0
+    if isinstance(band, JitterMeasurement):
+        m = band
+        std = float(m.law.std)
+        if not (math.isfinite(std) and std > 0):
+            raise ValueError(f"the measured jitter law has no spread (std {std!r}); nothing to draw")
+        lo, hi = m.law.support
+        tau = np.linspace(max(lo, -4.5 * std), min(hi, 4.5 * std), 401)
+        band = m.fit.jitter_pdf_band(tau, 0 if rng is None else rng)
+        if label == "estimated pdf":
+            label = f"fitted {m.family} law, std {std / _time_unit(std)[1]:.3g} {_time_unit(std)[0]}"
+        unit, scale = _time_unit(std)
     if not isinstance(band, PdfBand):
-        raise TypeError(f"band must be a PdfBand; got {type(band).__name__}")
+        raise TypeError(f"band must be a PdfBand or a JitterMeasurement; got {type(band).__name__}")
     ax = _axes(ax, 1)
-    out: Artists = {"pdf": ax.plot(band.tau, band.pdf, color="C0", lw=2, label=label)[0]}
+    x = band.tau / scale
+    out: Artists = {"pdf": ax.plot(x, band.pdf * scale, color="C0", lw=2, label=label)[0]}
     if np.any(band.hi > band.lo):
         note = f" ({', '.join(band.fixed)} fixed)" if band.fixed else ""
         out["band"] = ax.fill_between(
-            band.tau,
-            band.lo,
-            band.hi,
+            x,
+            band.lo * scale,
+            band.hi * scale,
             color="C0",
             alpha=0.25,
             lw=0,
@@ -200,14 +240,84 @@ def plot_jitter_pdf(
         )
     if truth is not None:
         out["truth"] = ax.plot(
-            band.tau, truth.pdf(band.tau), "k--", lw=1.5, label=f"reference {truth!r}"
+            x, truth.pdf(band.tau) * scale, "k--", lw=1.5, label=f"reference {truth!r}"
         )[0]
-    ax.set_xlabel("jitter τ (s)")
-    ax.set_ylabel("density p(τ) (1/s)")
+    ax.set_xlabel(f"jitter τ ({unit})")
+    ax.set_ylabel(f"density p(τ) (1/{unit})")
     # Keep the estimate readable when the band's upper edge runs off (a nearly degenerate
     # law among the draws): the band then leaves the top of the axes.
     top = 2.5 * max(float(np.max(band.pdf)), float(np.max(truth.pdf(band.tau))) if truth else 0.0)
-    ax.set_ylim(bottom=0, top=min(top, 1.15 * max(float(np.max(band.hi)), float(np.max(band.pdf)))))
+    top = min(top, 1.15 * max(float(np.max(band.hi)), float(np.max(band.pdf))))
+    ax.set_ylim(bottom=0, top=top * scale)
+    ax.legend(loc="upper right", fontsize="small")
+    ax.grid(True, alpha=0.3)
+    return Plot(out, (ax,))
+
+
+def plot_jitter_phase(
+    measurement: JitterMeasurement, y: ArrayLike, *, ax: Any = None, bins: int = 32
+) -> Plot:
+    """Residual variance of a sine record against the sine's phase, with the fitted model.
+
+    The test engineer's view of jitter: the noise alone gives the flat level sigma_v^2; the
+    jitter adds variance where the sine is steep (phases 0 and π, the zero crossings) and
+    none at its peaks (π/2, 3π/2). The binned mean squared residuals are drawn with their
+    standard errors, over the fitted noise-only level and the fitted noise + jitter
+    variance binned the same way (:func:`jitterid.analysis.metrology.jitter_phase_profile`).
+
+    Parameters
+    ----------
+    measurement : JitterMeasurement
+        From :func:`jitterid.measure_jitter` on ``y``.
+    y : array_like
+        The record measured.
+    ax : Axes, optional
+    bins : int
+        Phase bins over one period.
+
+    Returns
+    -------
+    Plot
+        ``measured`` (an errorbar container), ``model`` and ``noise`` (lines).
+    """
+    from .analysis.metrology import jitter_phase_profile
+
+    prof = jitter_phase_profile(measurement, y, bins)
+    ax = _axes(ax, 1)
+    c = prof.centers
+    out: Artists = {
+        "measured": ax.errorbar(
+            c,
+            prof.resid_var,
+            yerr=prof.resid_var_stderr,
+            fmt="o",
+            ms=4,
+            color="C0",
+            ecolor="C0",
+            elinewidth=1,
+            capsize=2,
+            label="residuals: mean of (y - E y)² per bin ± 1 s.e.",
+        ),
+        "model": ax.plot(
+            c, prof.model_var, "-", color="C3", lw=2,
+            label=f"fitted noise + jitter ({measurement.family}, std "
+            f"{measurement.jitter_std / _time_unit(measurement.jitter_std)[1]:.3g} "
+            f"{_time_unit(measurement.jitter_std)[0]})",
+        )[0],
+        "noise": ax.axhline(
+            prof.noise_var, color="k", ls="--", lw=1.5,
+            label=f"fitted noise only, σ_v² = {prof.noise_var:.3g}",
+        ),
+    }
+    ax.set_xlim(0.0, 2 * math.pi)
+    ax.set_xticks(np.arange(5) * math.pi / 2, ["0", "π/2", "π", "3π/2", "2π"])
+    ax.set_xlabel("phase of the fitted sine, 2π f kT + φ (rad)")
+    ax.set_ylabel("residual variance (y units²)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(
+        f"f = {measurement.frequency:.6g} Hz, N = {np.size(y)}, {bins} phase bins",
+        fontsize="medium",
+    )
     ax.legend(loc="upper right", fontsize="small")
     ax.grid(True, alpha=0.3)
     return Plot(out, (ax,))

@@ -53,4 +53,5 @@ def main() -> None:
 
 # Command modules register themselves on ``main`` when imported (one line each below).
 from . import data as _data  # noqa: F401
+from . import jitter as _jitter  # noqa: F401
 from . import reproduce as _reproduce  # noqa: F401
