@@ -351,6 +351,7 @@ def _window_panels(
     panel: float,
     profile: _SlopeProfile,
     density: JitterLaw,
+    reach: JitterLaw | _Stretched | None = None,
 ) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
     """The panels of the windowed rule (module doc, "Windows").
 
@@ -363,9 +364,13 @@ def _window_panels(
     (with the distance to y_k shortened by ``_WINDOW_MARGIN`` sigma, for moves of theta away
     from the design). Every edge lies on a dyadic subdivision of the fixed pieces, so the
     rule changes with the jitter parameters only where a piece's depth or the support's
-    edges do. Returns (owner, a, b) sorted by owner and time."""
+    edges do. With ``reach`` (a wider law), a piece is kept by that law's pdf and compared
+    with the best piece under ``density``: the pieces then serve both. Returns (owner, a,
+    b) sorted by owner and time."""
+    wide = density if reach is None else reach
     lo, hi = density.support
-    pdf_len = _WINDOW_PDF * float(density.std)
+    rlo, rhi = wide.support
+    pdf_len = _WINDOW_PDF * float(wide.std)
     owner, a, b = pch.owner, pch.a, pch.b
     n = pch.k1 - pch.k0
     yk_all = y[pch.k0 : pch.k1]
@@ -387,9 +392,11 @@ def _window_panels(
             dlo = np.maximum((d - dev) / sigma - _WINDOW_MARGIN, 0.0)
             dhi = (d + dev) / sigma
             base = (pch.k0 + owner) * T
-            pdfs = np.array([_density(density, np.clip(v - base, lo, hi)) for v in (a, mid, b)])
-            upper = np.log(2 * half * pdfs.max(axis=0)) - 0.5 * dlo**2
-            lower = np.log(2 * half * pdfs.min(axis=0)) - 0.5 * dhi**2
+            up_pdf = np.array([_density(wide, np.clip(v - base, rlo, rhi)) for v in (a, mid, b)])  # type: ignore[arg-type]
+            lo_pdf = np.array([_density(density, np.clip(v - base, lo, hi)) for v in (a, mid, b)])
+            inside = (b - base > lo) & (a - base < hi)
+            upper = np.log(2 * half * up_pdf.max(axis=0)) - 0.5 * dlo**2
+            lower = np.where(inside, np.log(2 * half * lo_pdf.min(axis=0)), -np.inf) - 0.5 * dhi**2
             best = best_done.copy()
             np.maximum.at(best, owner, lower)
             keep = upper >= best[owner] - _WINDOW_CUT
@@ -761,7 +768,7 @@ class ExactLikelihood:
         pieces = []
         for pch in jitter_panels(law, self.T, self.N, fixed, knots, chunk=_CHUNK):
             o, a, b = _window_panels(
-                pch, self.T, y, design_sig, design_sigma, self.panel, self._profile, build  # type: ignore[arg-type]
+                pch, self.T, y, design_sig, design_sigma, self.panel, self._profile, law, build
             )
             mid = 0.5 * (a + b)
             pieces.append(_Pieces(pch.k0, pch.k1, o, a, b, (mid, design_sig(mid))))
