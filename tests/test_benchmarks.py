@@ -4,6 +4,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
@@ -48,3 +51,52 @@ def test_signal_benchmark_runs():
     ).stdout
     assert "   200 ml" in out, out
     assert "1/1" in out, out
+
+
+def _jitter_meter(tmp_path, *methods):
+    cmd = [sys.executable, str(BENCH / "jitter_meter.py"), "--quick", "--records", "3",
+           "--thetas", "0.05", "0.5", "--noises", "0.01", "--laws", "gaussian", "dual_dirac",
+           "--db", str(tmp_path / "jm.sqlite"), "--figure", str(tmp_path / "jm.png"),
+           "--methods", *methods]
+    return [subprocess.run(cmd, capture_output=True, text=True, check=True, timeout=600).stdout
+            for _ in range(2)]
+
+
+def test_jitter_meter_quick_runs_and_resumes(tmp_path):
+    """The study's quick mode with the always-available columns; a rerun resumes (computes 0)."""
+    first, second = _jitter_meter(tmp_path, "ieee1057", "jitterid")
+    assert "load" in first
+    assert "gaussian     1000   0.05    0.01 ieee1057     3/3" in first, first
+    assert "dual_dirac   1000    0.5    0.01 ieee1057     3/3" in first, first
+    import jitterid
+
+    if not hasattr(jitterid, "measure_jitter"):
+        assert "jitterid.measure_jitter does not exist" in first
+    else:
+        assert "1000   0.05    0.01 jitterid" in first, first
+    assert (tmp_path / "jm.png").stat().st_size > 0
+    assert "# computed 0 (record, method) results" in second
+    table = lambda out: out[out.index("law "):out.index("# figure")]
+    assert table(first) == table(second)
+
+
+def test_jitter_meter_adctoolbox_column(tmp_path):
+    """The adctoolbox peer (the optional ``bench`` extra): its column runs, and on one
+    moderate-jitter record it agrees with the IEEE 1057 slope regression, which is what its
+    analyze_error_by_phase computes (benchmarks/peers.py)."""
+    pytest.importorskip("adctoolbox")
+    first, _ = _jitter_meter(tmp_path, "adctoolbox", "ieee1057")
+    assert "gaussian     1000   0.05    0.01 adctoolbox   3/3" in first, first
+    sys.path.insert(0, str(BENCH))
+    try:
+        import peers
+    finally:
+        sys.path.remove(str(BENCH))
+    rng = np.random.default_rng(2)
+    k = np.arange(5000)
+    y = np.sin(2 * np.pi * 0.1234 * (k + rng.normal(0.0, 0.1, k.size))) + rng.normal(0, 1e-3, k.size)
+    ours, theirs = peers.ieee1057_jitter(y, 1.0), peers.adctoolbox_jitter(y, 1.0)
+    assert theirs == pytest.approx(ours, rel=2e-3)
+    assert ours == pytest.approx(0.1, rel=0.05)
+    # above Nyquist: the wrapper passes the alias and converts with the true frequency
+    assert peers.adctoolbox_jitter(y, 1.0, 1.1234) == pytest.approx(theirs * 0.1234 / 1.1234, rel=2e-3)

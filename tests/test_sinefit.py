@@ -260,7 +260,7 @@ def test_errors_name_the_argument_and_the_fix():
 def test_four_parameter_failures_are_flagged_not_raised():
     t = np.arange(1000.0)
     y = np.sin(2 * np.pi * 0.1 * t)
-    left = sine_fit_4(y, t, 0.49, frequency_bounds=(0.0, 0.5))
+    left = sine_fit_4(np.sin(2 * np.pi * 0.0123 * t + 0.3), t, 0.499, frequency_bounds=(0.0, 0.5))
     assert isinstance(left, SineFit)
     assert not left.converged
     assert "left frequency_bounds (0, 0.5)" in left.message
@@ -270,5 +270,10 @@ def test_four_parameter_failures_are_flagged_not_raised():
     assert "no convergence in 1 iterations" in short.message
     with pytest.raises(ValueError, match="fit did not converge"):
         slope_regression_jitter(y, t, short)
-    side = sine_fit_4(y, t, 0.3)  # far from the sine: stops where the sine explains nothing
-    assert "explains only" in side.message
+    # far from the sine (orthogonal to it over the record): nothing to linearise about
+    far = sine_fit_4(y, t, 0.3)
+    assert not far.converged
+    assert "fitted amplitude vanished at 0.3 Hz" in far.message
+    # a start many bins off stops at a stationary point on a side lobe: the message says so
+    lobe = sine_fit_4(np.sin(2 * np.pi * 0.0123 * t), t, 0.2)
+    assert "explains only 0 % of the record's variance" in lobe.message

@@ -55,7 +55,7 @@ __all__ = [
 _MIN_SAMPLES_3 = 4  # three parameters and at least one residual degree of freedom
 _MIN_SAMPLES_4 = 5
 _MIN_SAMPLES_PERIODOGRAM = 8
-_COND_LIMIT = 1e-8  # smallest / largest singular value of the sine fit's design matrix
+_COND_LIMIT = 1e-6  # smallest / largest singular value of the equilibrated design matrix
 
 
 # --------------------------------------------------------------------------- checks
@@ -252,14 +252,33 @@ def periodogram_peak(y: ArrayLike, T: float, *, oversample: int = 8) -> float:
 # --------------------------------------------------------------------------- fits
 
 
+def _lsq(design: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """Least squares by the normal equations plus one step of iterative refinement.
+
+    The columns must be O(1) (as cos, sin, 1 are). Returns the coefficients and the
+    smallest / largest singular value of the design (the square root of the Gram's
+    eigenvalue ratio); coefficients are zero when that is below ``_COND_LIMIT``. The sine
+    fits' columns are nearly orthogonal over several periods, so this is as accurate as an
+    SVD solve and several times faster on long records (N = 10^5).
+    """
+    gram = design.T @ design
+    eig = np.linalg.eigvalsh(gram)
+    ratio = math.sqrt(max(float(eig[0]), 0.0) / float(eig[-1]))
+    if ratio < _COND_LIMIT:
+        return np.zeros(design.shape[1]), ratio
+    coef = np.asarray(np.linalg.solve(gram, design.T @ y), dtype=np.float64)
+    coef += np.linalg.solve(gram, design.T @ (y - design @ coef))
+    return coef, ratio
+
+
 def _fit3_centered(
     y: NDArray[np.float64], tc: NDArray[np.float64], omega: float
 ) -> tuple[float, float, float, float]:
     """Least squares ``alpha cos(omega tc) + beta sin(omega tc) + c``; returns (alpha, beta, c, ssr)."""
     ph = omega * tc
     design = np.column_stack((np.cos(ph), np.sin(ph), np.ones_like(tc)))
-    coef, _, _, sv = np.linalg.lstsq(design, y, rcond=None)
-    if sv[-1] < _COND_LIMIT * sv[0]:
+    coef, ratio = _lsq(design, y)
+    if ratio < _COND_LIMIT:
         f = omega / (2 * np.pi)
         raise ValueError(
             f"frequency = {f:.10g} Hz makes the cosine and sine columns (nearly) dependent at "
@@ -440,9 +459,25 @@ def sine_fit_4(
     for it in range(1, int(max_iterations) + 1):
         ph = omega * tc
         cos_, sin_ = np.cos(ph), np.sin(ph)
-        design = np.column_stack((cos_, sin_, ones, tc * (-alpha * sin_ + beta * cos_)))
-        coef = np.linalg.lstsq(design, arr, rcond=None)[0]
-        step = float(coef[3])
+        amp = math.hypot(alpha, beta)
+        if amp <= 1e-12 * float(np.max(np.abs(arr))):
+            return _result(
+                arr, tt, tm, omega, it - 1, False,
+                f"iteration {it}: the fitted amplitude vanished at {omega / (2 * np.pi):.6g} Hz, "
+                "so the frequency cannot be updated: start closer, e.g. from periodogram_peak(y, T)",
+            )
+        dscale = half_span * amp  # the frequency column, scaled to O(1)
+        design = np.column_stack(
+            (cos_, sin_, ones, (tc / half_span) * (-alpha * sin_ + beta * cos_) / amp)
+        )
+        coef, ratio = _lsq(design, arr)
+        if ratio < _COND_LIMIT:
+            return _result(
+                arr, tt, tm, omega, it - 1, False,
+                f"iteration {it}: the frequency column is (nearly) dependent on the others (the "
+                "fitted amplitude vanished): start closer, e.g. from periodogram_peak(y, T)",
+            )
+        step = float(coef[3]) / dscale
         new = omega + step
         if not 2 * np.pi * lo < new < 2 * np.pi * hi:
             return _result(
@@ -505,11 +540,14 @@ def slope_regression_jitter(y: ArrayLike, t: ArrayLike, fit: SineFit) -> SlopeRe
 
     Limits, by construction:
 
-    - it linearises in the jitter, valid for ``2 pi f sigma_tau << 1``. For Gaussian jitter
-      the estimate tends to ``(2 pi f sigma)**2 -> 1 - exp(-(2 pi f sigma)**2)``: about 6 %
-      low in the standard deviation at 0.5 rad and 20 % low at 1 rad (the fitted amplitude
-      shrinks by ``exp(-(2 pi f sigma)**2 / 2)`` and the residual's phase dependence
-      saturates); the surplus appears as apparent noise;
+    - it linearises in the jitter, valid for ``2 pi f sigma_tau << 1``. For a symmetric
+      jitter law, with ``phi_m = E cos(m 2 pi f tau)``, the fitted amplitude shrinks by
+      ``phi_1`` and the estimated phase variance ``(2 pi f sigma)**2`` tends to
+      ``(phi_1**2 - phi_2) / phi_1**2`` as N grows. For Gaussian jitter that is ``1 -
+      exp(-(2 pi f sigma)**2)``: about 6 % low in the standard deviation at 0.5 rad, 20 %
+      low at 1 rad (measured: 0.940 and 0.792); for a dual-Dirac law (+-delta) it is
+      ``tan(2 pi f delta)**2``, biased *high*; the rest of the residual appears as apparent
+      noise;
     - the sine fit removes 3 (or 4) degrees of freedom from the residuals, so both
       variances are biased low by a relative ``O(p / N)`` (no correction is applied);
     - it is a moment method: it ignores the shape of the jitter law and the noise's
