@@ -122,9 +122,28 @@ def test_monte_carlo_coverage_and_efficiency_of_the_jitter_std():
         se.append(m.jitter_std_stderr)
         lo, hi = m.interval(0.95)
         cover += lo <= std <= hi
-    truth = [std, 1.3, 0.3, F, 0.2]
-    bound = ji.crb(ji.SineWave(), ji.GaussianFamily(), None, T, N, 1e-2, truth)
+    truth = [std, 1.3, 0.3, F, 0.2]  # sigma, amplitude, phase, frequency, offset
+    bound = ji.crb(
+        ji.SineWave(), ji.GaussianFamily(), None, T, N, 1e-2, truth, estimate_noise=True,
+        draws=40, rng=5,
+    )
     ratio = np.std(est) / np.sqrt(bound[0, 0])
     assert 0.85 <= ratio <= 1.2, ratio
     assert 0.90 <= cover / R <= 0.98, cover / R
     assert abs(np.mean(est) - std) < 3.5 * np.std(est) / np.sqrt(R)
+
+
+def test_sampled_fisher_information_agrees_with_the_integral_over_y():
+    """Two routes to the Cramer-Rao bound of a sine record: (L3)'s integral over y per
+    sample, and the mean outer product of the exact scores over simulated records."""
+    truth = [0.3 / (2 * np.pi * F), 1.3, 0.3, F, 0.2]
+    N = 60
+    a = ji.crb(ji.SineWave(), ji.GaussianFamily(), None, T, N, 5e-2, truth, estimate_noise=True)
+    b = ji.crb(
+        ji.SineWave(), ji.GaussianFamily(), None, T, N, 5e-2, truth, estimate_noise=True,
+        draws=300, rng=1,
+    )
+    # relative error of the sampled information ~ sqrt(2 / (300 * 60)) = 1 % per element
+    np.testing.assert_allclose(np.sqrt(np.diag(b)), np.sqrt(np.diag(a)), rtol=0.06)
+    with pytest.raises(ValueError, match="rng"):
+        ji.crb(ji.SineWave(), ji.GaussianFamily(), None, T, N, 5e-2, truth, draws=3)
