@@ -124,3 +124,43 @@ def test_bad_arguments_name_the_fix():
         ji.MultiTone([0.1, 0.1])
     with pytest.raises(ValueError, match="frequency_hz"):
         ji.SineWave().signal([1.0, 0.0, -0.2, 0.0])
+
+
+def test_simulate_samples_a_signal_model_at_jittered_instants():
+    theta, law, N = [1.2, 0.3, 0.61, 0.1], ji.Uniform(0.3), 50
+    d = ji.simulate(ji.SineWave().signal(theta), None, law, T, N, 0.01, 4)
+    gen = np.random.default_rng(4)
+    tau = law.sample(N, gen)
+    t = np.arange(N) * T + tau
+    y = 1.2 * np.sin(2 * np.pi * 0.61 * t + 0.3) + 0.1 + 0.01 * gen.standard_normal(N)
+    np.testing.assert_allclose(d.y, y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(d.instants, t)
+    assert d.u is None
+    with pytest.raises(ValueError, match="u must be None"):
+        ji.simulate(ji.SineWave().signal(theta), ji.telegraph_input(100.0, 1), law, T, N, 0.01, 4)
+    with pytest.raises(TypeError, match="Signal"):
+        ji.simulate(ji.SineWave(), None, law, T, N, 0.01, 4)
+
+
+@pytest.mark.parametrize(
+    ("model", "theta"),
+    [
+        (ji.SineWave(harmonics=2), [1.0, 0.3, 0.4, 1.0, 0.31, 0.2]),
+        (ji.SineWave(form="iq"), [0.7, -1.1, 0.61, -0.2]),
+        (ji.MultiTone([0.05, 0.21]), [1.0, 0.1, 0.5, 2.0, 0.3]),
+    ],
+    ids=["polar-harmonics", "iq", "multitone"],
+)
+def test_second_derivatives_match_differences_of_the_gradient_and_slope(model, theta):
+    theta = np.asarray(theta, float)
+    t = np.linspace(0, 15, 23)
+    hess, dslope, curv = model.signal(theta).second_derivatives(t)
+    for i in range(theta.size):
+        up, dn = theta.copy(), theta.copy()
+        up[i] += 1e-6
+        dn[i] -= 1e-6
+        su, sd = model.signal(up), model.signal(dn)
+        np.testing.assert_allclose(hess[i], (su.gradient(t) - sd.gradient(t)) / 2e-6, atol=1e-5)
+        np.testing.assert_allclose(dslope[i], (su.slope(t) - sd.slope(t)) / 2e-6, atol=1e-5)
+    sig = model.signal(theta)
+    np.testing.assert_allclose(curv, (sig.slope(t + 1e-6) - sig.slope(t - 1e-6)) / 2e-6, atol=1e-5)

@@ -10,6 +10,7 @@ from .data import SampledData
 from .inputs import Input
 from .jitter.laws import JitterLaw
 from .noise.models import NoiseModel
+from .systems.model import Signal
 from .systems.tf import TransferFunction
 
 __all__ = ["SampledData", "simulate"]
@@ -18,8 +19,8 @@ FloatArray = NDArray[np.float64]
 
 
 def simulate(
-    system: TransferFunction,
-    u: Input,
+    system: TransferFunction | Signal,
+    u: Input | None,
     jitter: JitterLaw,
     T: float,
     N: int,
@@ -28,17 +29,21 @@ def simulate(
     *,
     noise_model: NoiseModel | None = None,
 ) -> SampledData:
-    """Sample the exact output of ``system`` to ``u`` at jittered instants, eq. (1a).
+    """Sample the exact output of ``system`` to ``u`` (or a signal) at jittered instants,
+    eq. (1a).
 
     y_k = s(kT + tau_k) + v_k with tau_k i.i.d. from ``jitter`` and v_k ~ N(0, noise_std^2);
     with ``noise_model``, v_k also holds the coloured noise v(kT + tau_k) of (1c).
 
     Parameters
     ----------
-    system : TransferFunction
-        Stable continuous-time system, at rest before the input starts.
-    u : Input
-        Known input; must last past the last possible instant (N-1) T + max tau.
+    system : TransferFunction or Signal
+        Stable continuous-time system, at rest before the input starts; or a signal with
+        no input, s(t), e.g. ``SineWave().signal([amplitude, phase_rad, frequency_hz,
+        offset])`` (then ``u`` is None).
+    u : Input or None
+        Known input of ``system``; must last past the last possible instant
+        (N-1) T + max tau. None for a signal.
     jitter : JitterLaw
         Law of the sampling-time jitter tau_k.
     T : float
@@ -70,11 +75,24 @@ def simulate(
             "noise_model must be a NoiseModel (e.g. NoiseModel(TransferFunction([b], [1, c]))) "
             f"or None for white noise only; got {type(noise_model).__name__}"
         )
+    if isinstance(system, Signal):
+        if u is not None:
+            raise ValueError("u must be None when system is a signal (it has no input)")
+        signal = system
+    elif isinstance(system, TransferFunction):
+        if u is None:
+            raise ValueError("u (the known input) is required with a TransferFunction")
+        u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
+        signal = system.response(u)
+    else:
+        raise TypeError(
+            "system must be a TransferFunction or a Signal (model.signal(params)); got "
+            f"{type(system).__name__}"
+        )
     gen = generator(rng)
-    u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
     tau = np.asarray(jitter.sample(N, gen), dtype=float)
     instants = T * np.arange(N) + tau
-    s = system.response(u)(instants)
+    s = signal(instants)
     y = s + noise_std * gen.standard_normal(N)
     if noise_model is not None:
         y = y + noise_model.sample(instants, gen)

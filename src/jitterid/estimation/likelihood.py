@@ -39,6 +39,14 @@ With posterior weights pi_j = w_j N(y; s_j, sigma_v^2) / p(y) (sum 1 per sample)
     d ln p / d sigma_v = sum_j pi_j ((y - s_j)^2 / sigma_v^3 - 1 / sigma_v)
     d ln p / d y       = -sum_j pi_j (y - s_j) / sigma_v^2,
 
+and, with e_j = (y - s_j) / sigma_v and D_j = ds_j / dtheta, the observed information
+
+    -d^2 ln p / dtheta^2 = g g^T + sum_j pi_j [(1 - e_j^2) D_j D_j^T / sigma_v^2
+                                              - e_j d^2 s_j / dtheta^2 / sigma_v]      (L5)
+
+(exact where the signal gives d^2 s: :meth:`~jitterid.systems.model.Signal.
+second_derivatives`; the Gauss-Newton form without the last term otherwise),
+
 ds/dtheta at the (fixed) nodes from the modal form of the response, with the same
 exponentials as s (:class:`_NodeSignal`; forward differences of s for inputs that are not
 piecewise constant). A jitter family's scale a (the law of a xi) moves the nodes only:
@@ -103,6 +111,7 @@ _WINDOW_MARGIN = 1.0  # ... with the distance |y - s| shortened by this many sig
 _WINDOW_ROUNDS = 48  # halvings at most
 _WINDOW_FLOOR = 1e-12  # ... and no piece shorter than this times T
 _WINDOW_PDF = 0.6  # no piece longer than this many jitter std's
+_WINDOW_SIGMA_STEP = 0.25  # a noise std below this fraction of the design's is refused
 _WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby scales)
 _WINDOW_EXTRA_ORDER = 4  # Gauss-Legendre nodes per piece: order + this (pieces span 4 sigma
 #                          of the Gaussian factor by a tight slope bound; near an extremum of
@@ -515,6 +524,26 @@ def _evaluate(
     return _Eval(nodes, s, e, logp, ez / total[nodes.owner])
 
 
+def _second_block(
+    second: tuple[FloatArray, FloatArray, FloatArray],
+    tau: FloatArray,
+    x: FloatArray,
+    scale: int | None,
+) -> FloatArray:
+    """d^2 s at the nodes over (the jitter scale a, if any, then) the system parameters:
+    with xi = tau / a, d^2 s / da^2 = xi^2 s'', d^2 s / da dtheta = xi ds'/dtheta."""
+    hss, dslope, curv = second
+    if scale is None:
+        return hss
+    xi = tau / x[scale]
+    ns = hss.shape[0]
+    out = np.empty((ns + 1, ns + 1, tau.size))
+    out[1:, 1:] = hss
+    out[0, 0] = xi**2 * curv
+    out[0, 1:] = out[1:, 0] = xi * dslope
+    return out
+
+
 def _has_slope(sig: Signal, analytic: bool) -> bool:
     """Whether s'(t) is available at the nodes: from the modal form, or the signal's own."""
     return analytic or sig.has_slope
@@ -705,7 +734,10 @@ class ExactLikelihood:
         (``y = None`` asks for the full rule: the Fisher information's y-grid). A windowed
         rule is re-designed at ``x`` when the signal there has moved from the design's by
         more than ``_WINDOW_MARGIN / 2`` noise std's at a piece's midpoint, or the noise std
-        ``sigma`` fell below half the design's (its windows would be too coarse)."""
+        ``sigma`` fell below half the design's (its windows would be too coarse); below
+        ``_WINDOW_SIGMA_STEP`` of it the point is refused (ValueError: the search's step is
+        rejected and shortened), so that one trial step towards noise_std = 0 does not
+        re-design the rule for a vanishing noise."""
         if self._cuts is None and self._design is None:
             self.design(x)
         if self._design is not None:
@@ -729,6 +761,12 @@ class ExactLikelihood:
         nodes = self._cache[key]
         if self._design is not None and y is not None and sigma is not None:
             d_sigma = self._design[1]
+            if sigma < _WINDOW_SIGMA_STEP * d_sigma:
+                raise ValueError(
+                    f"noise_std = {sigma:.3g} is below {_WINDOW_SIGMA_STEP:g} of the windowed "
+                    f"rule's design ({d_sigma:.3g}); a search takes a shorter step (re-design "
+                    "the rule there to evaluate it: design(x))"
+                )
             moved = sigma < 0.5 * d_sigma or any(
                 nd.probe is not None
                 and np.max(np.abs(sig(nd.probe[0]) - nd.probe[1]), initial=0.0)
@@ -736,7 +774,7 @@ class ExactLikelihood:
                 for nd in nodes
             )
             if moved:
-                self._design = (sig, max(sigma, 0.25 * d_sigma))
+                self._design = (sig, sigma)
                 self._cache.clear()
                 self._pieces = None
                 nodes = self._cache[key] = list(self._make_windowed(law, sig, y))
@@ -987,11 +1025,21 @@ class ExactLikelihood:
                 G[rows, cols] = np.add.reduceat(A * ev.post, nd.starts, axis=1).T
             if information:
                 e2, pi = ev.e**2, ev.post
-                # the Gauss-Newton term over the system parameters only: the jitter scale's
-                # stays BHHH, as before its score was analytic (the profile in n has a local
-                # maximum at each integer, and this keeps the search on the same path)
-                Dg, gn = (D[1:], inner[1:]) if scale is not None else (D, inner)
-                C[np.ix_(gn, gn)] += (Dg * (pi * (1 - e2))) @ Dg.T / sigma**2
+                second = None if analytic or not ns else sig.second_derivatives(nd.t)
+                if second is not None:
+                    # the exact observed information (L5) over the scale and the system
+                    Dg, gn = D, inner
+                    Hs = _second_block(second, nd.t - (nd.k0 + nd.owner) * self.T, x, scale)
+                    C[np.ix_(gn, gn)] += (Dg * (pi * (1 - e2))) @ Dg.T / sigma**2 - np.einsum(
+                        "abn,n->ab", Hs, pi * ev.e
+                    ) / sigma
+                else:
+                    # the Gauss-Newton term over the system parameters only: the jitter
+                    # scale's stays BHHH, as before its score was analytic (the profile in n
+                    # has a local maximum at each integer, and this keeps the search on the
+                    # same path)
+                    Dg, gn = (D[1:], inner[1:]) if scale is not None else (D, inner)
+                    C[np.ix_(gn, gn)] += (Dg * (pi * (1 - e2))) @ Dg.T / sigma**2
                 if noise:
                     cross = Dg @ (pi * ev.e * (3 - e2)) / sigma**2
                     C[gn, -1] += cross

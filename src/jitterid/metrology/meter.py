@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import positive, real_array
 from ..data import SampledData
 from ..estimation.fit import fit
+from ..estimation.likelihood import ExactLikelihood
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
 from ..systems.model import Model
@@ -295,11 +296,22 @@ def _fit_one(
     x0 = np.r_[_family_start(family, sj), theta, sv]
     gauss = fit(data, model, family, method="gaussian", start=x0)
     xg = np.asarray(gauss.x, dtype=float).copy()
-    if not (gauss.success and np.all(np.isfinite(xg))):
-        xg = x0
-    if not xg[-1] > 0.1 * sv:  # the Gaussian criterion put the noise at its bound 0
-        xg[-1] = sv
-    return fit(data, model, family, method="ml", start=xg)
+    cands = [x0]
+    if gauss.success and np.all(np.isfinite(xg)):
+        if not xg[-1] > 0.1 * sv:  # the Gaussian criterion put the noise at its bound 0
+            xg[-1] = sv
+        cands.insert(0, xg)
+    # the better of the two by the likelihood itself (the second-moment criterion can
+    # trade jitter for noise where the law is far from Gaussian)
+    lik = ExactLikelihood(model, family, None, data.T, data.N)
+    scored: list[tuple[float, int, FloatArray]] = []
+    for c in cands:
+        try:
+            scored.append((-lik.loglik(c, data.y), len(scored), c))
+        except ValueError:
+            continue
+    best = min(scored)[2] if scored else xg
+    return fit(data, model, family, method="ml", start=best)
 
 
 def _stderr(result: FitResult, name: str) -> float:

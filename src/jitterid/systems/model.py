@@ -88,6 +88,12 @@ class Signal(abc.ABC):
         scale is then differenced like its other parameters)."""
         return None
 
+    def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """(d^2 s / dtheta^2 shape (P, P, n), d s' / dtheta shape (P, n), s'' shape (n,)) at
+        the instants ``t``, or None: not in closed form (the likelihood's Newton matrix then
+        drops the second-derivative term, (L5) of :mod:`jitterid.estimation.likelihood`)."""
+        return None
+
     def jitter_moments(
         self,
         jitter: JitterLaw,

@@ -53,6 +53,7 @@ class _ToneMap:
     dc: FloatArray  # (P,)
     da: ComplexArray  # (P, H)
     dw: FloatArray  # (P, H)
+    d2a: dict[tuple[int, int, int], complex] | None = None  # nonzero d^2 a_h entries
 
 
 class ToneSignal(Signal):
@@ -104,6 +105,28 @@ class ToneSignal(Signal):
         c, s = self._cos_sin(t)
         b = tn.w * tn.a  # Im(i w a e^{iwt}) = Re(w a) cos - Im(w a) sin
         return np.asarray(b.real @ c - b.imag @ s, dtype=float)
+
+    def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """d^2 s / dtheta^2, d s'/dtheta and s'' in closed form. With z = e^{i w t} and
+        s = c + Im(a z): d^2 s = Im(d2a z + i t (da dw^T + dw da^T) z - t^2 a dw dw^T z)
+        (a is linear or e^{i phi} in its parameters: d2a from :attr:`_ToneMap`), ds' =
+        Im(i (dw a + w da) z - t w a dw z), s'' = Im(-w^2 a z)."""
+        tn = self.tones
+        c, s = self._cos_sin(t)
+        z = c + 1j * s  # (H, n)
+        P = tn.dc.size
+        d2a = _second_amplitudes(tn)  # (P, P, H)
+        hz = np.einsum("pqh,hn->pqn", d2a, z)
+        da_z = tn.da[:, :, None] * z[None, :, :]  # (P, H, n)
+        cross = np.einsum("ph,qhn->pqn", tn.dw, da_z)
+        hz += 1j * t * (cross + np.transpose(cross, (1, 0, 2)))
+        adw = tn.dw * tn.a[None, :]  # (P, H)
+        hz -= t**2 * np.einsum("ph,qh,hn->pqn", tn.dw, adw, z)
+        hess = np.imag(hz).reshape(P, P, t.size)
+        wa = tn.w * tn.a
+        dsl = np.imag(1j * ((tn.dw * tn.a[None, :] + tn.w[None, :] * tn.da) @ z) - t * ((tn.dw * wa[None, :]) @ z))
+        curv = np.imag(-(tn.w**2 * tn.a) @ z)
+        return np.asarray(hess, float), np.asarray(dsl, float), np.asarray(curv, float)
 
     def jitter_moments(
         self,
@@ -179,6 +202,18 @@ class ToneSignal(Signal):
         return MomentPass(mean, var, dmean, dvar, scale_mean, scale_var)
 
 
+def _second_amplitudes(tn: _ToneMap) -> ComplexArray:
+    """d^2 a_h / dtheta dtheta^T, shape (P, P, H): nonzero only for the polar form, where
+    a = A e^{i phi}: d^2 a / dA dphi = i e^{i phi}, d^2 a / dphi^2 = -a."""
+    P, H = tn.da.shape
+    out = np.zeros((P, P, H), complex)
+    if tn.d2a is None:
+        return out
+    for (i, j, h), v in tn.d2a.items():
+        out[i, j, h] += v
+    return out
+
+
 def _chi(law: JitterLaw, nus: FloatArray) -> tuple[ComplexArray, ComplexArray]:
     """chi(nu) = E[e^{i nu tau}] and chi'(nu) = E[i tau e^{i nu tau}] by the law's own
     quadrature, with enough nodes per panel for the fastest oscillation."""
@@ -201,6 +236,16 @@ def _chi(law: JitterLaw, nus: FloatArray) -> tuple[ComplexArray, ComplexArray]:
 
 
 # ------------------------------------------------------------------------------ the models
+def _polar_second(a: ComplexArray, unit: ComplexArray) -> dict[tuple[int, int, int], complex]:
+    """The nonzero d^2 a_h of the polar form, parameters (A_h, phi_h) at (2h, 2h + 1):
+    d^2 a / dA dphi = i e^{i phi}, d^2 a / dphi^2 = -a."""
+    out: dict[tuple[int, int, int], complex] = {}
+    for h in range(a.size):
+        out[(2 * h, 2 * h + 1, h)] = out[(2 * h + 1, 2 * h, h)] = 1j * complex(unit[h])
+        out[(2 * h + 1, 2 * h + 1, h)] = -complex(a[h])
+    return out
+
+
 def _frequency_bounds(band_hz: tuple[float, float] | None) -> tuple[float, float]:
     if band_hz is None:
         return (0.0, np.inf)
@@ -327,11 +372,13 @@ class SineWave(Model):
         dw = np.zeros((P, H))
         dc = np.zeros(P)
         dc[-1] = 1.0
+        d2a: dict[tuple[int, int, int], complex] | None = None
         if self.form == "polar":
             A, ph = x[0 : 2 * H : 2], x[1 : 2 * H : 2]
             a = A * np.exp(1j * ph)
             da[2 * h - 2, h - 1] = np.exp(1j * ph)
             da[2 * h - 1, h - 1] = 1j * a
+            d2a = _polar_second(a, np.exp(1j * ph))
         else:
             inph, quad = x[0 : 2 * H : 2], x[1 : 2 * H : 2]
             a = quad + 1j * inph
@@ -339,7 +386,7 @@ class SineWave(Model):
             da[2 * h - 1, h - 1] = 1.0
         if self.frequency_hz is None:
             dw[2 * H] = 2 * np.pi * h
-        return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, dw)
+        return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, dw, d2a)
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
         """s(t; params); ``u`` is ignored (the model has no input)."""
@@ -452,15 +499,17 @@ class MultiTone(Model):
         da = np.zeros((P, J), complex)
         dc = np.zeros(P)
         dc[-1] = 1.0
+        d2a: dict[tuple[int, int, int], complex] | None = None
         if self.form == "polar":
             a = x[0 : 2 * J : 2] * np.exp(1j * x[1 : 2 * J : 2])
             da[2 * j, j] = np.exp(1j * x[1 : 2 * J : 2])
             da[2 * j + 1, j] = 1j * a
+            d2a = _polar_second(a, np.exp(1j * x[1 : 2 * J : 2]))
         else:
             a = x[1 : 2 * J : 2] + 1j * x[0 : 2 * J : 2]
             da[2 * j, j] = 1j
             da[2 * j + 1, j] = 1.0
-        return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, np.zeros((P, J)))
+        return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, np.zeros((P, J)), d2a)
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
         """s(t; params); ``u`` is ignored (the model has no input)."""
