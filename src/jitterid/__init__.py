@@ -49,6 +49,7 @@ from .jitter.laws import (
     Uniform,
     UniformFamily,
 )
+from .jitter.regular import DualDirac, DualDiracFamily, GeneralizedNormal, GeneralizedNormalFamily
 from .metrology.meter import JitterMeasurement, alias_likelihoods, measure_jitter
 from .moments.reference import dirichlet, dtft
 from .moments.sample import (
@@ -79,10 +80,14 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CustomJitter",
+    "DualDirac",
+    "DualDiracFamily",
     "FitResult",
     "FitStatus",
     "Gaussian",
     "GaussianFamily",
+    "GeneralizedNormal",
+    "GeneralizedNormalFamily",
     "Input",
     "JitterFamily",
     "JitterLaw",

@@ -6,13 +6,16 @@ b_NUM..b_0 of the numerator, a_{DEN-1}..a_0 of the monic denominator). ``tf:0,2`
 b0 / (s^2 + a1 s + a0).
 
 Jitter: ``none``; a known law ``known:uniform:a=0.5``, ``known:gaussian:sigma=0.1``,
-``known:sum-of-uniforms:n=2,a=0.5``; or a family to estimate, ``uniform``, ``gaussian``,
-``sum-of-uniforms``, optionally bounded (``uniform:a_max=0.5``,
+``known:sum-of-uniforms:n=2,a=0.5``, ``known:generalized-normal:std=0.1,beta=3``,
+``known:dual-dirac:rj=0.05,dj=0.2``; or a family to estimate, ``uniform``, ``gaussian``,
+``sum-of-uniforms``, ``generalized-normal``, ``dual-dirac``, optionally bounded (``uniform:a_max=0.5``,
 ``sum-of-uniforms:n_max=10,a_max=0.5``, ``gaussian:sigma_max=0.3``). Where only a law makes
 sense (``simulate``, ``bias``) the ``known:`` prefix may be left out.
 
-Times (``a``, ``sigma`` and their bounds) take a unit, ``sigma=80ms``; a bare number is in
-the data file's ``time_unit`` (seconds where there is no file). ``n`` has no unit.
+Times (``a``, ``sigma``, ``std``, ``rj``, ``dj`` and their bounds) take a unit, ``sigma=80ms``;
+a bare number is in the data file's ``time_unit`` (seconds where there is no file). ``n`` and
+``beta`` have no unit. Kinds may be spelled with ``_`` too (``sum_of_uniforms``); the one table
+of kinds is :mod:`jitterid.jitter.registry`.
 """
 
 from __future__ import annotations
@@ -21,38 +24,26 @@ import math
 from typing import Any
 
 from ..io import parse_time
-from ..jitter.laws import (
-    Gaussian,
-    GaussianFamily,
-    JitterFamily,
-    JitterLaw,
-    NoJitter,
-    SumOfUniforms,
-    SumOfUniformsFamily,
-    Uniform,
-    UniformFamily,
-)
+from ..jitter import registry
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..systems.structures import ModelStructure, PolePairGain, RationalModel
 
 __all__ = ["model_label", "parse_floats", "parse_jitter", "parse_model"]
 
-_LAWS: dict[str, tuple[type[JitterLaw], tuple[str, ...]]] = {
-    "uniform": (Uniform, ("a",)),
-    "gaussian": (Gaussian, ("sigma",)),
-    "sum-of-uniforms": (SumOfUniforms, ("n", "a")),
-}
-_FAMILIES: dict[str, tuple[type[JitterFamily], tuple[str, ...]]] = {
-    "uniform": (UniformFamily, ("a_max", "a_min")),
-    "gaussian": (GaussianFamily, ("sigma_max", "sigma_min")),
-    "sum-of-uniforms": (SumOfUniformsFamily, ("n_max", "a_max", "a_min")),
-}
+# the registry's tables, spelled with "-" (either spelling is accepted: registry.canonical)
+_LAWS: dict[str, tuple[type[JitterLaw], tuple[str, ...]]] = registry.table(
+    registry.LAWS, "-", exclude=("none",)
+)
+_FAMILIES: dict[str, tuple[type[JitterFamily], tuple[str, ...]]] = registry.table(registry.FAMILIES, "-")
 #: Parameters without a time unit (all others are times).
-_UNITLESS = ("n", "n_max")
+_UNITLESS = registry.UNITLESS
 #: Largest time accepted in a jitter specification (s): far beyond any sampling problem.
 MAX_TIME_S = 1e9
 JITTER_HELP = (
-    "none | known:uniform:a=A | known:gaussian:sigma=S | known:sum-of-uniforms:n=N,a=A "
-    "(a known law) | uniform | gaussian | sum-of-uniforms (a family to estimate, optionally "
+    "none | known:uniform:a=A | known:gaussian:sigma=S | known:sum-of-uniforms:n=N,a=A | "
+    "known:generalized-normal:std=S,beta=B | known:dual-dirac:rj=R,dj=D "
+    "(a known law) | uniform | gaussian | sum-of-uniforms | generalized-normal | dual-dirac "
+    "(a family to estimate, optionally "
     "bounded, e.g. uniform:a_max=0.5). Times take a unit (sigma=80ms); a bare number is in "
     "the data file's time_unit (seconds by default)"
 )
@@ -194,9 +185,9 @@ def parse_jitter(
         return NoJitter()
     if low.startswith("known:"):
         name, _, body = s[6:].partition(":")
-        return _law(name.strip().lower(), body.strip(), spec, time_unit)
+        return _law(registry.canonical(name), body.strip(), spec, time_unit)
     name, _, body = s.partition(":")
-    name = name.strip().lower()
+    name = registry.canonical(name)
     if law_only:
         return _law(name, body.strip(), spec, time_unit)
     if name not in _FAMILIES:

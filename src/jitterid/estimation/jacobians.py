@@ -20,8 +20,12 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
 - the scale a of a scale family (tau = a xi: ``UniformFamily``, ``GaussianFamily``, and ``a``
   of ``SumOfUniformsFamily``): dm/da = E[s'(kT + tau) tau] / a plus the jumps of s,
   (M3) of :mod:`jitterid.moments.modal`, from the same pass (for a smooth signal model from
-  its slope, :func:`~jitterid.moments.sample.moment_pass`). Other jitter parameters (``n``) change
-  the shape of the law and move the quadrature nodes: a one-sided difference of the moments
+  its slope, :func:`~jitterid.moments.sample.moment_pass`). Other jitter parameters change
+  the shape of the law. Where the family gives dp/dtheta in closed form
+  (:meth:`JitterFamily.pdf_gradient`: ``GeneralizedNormalFamily``'s beta, both parameters of
+  ``DualDiracFamily``), dm = sum_j w_j dp/dtheta(tau_j) s(t_j) at the base law's own nodes,
+  and dVar alike (:func:`_law_derivative`), one extra pass each and smooth in theta.
+  Otherwise (``n``, which moves the quadrature nodes) a one-sided difference of the moments
   (the step of scipy's "2-point" rule, which these replace), one extra evaluation each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
 
@@ -32,15 +36,16 @@ e^{-i 2 pi (f - psi) kT} from :meth:`Problem.dmu` and :meth:`Problem.dR`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
 from ..inputs import PiecewiseConstant
-from ..jitter.laws import JitterLaw
+from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.modal import (
     SegmentPlan,
     Tables,
@@ -52,6 +57,7 @@ from ..moments.modal import (
 )
 from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
+from ..systems.model import Signal
 from ..systems.structures import ModelStructure
 from ..systems.tf import Response, TransferFunction
 
@@ -126,6 +132,67 @@ def _variances(plan: SegmentPlan, tab: Tables) -> FloatArray:
     return var
 
 
+class _PdfDerivative(JitterLaw):
+    """The signed measure dp/dtheta_i of a family's law, posing as a law with the base law's
+    support, breakpoints and std, so that the moment passes lay out the base law's own nodes
+    and sum w_j dp/dtheta_i(tau_j) g(t_j) instead of w_j p(tau_j) g(t_j)."""
+
+    def __init__(self, family: JitterFamily, params: list[float], law: JitterLaw, i: int) -> None:
+        self._family, self._params, self._law, self._i = family, params, law, i
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        raise NotImplementedError("a derivative of a density has no characteristic function here")
+
+    def pdf(self, tau: ArrayLike) -> FloatArray:
+        g = self._family.pdf_gradient(self._params, tau)
+        assert g is not None
+        return np.asarray(g[self._i], dtype=float)
+
+    def sample(self, size: int | Sequence[int], rng: np.random.Generator | int) -> FloatArray:
+        raise NotImplementedError("a derivative of a density cannot be sampled")
+
+    @property
+    def var(self) -> float:
+        return self._law.var
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return self._law.support
+
+    def breakpoints(self) -> FloatArray:
+        return self._law.breakpoints()
+
+    @property
+    def params(self) -> dict[str, float]:
+        return self._law.params
+
+
+def _law_derivative(
+    problem: Problem, x: FloatArray, law: JitterLaw, sig: Signal, i: int, mean: FloatArray, need_var: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """dm_k and dVar_k in jitter parameter i from the family's dp/dtheta_i at the base law's
+    nodes (:meth:`JitterFamily.pdf_gradient`): dm = sum w' s, and, with the pass's
+    Var' = sum w' (s - m')^2, dVar = sum w' (s - m)^2 = Var' + 2 m' (m' - m) (the rule's
+    sum w' = d(mass)/dtheta_i is zero up to the quadrature error, ~1e-15)."""
+    fam = problem.jitter
+    assert isinstance(fam, JitterFamily)
+    dlaw = _PdfDerivative(fam, x[: problem.n_jitter].tolist(), law, i)
+    d = problem.data
+    if _modal_path(sig):
+        assert isinstance(sig, Response)
+        assert isinstance(d.u, PiecewiseConstant)
+        p = sig.system._modal[2]
+        rate = float(np.max(np.abs(p))) if p.size else 0.0
+        plan = SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
+        dmean, dvar, _, _ = modal_moments(plan, tables(sig.system, d.u), keep=False, variance=need_var)
+    else:
+        mp = moment_pass(sig, dlaw, d.T, d.N, variance=need_var)
+        dmean, dvar = mp.mean, mp.var
+    if dvar is None:
+        return dmean, None
+    return dmean, dvar + 2 * dmean * (dmean - mean)
+
+
 def moment_derivatives(
     problem: Problem, x: FloatArray
 ) -> tuple[SampleMoments, FloatArray, FloatArray, FloatArray]:
@@ -197,9 +264,13 @@ def moment_derivatives(
             for i in range(nj, nj + ns):
                 g = finite_diff.derivative(both, x, i, problem.bounds[i], rel=_CD_REL)
                 dm[i], dv[i] = g[: d.N], g[d.N :]
-    for i in range(nj):  # other jitter parameters move the nodes: a one-sided difference
-        if analytic_scale and i == scale:
-            continue
+    shape = [i for i in range(nj) if not (analytic_scale and i == scale)]
+    grad = problem.jitter.pdf_gradient(x[:nj].tolist(), np.zeros(0)) if shape else None  # type: ignore[union-attr]
+    for i in shape if grad is not None else ():  # the family's closed-form dp/dtheta_i
+        dm[i], dvi = _law_derivative(problem, x, law, sig, i, mom.mean, need_var)
+        if dvi is not None:
+            dv[i] = dvi
+    for i in shape if grad is None else ():  # other jitter parameters move the nodes: a one-sided difference
         xi, h = finite_diff.forward(x, i, problem.bounds[i], _FD_REL, floor=1.0)
         mi = moments(problem, xi)
         dm[i] = (mi.mean - mom.mean) / h

@@ -51,7 +51,9 @@ ds/dtheta at the (fixed) nodes from the modal form of the response, with the sam
 exponentials as s (:class:`_NodeSignal`; forward differences of s for inputs that are not
 piecewise constant). A jitter family's scale a (the law of a xi) moves the nodes only:
 ds/da = (tau / a) s'(t), s' from the same modal form; its shape parameters (n) move the
-weights only: a forward difference of ln p with the shifted law's pdf at the same nodes.
+weights only: a forward difference of ln p with the shifted law's pdf at the same nodes, or,
+for a family with a closed-form dp/dtheta (``JitterFamily.pdf_gradient``),
+d ln p / d theta = sum_j pi_j (dp/dtheta / p)(tau_j) at the same nodes.
 :meth:`ExactLikelihood.maximise` uses these scores with a Gauss-Newton observed information
 in :func:`jitterid.estimation.search.newton_search`. The Fisher information of one record is
 
@@ -949,6 +951,14 @@ class ExactLikelihood:
         nodes (it may move the support, whose edges then carry part of the derivative)."""
         return tuple(getattr(self.jitter, "fixed_support_params", ()))
 
+    def _pdf_gradient(self, x: FloatArray) -> bool:
+        """Whether the jitter family gives dp/dtheta in closed form (``pdf_gradient``)."""
+        if not self.n_jitter:
+            return False
+        fam = self.jitter
+        assert isinstance(fam, JitterFamily)
+        return fam.pdf_gradient(x[: self.n_jitter].tolist(), np.zeros(0)) is not None
+
     def _terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -988,7 +998,10 @@ class ExactLikelihood:
         own_gradient = not analytic and ns and sig.has_gradient
         # parameters differenced (forward steps): jitter parameters without an analytic
         # score, and the system's where neither the modal form nor the model gives ds/dtheta
-        differenced = [i for i in range(nj) if i not in inner]
+        # jitter parameters of a family with a closed-form dp/dtheta (JitterFamily.pdf_gradient):
+        # d ln p(y_k) / dtheta_i = sum_j pi_j (dp/dtheta_i / p)(tau_j) at the same nodes
+        closed = [i for i in range(nj) if i not in inner] if self._pdf_gradient(x) else []
+        differenced = [i for i in range(nj) if i not in inner and i not in closed]
         if dmodal is None and not own_gradient:
             differenced += list(range(nj, nj + ns))
         fwd = {i: finite_diff.forward(x, i, self.bounds[i], _SCORE_STEP) for i in differenced}
@@ -1017,6 +1030,11 @@ class ExactLikelihood:
             kept.append((nd, s, ev))
             rows = slice(nd.k0, nd.k1)
             logp[rows] = ev.logp
+            if closed:
+                lo, hi = law.support
+                tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
+                ratio = self.jitter.pdf_gradient(x[:nj].tolist(), tau)[closed] / law.pdf(tau)  # type: ignore[union-attr,index]
+                G[rows, closed] = np.add.reduceat(ratio * ev.post, nd.starts, axis=1).T
             A = D * (ev.e / sigma)
             if noise:
                 A = np.vstack([A, (ev.e**2 - 1) / sigma])
@@ -1112,6 +1130,8 @@ class ExactLikelihood:
             smooth = np.arange(x0.size) >= nj
             if scale is not None:
                 smooth[scale] = True
+            if self._pdf_gradient(x0):  # a regular family (closed-form dp/dtheta)
+                smooth[:nj] = True
             if smooth.all():
                 smooth = None
         x, ok, msg, n = newton_search(

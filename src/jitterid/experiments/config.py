@@ -21,17 +21,8 @@ from typing import Any
 import numpy as np
 
 from ..inputs import Input, Multisine, telegraph_input
-from ..jitter.laws import (
-    Gaussian,
-    GaussianFamily,
-    JitterFamily,
-    JitterLaw,
-    NoJitter,
-    SumOfUniforms,
-    SumOfUniformsFamily,
-    Uniform,
-    UniformFamily,
-)
+from ..jitter import registry
+from ..jitter.laws import JitterFamily, JitterLaw
 from ..noise.models import NoiseModel, RationalNoise
 from ..systems.structures import ModelStructure, PolePairGain, RationalModel
 from ..systems.tf import TransferFunction
@@ -55,18 +46,10 @@ EXTRA_EXPERIMENTS = ("bj",)
 # Method prefixes of the Box-Jenkins estimators (fit(..., noise=...)): "bj-" with the jitter
 # model of [jitter], "jbj-" with the family of each case's law kind estimated as well.
 BJ_PREFIXES = ("bj-", "jbj-")
-# law kind -> (class, parameter names); family kind -> (class, option names)
-LAWS: dict[str, tuple[Any, tuple[str, ...]]] = {
-    "uniform": (Uniform, ("a",)),
-    "gaussian": (Gaussian, ("sigma",)),
-    "sum_of_uniforms": (SumOfUniforms, ("n", "a")),
-    "none": (NoJitter, ()),
-}
-FAMILIES: dict[str, tuple[Any, tuple[str, ...]]] = {
-    "uniform": (UniformFamily, ("a_max", "a_min")),
-    "gaussian": (GaussianFamily, ("sigma_max", "sigma_min")),
-    "sum_of_uniforms": (SumOfUniformsFamily, ("n_max", "a_max", "a_min")),
-}
+# law kind -> (class, parameter names); family kind -> (class, option names): the registry's
+# tables spelled with "_" (jitterid.jitter.registry; a TOML file may spell kinds with "-" too)
+LAWS: dict[str, tuple[Any, tuple[str, ...]]] = registry.table(registry.LAWS, "_")
+FAMILIES: dict[str, tuple[Any, tuple[str, ...]]] = registry.table(registry.FAMILIES, "_")
 Pairs = tuple[tuple[str, float], ...]
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from .._checks import TooLargeError, allocation, nesting_depth
 from ..estimation import boxjenkins
 from ..estimation import problem as criteria
+from ..jitter import registry
 from ._schema import ExperimentError, Section, _show
 from .config import (
     BJ_PREFIXES,
@@ -235,8 +236,19 @@ def _system(sec: Section) -> SystemSpec:
     return spec
 
 
+def _kind(sec: Section, k: str, table: dict[str, Any], *extra: str) -> str:
+    """A law or family kind, spelled with '_' or '-' (:mod:`jitterid.jitter.registry`), as
+    the table spells it; otherwise the usual error listing the choices."""
+    v = sec.raw(k)
+    if isinstance(v, str) and v not in extra:
+        spelled = registry.canonical(v).replace("-", "_")
+        if spelled in table:
+            return spelled
+    return sec.text(k, choices=(*extra, *table))
+
+
 def _jitter_model(sec: Section) -> tuple[str, Pairs]:
-    model = sec.text("model", choices=("known", *FAMILIES))
+    model = _kind(sec, "model", FAMILIES, "known")
     allowed = FAMILIES[model][1] if model != "known" else ()
     for k in sec.data:
         if k != "model" and k not in allowed:
@@ -256,9 +268,11 @@ def _case(sec: Section) -> Case:
     if not _NAME.match(name):
         raise sec.fail("name", f"must be letters, digits, '_', '-' or '.'; got {name!r}")
     raw = sec.raw("law")
-    kind = Section(
-        raw, sec.key("law"), sec.source, ("kind", *{p for _, ps in LAWS.values() for p in ps})
-    ).text("kind", choices=LAWS)
+    kind = _kind(
+        Section(raw, sec.key("law"), sec.source, ("kind", *{p for _, ps in LAWS.values() for p in ps})),
+        "kind",
+        LAWS,
+    )
     law_sec = Section(raw, sec.key("law"), sec.source, ("kind", *LAWS[kind][1]))
     spec = LawSpec(kind, tuple((p, law_sec.number(p, at_least=0)) for p in LAWS[kind][1]))
     for p, v in spec.params:

@@ -902,6 +902,14 @@ class JitterFamily(abc.ABC):
                 raise ValueError(f"{name} must be finite and lie in [{lo:g}, {hi:g}]; got {v!r}")
         return self._make(tuple(float(v) for v in vals))
 
+    def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64] | None:
+        """``d p(tau) / d params`` at the nodes ``tau``, shape ``(len(params),) + tau.shape``, for a
+        family whose density is differentiable in every parameter; ``None`` (the default) when
+        it gives none. With it, the moments' derivatives (:mod:`jitterid.estimation.jacobians`)
+        and the likelihood's score in the parameters other than the scale are
+        ``E[g(tau) dp/dtheta / p]`` at fixed nodes instead of differences of new rules."""
+        return None
+
     def default_starts(self, T: float) -> list[tuple[float, ...]]:
         """A coarse grid (3 to 6 points) of starting values for a multi-start search.
 
