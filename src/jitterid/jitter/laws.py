@@ -910,6 +910,32 @@ class JitterFamily(abc.ABC):
         ``E[g(tau) dp/dtheta / p]`` at fixed nodes instead of differences of new rules."""
         return None
 
+    def start_for_std(self, std: float) -> tuple[float, ...]:
+        """Parameters of a law of the family with standard deviation ``std`` (a start from a
+        jitter std measured otherwise): the middle default start with its scale parameter
+        set so; a family without a scale parameter overrides this.
+
+        Parameters
+        ----------
+        std : float
+            The wanted standard deviation (> 0), in the family's time unit.
+
+        Returns
+        -------
+        tuple of float
+            Accepted by :meth:`law`, clipped into :attr:`bounds`.
+        """
+        std = _checks.positive(std, "std")
+        starts = self.default_starts(1.0)
+        base = list(starts[len(starts) // 2])
+        idx = self.scale_index
+        if idx is not None:
+            law_std = float(self.law(base).std)
+            if law_std > 0:
+                lo, hi = self.bounds[idx]
+                base[idx] = float(min(max(base[idx] * std / law_std, lo), hi))
+        return tuple(base)
+
     def default_starts(self, T: float) -> list[tuple[float, ...]]:
         """A coarse grid (3 to 6 points) of starting values for a multi-start search.
 

@@ -505,6 +505,16 @@ class DualDiracFamily(JitterFamily):
     def _make(self, values: tuple[float, ...]) -> JitterLaw:
         return DualDirac(values[0], values[1])
 
+    def start_for_std(self, std: float) -> tuple[float, ...]:
+        """Random and deterministic parts sharing the variance: rj = std / sqrt 2, dj =
+        sqrt 2 std (rj^2 + dj^2 / 4 = std^2), clipped into the bounds."""
+        std = _checks.positive(std, "std")
+        (rlo, rhi), (dlo, dhi) = self.bounds
+        return (
+            float(min(max(std / math.sqrt(2.0), rlo), rhi)),
+            float(min(max(std * math.sqrt(2.0), dlo), dhi)),
+        )
+
     def _starts(self, T: float) -> list[tuple[float, ...]]:
         top = T / 4.0
         rj_top = min(top, _upper(self.rj_max, "rj_max"))

@@ -269,21 +269,6 @@ def _start(
     return theta, sj, sv, float(reg.jitter_std)
 
 
-def _family_start(family: JitterFamily, std: float) -> FloatArray:
-    """Family parameters whose law has the standard deviation ``std``: the family's own
-    starts scaled to it (its scale parameter carries the std)."""
-    starts = family.default_starts(1.0)
-    base = np.asarray(starts[len(starts) // 2], dtype=float)
-    law_std = float(family.law(base.tolist()).std)
-    idx = family.scale_index
-    if idx is None or not law_std > 0:
-        return base
-    x = base.copy()
-    lo, hi = family.bounds[idx]
-    x[idx] = min(max(base[idx] * std / law_std, lo), hi)
-    return x
-
-
 def _fit_one(
     data: SampledData,
     model: Model,
@@ -293,7 +278,7 @@ def _fit_one(
     sv: float,
 ) -> FitResult:
     """The Gaussian criterion from the starts, then the exact likelihood from there."""
-    x0 = np.r_[_family_start(family, sj), theta, sv]
+    x0 = np.r_[family.start_for_std(sj), theta, sv]
     gauss = fit(data, model, family, method="gaussian", start=x0)
     xg = np.asarray(gauss.x, dtype=float).copy()
     cands = [x0]
