@@ -147,3 +147,19 @@ def test_sampled_fisher_information_agrees_with_the_integral_over_y():
     np.testing.assert_allclose(np.sqrt(np.diag(b)), np.sqrt(np.diag(a)), rtol=0.06)
     with pytest.raises(ValueError, match="rng"):
         ji.crb(ji.SineWave(), ji.GaussianFamily(), None, T, N, 5e-2, truth, draws=3)
+
+
+def test_a_noise_hidden_by_the_jitter_stops_at_the_resolution_and_says_so():
+    """Noise 1e-4 beside a jittered spread of 0.05: the likelihood's noise std runs to 0 (the
+    noise-free jittered sine explains the samples as well); the fit stops at the record's
+    resolution, says AT_BOUND, and the jitter std stays right."""
+    std = 0.05 / (2 * np.pi * F)
+    rng = np.random.default_rng(22)  # (seed 21 resolves the noise: 1.07e-4; 22-24 do not)
+    y = _record(1000, _gauss(std), 1e-4, rng, A=1.0)
+    m = ji.measure_jitter(y, T, laws=["gaussian"])
+    assert m.status is ji.FitStatus.AT_BOUND
+    assert "resolution" in m.message
+    assert m.noise_std == pytest.approx(1e-4 * np.std(y), rel=1e-6)
+    assert abs(m.jitter_std - std) < 4 * m.jitter_std_stderr
+    given = ji.measure_jitter(y, T, laws=["gaussian"], resolution=1e-5)
+    assert given.noise_std >= 1e-5

@@ -34,6 +34,12 @@ class SampledData:
     instants : ndarray or None
         The true sampling instants kT + tau_k. For diagnostics of simulated data only: no
         estimator reads it.
+    resolution : float or None
+        The smallest noise std the samples can have (a converter's quantisation step over
+        sqrt(12)): the lower bound of an estimated noise std (default 1e-12). Where the
+        jitter dominates, the exact likelihood's noise std can run to zero (the noise-free
+        jittered signal explains the samples at least as well); a fit then stops at this
+        floor and says so (AT_BOUND) instead of creeping towards 0.
     """
 
     y: FloatArray
@@ -41,6 +47,7 @@ class SampledData:
     u: Input | None = None
     noise_std: float | None = None
     instants: FloatArray | None = field(default=None, repr=False)
+    resolution: float | None = None
 
     def __post_init__(self) -> None:
         y = real_array(self.y, "y", ndim=1)
@@ -53,6 +60,8 @@ class SampledData:
             object.__setattr__(
                 self, "noise_std", positive(self.noise_std, "noise_std", allow_zero=True)
             )
+        if self.resolution is not None:
+            object.__setattr__(self, "resolution", positive(self.resolution, "resolution"))
         if self.instants is not None:
             inst = real_array(self.instants, "instants", ndim=1)
             if inst.size != y.size:

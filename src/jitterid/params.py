@@ -79,6 +79,7 @@ class ParamLayout:
         noise: Any = None,
         *,
         noise_std: bool = False,
+        noise_floor: float | None = None,
     ) -> ParamLayout:
         """The layout of a problem from its parts.
 
@@ -93,7 +94,8 @@ class ParamLayout:
             return names, bounds[: len(names)] if names else ()  # type: ignore[return-value]
 
         (jn, jb), (sn, sb), (nn, nb) = part(jitter), part(structure), part(noise)
-        bounds = jb + sb + nb + ((NOISE_STD_BOUNDS,) if noise_std else ())
+        noise_bound = NOISE_STD_BOUNDS if noise_floor is None else (float(noise_floor), np.inf)
+        bounds = jb + sb + nb + ((noise_bound,) if noise_std else ())
         return cls(jn, sn, nn, bool(noise_std), bounds)
 
     # ------------------------------------------------------------------ structure

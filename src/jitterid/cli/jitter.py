@@ -20,14 +20,14 @@ import click
 import numpy as np
 
 from ..io import atomic_write, load
-from ..metrology.meter import DEFAULT_LAWS, JitterMeasurement, _families, measure_jitter
+from ..metrology.meter import DEFAULT_LAWS, FAMILY_NAMES, JitterMeasurement, measure_jitter
 from . import main
 from .data import _check_out_dir, _clean_errors, _data_arg, _T_opt
 
 __all__ = ["jitter"]
 
 #: The families --law accepts (those measure_jitter knows in this installation).
-LAW_NAMES = tuple(_families(1.0))
+LAW_NAMES = FAMILY_NAMES
 
 _FREQ_UNITS = {"hz": 1.0, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
 _FREQ_RE = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-zA-Z]*)\s*$")

@@ -222,7 +222,8 @@ class Scaling:
         u = None if data.u is None else _scaled_input(data.u, 1.0 / self.su)
         assert u is not None or data.u is None
         noise = None if data.noise_std is None else data.noise_std / self.sy
-        return SampledData(data.y / self.sy, data.T, u, noise, data.instants)
+        res = None if data.resolution is None else data.resolution / self.sy
+        return SampledData(data.y / self.sy, data.T, u, noise, data.instants, res)
 
     def _f(self, size: int) -> FloatArray:
         """Factors for a vector of ``size``: jitter and system, then (if one more) noise_std."""
@@ -273,7 +274,15 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
     """The status and message after the checks; only a CONVERGED search is re-examined."""
     if status is not FitStatus.CONVERGED:
         return status, message
-    checks = (_at_bound, _unstable, _unidentifiable, _local_optimum, _not_significant, _lack_of_fit)
+    checks = (
+        _at_bound,
+        _noise_at_floor,
+        _unstable,
+        _unidentifiable,
+        _local_optimum,
+        _not_significant,
+        _lack_of_fit,
+    )
     for check in checks:
         out = check(ctx)
         if out is not None:
@@ -315,6 +324,23 @@ def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:
 
 def _near(v: float, b: float) -> bool:
     return bool(np.isfinite(b) and abs(v - b) <= 1e-6 * max(1.0, abs(b)))
+
+
+def _noise_at_floor(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    """An estimated noise std on its floor (``SampledData.resolution``, else 1e-12): the
+    samples do not resolve the additive noise next to the jitter (the noise-free jittered
+    signal explains them at least as well); the other estimates are given it there."""
+    if "noise_std" not in ctx.names or ctx.data.resolution is None:
+        return None
+    v = float(ctx.x[ctx.names.index("noise_std")])
+    if v > ctx.data.resolution * (1 + 1e-6):
+        return None
+    return FitStatus.AT_BOUND, (
+        f"noise_std = {v:.6g} is on its floor, the data's resolution {ctx.data.resolution:g}: "
+        "the samples do not resolve the additive noise next to the jitter (the noise-free "
+        "jittered signal explains them as well), so the other estimates are given the noise "
+        "at that floor; give the converter's resolution (LSB / sqrt(12)) if it is known"
+    )
 
 
 def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:

@@ -604,6 +604,11 @@ class ExactLikelihood:
         Gauss-Legendre nodes per panel (default 8).
     panel : float
         Panel length at most ``panel * sigma_v / |s'|`` (default 4; see the module doc).
+    window : bool or None
+        The windowed rule (module doc): True, False, or None (default: where the full
+        rule would have more than ``_WINDOW_FROM`` panels per sample).
+    noise_floor : float or None
+        Lower bound of an estimated noise std (``SampledData.resolution``); default 1e-12.
 
     Attributes
     ----------
@@ -628,6 +633,7 @@ class ExactLikelihood:
     order: int = DEFAULT_ORDER
     panel: float = DEFAULT_PANEL
     window: bool | None = None
+    noise_floor: float | None = None
     layout: ParamLayout = field(init=False, repr=False)
     _cuts: FloatArray | None = field(init=False, default=None, repr=False)
     _profile: _SlopeProfile | None = field(init=False, default=None, repr=False)
@@ -653,7 +659,9 @@ class ExactLikelihood:
             self.noise_std = positive(self.noise_std, "noise_std")
         self.order = count(self.order, "order", minimum=1)
         self.panel = positive(self.panel, "panel")
-        self.layout = ParamLayout.build(self.jitter, self.structure, noise_std=self.noise_std is None)
+        self.layout = ParamLayout.build(
+            self.jitter, self.structure, noise_std=self.noise_std is None, noise_floor=self.noise_floor
+        )
 
     # -------------------------------------------------------------- parameters and rule
     @property

@@ -97,13 +97,16 @@ class Problem:
 
     def __post_init__(self) -> None:
         self.layout = ParamLayout.build(
-            self.jitter, self.structure, noise_std=self.estimates_noise
+            self.jitter, self.structure, noise_std=self.estimates_noise,
+            noise_floor=self.data.resolution,
         )
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
         if self.method == "ml":
             d = self.data
             noise = None if self.estimates_noise else self.noise_std
-            self.likelihood = ExactLikelihood(self.structure, self.jitter, d.u, d.T, d.N, noise)
+            self.likelihood = ExactLikelihood(
+                self.structure, self.jitter, d.u, d.T, d.N, noise, noise_floor=d.resolution
+            )
 
     @property
     def names(self) -> tuple[str, ...]:

@@ -88,8 +88,14 @@ def _jitter_std_gradient(family: JitterFamily, theta: FloatArray) -> FloatArray:
     def std(t: FloatArray) -> FloatArray:
         return np.asarray(family.law(t.tolist()).std, dtype=np.float64)
 
+    # steps relative to the law's own std where a parameter is near 0 (dj = 0), not to the
+    # rule's absolute floor 1e-2: a jitter of 50 ps is not a jitter of 0.01 s
+    floor = max(float(std(theta)), 1e-300)
     return np.array(
-        [float(finite_diff.derivative(std, theta, i, b, rel=1e-6)) for i, b in enumerate(family.bounds)]
+        [
+            float(finite_diff.derivative(std, theta, i, b, rel=1e-6, floor=floor))
+            for i, b in enumerate(family.bounds)
+        ]
     )
 
 

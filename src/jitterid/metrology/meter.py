@@ -38,6 +38,7 @@ from ..systems.tones import SineWave
 from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
+    "FAMILY_NAMES",
     "AliasCandidate",
     "JitterMeasurement",
     "LawCandidate",
@@ -49,6 +50,8 @@ FloatArray = NDArray[np.float64]
 
 #: Fewest samples and whole periods a record must hold.
 MIN_SAMPLES = 32
+#: The default noise floor, relative to the record's rms (see measure_jitter, resolution).
+_RESOLUTION_FLOOR = 1e-4
 #: ln L difference below which two aliases are a tie.
 _ALIAS_TIE = 1e-3
 #: Families tried by default, by name.
@@ -56,20 +59,26 @@ DEFAULT_LAWS = ("gaussian", "uniform")
 
 
 def _families(T: float) -> dict[str, JitterFamily]:
-    """The jitter families :func:`measure_jitter` knows, by name (bounded by the record's
-    own scale: a jitter std beyond 10 T is not a jitter)."""
+    """The jitter families :func:`measure_jitter` knows, by name, bounded by the record's
+    own time scale: a jitter std beyond 10 T is not a jitter, and one below 1e-9 T is
+    zero (the families' default floor, 1e-12 s, is a real jitter at GHz rates)."""
+    lo = 1e-9 * T
     out: dict[str, JitterFamily] = {
-        "gaussian": GaussianFamily(sigma_max=10 * T),
-        "uniform": UniformFamily(a_max=20 * T),
+        "gaussian": GaussianFamily(sigma_max=10 * T, sigma_min=lo),
+        "uniform": UniformFamily(a_max=20 * T, a_min=lo),
     }
     try:  # the regular shape families, where available
         from ..jitter.regular import DualDiracFamily, GeneralizedNormalFamily
 
-        out["generalized-normal"] = GeneralizedNormalFamily()
-        out["dual-dirac"] = DualDiracFamily()
+        out["generalized-normal"] = GeneralizedNormalFamily(std_max=10 * T, std_min=lo)
+        out["dual-dirac"] = DualDiracFamily(rj_max=10 * T, rj_min=lo, dj_max=20 * T)
     except ImportError:  # pragma: no cover - depends on the installed version
         pass
     return out
+
+
+#: The family names :func:`measure_jitter` accepts in ``laws``.
+FAMILY_NAMES = tuple(_families(1.0))
 
 
 @dataclass(frozen=True)
@@ -277,9 +286,14 @@ def _fit_one(
     sj: float,
     sv: float,
     method: str = "ml",
+    other: tuple[FloatArray, float, float] | None = None,
 ) -> FitResult:
-    """The Gaussian criterion from the starts, then (``method="ml"``) the exact likelihood
-    from there."""
+    """The Gaussian criterion from the IEEE starts, then (``method="ml"``) the exact
+    likelihood from the better of its end and the IEEE start (by the likelihood itself:
+    the second-moment criterion can trade jitter for noise where the law is far from
+    Gaussian). With ``other`` (the sine, jitter std and noise std of another family's fit)
+    the likelihood is also maximised from there, and the better end kept: a law far from
+    the other's can have a local optimum in phase and frequency near it."""
     x0 = np.r_[family.start_for_std(sj), theta, sv]
     gauss = fit(data, model, family, method="gaussian", start=x0)
     if method == "gaussian":
@@ -290,9 +304,7 @@ def _fit_one(
         if not xg[-1] > 0.1 * sv:  # the Gaussian criterion put the noise at its bound 0
             xg[-1] = sv
         cands.insert(0, xg)
-    # the better of the two by the likelihood itself (the second-moment criterion can
-    # trade jitter for noise where the law is far from Gaussian)
-    lik = ExactLikelihood(model, family, None, data.T, data.N)
+    lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
     scored: list[tuple[float, int, FloatArray]] = []
     for c in cands:
         try:
@@ -300,7 +312,25 @@ def _fit_one(
         except ValueError:
             continue
     best = min(scored)[2] if scored else xg
-    return fit(data, model, family, method="ml", start=best)
+    out = fit(data, model, family, method="ml", start=best)
+    if other is not None:
+        sine, std, noise = other
+        lo = data.resolution or 0.0
+        alt = fit(data, model, family, method="ml", start=np.r_[family.start_for_std(std), sine, max(noise, lo)])
+        if np.isfinite(alt.cost) and (not np.isfinite(out.cost) or alt.cost < out.cost):
+            out = alt
+    return out
+
+
+def _resolution(y: FloatArray, given: float | None) -> float:
+    """The noise floor: ``given``, else the record's quantisation step / sqrt(12), at least
+    1e-6 of its rms (see :func:`measure_jitter`)."""
+    if given is not None:
+        return positive(given, "resolution")
+    vals = np.unique(y)
+    step = float(np.min(np.diff(vals))) if vals.size > 1 else 0.0
+    rms = float(np.sqrt(np.mean((y - np.mean(y)) ** 2)))
+    return max(step / math.sqrt(12.0), _RESOLUTION_FLOOR * rms)
 
 
 def _stderr(result: FitResult, name: str) -> float:
@@ -316,6 +346,7 @@ def measure_jitter(
     band_hz: tuple[float, float] | None = None,
     harmonics: int = 1,
     method: str = "ml",
+    resolution: float | None = None,
 ) -> JitterMeasurement:
     """Measure the sampling jitter from a record of a sine wave.
 
@@ -346,6 +377,13 @@ def measure_jitter(
         O(N) with a small constant, consistent for any law in the family and close to
         efficient where the jitter's phase spread 2 pi f sigma is small (the samples are
         then nearly Gaussian); its errors are the exact sandwich. For long records.
+    resolution : float, optional
+        The smallest noise std the record can have (the converter's LSB / sqrt(12)), in
+        units of y. Default: the record's own quantisation step (the smallest gap between
+        its distinct values) over sqrt(12), and at least 1e-4 of its rms. Where the jitter
+        dominates, the likelihood's noise std runs down to this floor (the noise-free
+        jittered sine explains the samples as well): the fit then says AT_BOUND for
+        ``noise_std``, and the jitter std is the one given the noise at its floor.
 
     Returns
     -------
@@ -382,7 +420,7 @@ def measure_jitter(
         raise ValueError(f"laws must name families among {sorted(known)}; got {list(laws)}")
     N = yv.size
     f_start = positive(frequency, "frequency") if frequency is not None else periodogram_peak(yv, T)
-    data = SampledData(yv, T, None)
+    data = SampledData(yv, T, None, resolution=_resolution(yv, resolution))
     if band_hz is not None:
         cands = SineWave(band_hz=band_hz, harmonics=harmonics).start_frequencies(data)
     else:
@@ -397,6 +435,7 @@ def measure_jitter(
     # every alias with the family chosen on the first one; then the families on the best
     first_family = laws[0]
     alias_fits: list[tuple[float, FitResult]] = []
+    alias_starts: list[tuple[FloatArray, float, float]] = []
     slope_std = float("nan")
     for fc in cands:
         lo = max(fc - 4 * half_bin, 0.5 * fc)
@@ -406,20 +445,25 @@ def measure_jitter(
         theta_h = _harmonic_start(model, yv, T, theta)
         res = _fit_one(data, model, known[first_family], theta_h, sj, sv, method)
         alias_fits.append((fc, res))
+        alias_starts.append((theta_h, sj, sv))
         if len(alias_fits) == 1 or res.cost < min(r.cost for _, r in alias_fits[:-1]):
             slope_std = slope_std_c
-    _, best = min(alias_fits, key=lambda item: item[1].cost)
+    i_best = min(range(len(alias_fits)), key=lambda i: alias_fits[i][1].cost)
+    best = alias_fits[i_best][1]
+    theta_b, sj_b, sv_b = alias_starts[i_best]
     aliases = tuple(
         AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, r.jitter_std)
         for _, r in alias_fits
     )
-    # the other families at the chosen alias, from the first family's fit
+    # the other families at the chosen alias: from its IEEE starts and from the first
+    # family's fit, the better end kept
     fitted: dict[str, FitResult] = {first_family: best}
     chosen_model = best.structure
     sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
     for name in laws[1:]:
         fitted[name] = _fit_one(
-            data, chosen_model, known[name], sine, best.jitter_std, best.x[-1], method
+            data, chosen_model, known[name], theta_b, sj_b, sv_b, method,
+            other=(sine, best.jitter_std, float(best.x[-1])),
         )
     cands_law = []
     for name, r in fitted.items():
@@ -428,7 +472,7 @@ def measure_jitter(
         cands_law.append(
             LawCandidate(name, ll, p, 2 * p - 2 * ll, p * math.log(N) - 2 * ll, r.jitter_std, r.status)
         )
-    ok = [c for c in cands_law if c.status is FitStatus.CONVERGED]
+    ok = [c for c in cands_law if c.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)]
     chosen = min(ok or cands_law, key=lambda c: c.bic)
     r = fitted[chosen.name]
     status, message = r.status, r.message
