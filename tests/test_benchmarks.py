@@ -53,6 +53,16 @@ def test_signal_benchmark_runs():
     assert "1/1" in out, out
 
 
+def test_meter_benchmark_runs():
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_meter.py"), "--runs", "1", "--sizes", "300"],
+        capture_output=True, text=True, check=True, timeout=300,
+    ).stdout
+    assert "    300 ml" in out, out
+    assert "    300 gaussian" in out, out
+    assert "load" in out
+
+
 def _jitter_meter(tmp_path, *methods):
     cmd = [sys.executable, str(BENCH / "jitter_meter.py"), "--quick", "--records", "1",
            "--thetas", "0.05", "0.5", "--noises", "0.01", "--laws", "gaussian", "dual_dirac",

@@ -944,6 +944,27 @@ class ExactLikelihood:
         scale = self._scale_index(_has_slope(sig, analytic))
         return all(i == scale for i in range(self.n_jitter))
 
+    def exact_information(self, x: ArrayLike) -> bool:
+        """Whether :meth:`_terms`' information at ``x`` is the exact observed information
+        (L5): every score analytic, the signal's second derivatives in closed form, and no
+        jitter parameter but a scale (a shape's block is BHHH)."""
+        if not self.analytic_scores(x):
+            return False
+        x = np.atleast_1d(real_array(x, "x"))
+        _, sig, _ = self.split(x)
+        if _NodeSignal(sig, np.zeros(0)).analytic:
+            return False  # the modal path: Gauss-Newton
+        if not len(self.model.param_names):
+            return False
+        probe = sig.second_derivatives(np.zeros(1))
+        return probe is not None and self.n_jitter <= 1
+
+    def information(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
+        """The observed information -d^2 ln L at ``x`` as :meth:`_terms` computes it (exact
+        where :meth:`exact_information` says so)."""
+        x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
+        return self._terms(x, y, information=True)[2]
+
     def _scale_index(self, analytic: bool) -> int | None:
         """Index of the jitter family's scale parameter a (the law of a xi, xi fixed), whose
         score is analytic (:meth:`_terms`); None if there is none or the signal's slope is

@@ -65,15 +65,23 @@ class ToneSignal(Signal):
         self.rate = float(max(np.max(np.abs(tones.w)), 1e-300))
         self.breaks = np.zeros(0)
         self.start, self.end = -np.inf, np.inf
+        self._memo: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
     def _phasors(self, t: FloatArray) -> ComplexArray:
         return np.exp(1j * self.tones.w[:, None] * t[None, :])  # (H, n)
 
     def _cos_sin(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
         """cos(w_h t), sin(w_h t), shape (H, n): real arithmetic (numpy's complex exp is
-        several times slower)."""
+        several times slower). The last pair is kept with its ``t`` (the likelihood asks
+        for s, its gradient, slope and second derivatives at the same nodes in turn)."""
+        held = self._memo
+        if held is not None and held[0] is t:
+            return held[1], held[2]
         arg = self.tones.w[:, None] * t[None, :]
-        return np.cos(arg), np.sin(arg)
+        c, s = np.cos(arg), np.sin(arg)
+        if t.size >= 64:
+            self._memo = (t, c, s)
+        return c, s
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         tt = np.asarray(t, dtype=float)
