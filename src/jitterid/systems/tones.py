@@ -115,26 +115,44 @@ class ToneSignal(Signal):
         return np.asarray(b.real @ c - b.imag @ s, dtype=float)
 
     def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """d^2 s / dtheta^2, d s'/dtheta and s'' in closed form. With z = e^{i w t} and
-        s = c + Im(a z): d^2 s = Im(d2a z + i t (da dw^T + dw da^T) z - t^2 a dw dw^T z)
-        (a is linear or e^{i phi} in its parameters: d2a from :attr:`_ToneMap`), ds' =
-        Im(i (dw a + w da) z - t w a dw z), s'' = Im(-w^2 a z)."""
+        """d^2 s / dtheta^2, d s'/dtheta and s'' in closed form, in real arithmetic over the
+        few nonzero entries. With z = e^{i w t} and s = c + Im(a z): d^2 s = Im(d2a z + i t
+        (da dw^T + dw da^T) z - t^2 a dw dw^T z) (d2a nonzero only in the polar form: a = A
+        e^{i phi}), ds' = Im(i (dw a + w da) z - t w a dw z), s'' = Im(-w^2 a z)."""
         tn = self.tones
-        c, s = self._cos_sin(t)
-        z = c + 1j * s  # (H, n)
-        P = tn.dc.size
-        d2a = _second_amplitudes(tn)  # (P, P, H)
-        hz = np.einsum("pqh,hn->pqn", d2a, z)
-        da_z = tn.da[:, :, None] * z[None, :, :]  # (P, H, n)
-        cross = np.einsum("ph,qhn->pqn", tn.dw, da_z)
-        hz += 1j * t * (cross + np.transpose(cross, (1, 0, 2)))
-        adw = tn.dw * tn.a[None, :]  # (P, H)
-        hz -= t**2 * np.einsum("ph,qh,hn->pqn", tn.dw, adw, z)
-        hess = np.imag(hz).reshape(P, P, t.size)
-        wa = tn.w * tn.a
-        dsl = np.imag(1j * ((tn.dw * tn.a[None, :] + tn.w[None, :] * tn.da) @ z) - t * ((tn.dw * wa[None, :]) @ z))
-        curv = np.imag(-(tn.w**2 * tn.a) @ z)
-        return np.asarray(hess, float), np.asarray(dsl, float), np.asarray(curv, float)
+        cos_, sin_ = self._cos_sin(t)
+        P, H = tn.da.shape
+        n = t.size
+        hess = np.zeros((P, P, n))
+        dsl = np.zeros((P, n))
+        # Im(q z) = Re q sin + Im q cos; Re(q z) = Re q cos - Im q sin
+        for h in range(H):
+            c, s = cos_[h], sin_[h]
+            a, w = tn.a[h], tn.w[h]
+            im_az = a.real * s + a.imag * c
+            re_az = a.real * c - a.imag * s
+            ps = np.flatnonzero(tn.da[:, h])
+            fs = np.flatnonzero(tn.dw[:, h])
+            for p_ in ps:
+                q = tn.da[p_, h]
+                re_qz = q.real * c - q.imag * s
+                # ds'/dtheta_p = Im(i w da z) = w Re(da z)
+                dsl[p_] += w * re_qz
+                for f_ in fs:  # d^2 s / dp df = Im(i t da dw z) = t dw Re(da z)
+                    v = t * tn.dw[f_, h] * re_qz
+                    hess[p_, f_] += v
+                    hess[f_, p_] += v
+            for f_ in fs:
+                dw = tn.dw[f_, h]
+                # ds'/df = Im(i dw a z) - t w dw Im(a z)... = dw Re(a z) - t w dw Im(a z)
+                dsl[f_] += dw * re_az - t * w * dw * im_az
+                for g_ in fs:
+                    hess[f_, g_] -= t**2 * dw * tn.dw[g_, h] * im_az
+        if tn.d2a is not None:
+            for (i, j, h), v in tn.d2a.items():
+                hess[i, j] += v.real * sin_[h] + v.imag * cos_[h]
+        curv = -(tn.w**2 * tn.a.real) @ sin_ - (tn.w**2 * tn.a.imag) @ cos_
+        return hess, dsl, np.asarray(curv, dtype=float)
 
     def jitter_moments(
         self,
@@ -208,18 +226,6 @@ class ToneSignal(Signal):
                 d2 = 0.5 * np.real(np.einsum("hg,hgn->n", aa_m, dPm) - np.einsum("hg,hgn->n", aa_p, dPp))
                 scale_var = d2 - 2 * dev * scale_mean
         return MomentPass(mean, var, dmean, dvar, scale_mean, scale_var)
-
-
-def _second_amplitudes(tn: _ToneMap) -> ComplexArray:
-    """d^2 a_h / dtheta dtheta^T, shape (P, P, H): nonzero only for the polar form, where
-    a = A e^{i phi}: d^2 a / dA dphi = i e^{i phi}, d^2 a / dphi^2 = -a."""
-    P, H = tn.da.shape
-    out = np.zeros((P, P, H), complex)
-    if tn.d2a is None:
-        return out
-    for (i, j, h), v in tn.d2a.items():
-        out[i, j, h] += v
-    return out
 
 
 def _chi(law: JitterLaw, nus: FloatArray) -> tuple[ComplexArray, ComplexArray]:
