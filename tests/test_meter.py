@@ -163,3 +163,15 @@ def test_a_noise_hidden_by_the_jitter_stops_at_the_resolution_and_says_so():
     assert abs(m.jitter_std - std) < 4 * m.jitter_std_stderr
     given = ji.measure_jitter(y, T, laws=["gaussian"], resolution=1e-5)
     assert given.noise_std >= 1e-5
+
+
+def test_the_gaussian_criterion_route_fits_one_law_and_says_why():
+    std = 0.3 / (2 * np.pi * F)
+    rng = np.random.default_rng(31)
+    y = _record(3000, _gauss(std), 1e-2, rng)
+    m = ji.measure_jitter(y, T, method="gaussian")
+    assert [c.name for c in m.laws] == ["gaussian"]
+    assert "does not rank laws" in m.message
+    assert abs(m.jitter_std - std) < 4 * m.jitter_std_stderr
+    with pytest.raises(ValueError, match="method"):
+        ji.measure_jitter(y, T, method="asml")

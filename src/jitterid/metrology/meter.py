@@ -54,8 +54,8 @@ MIN_SAMPLES = 32
 _RESOLUTION_FLOOR = 1e-4
 #: ln L difference below which two aliases are a tie.
 _ALIAS_TIE = 1e-3
-#: Families tried by default, by name.
-DEFAULT_LAWS = ("gaussian", "uniform")
+#: Families tried by default, by name (see measure_jitter, laws).
+DEFAULT_LAWS = ("gaussian", "uniform", "dual-dirac")
 
 
 def _families(T: float) -> dict[str, JitterFamily]:
@@ -362,8 +362,12 @@ def measure_jitter(
         refined by the IEEE 1057 four-parameter fit (the baseband alias, below 1/(2T),
         unless ``band_hz`` says where to look).
     laws : sequence of str
-        Jitter families to fit: ``"gaussian"``, ``"uniform"`` and, where installed,
-        ``"generalized-normal"``, ``"dual-dirac"``. The one with the lowest BIC is chosen.
+        Jitter families to fit, among ``"gaussian"``, ``"uniform"``, ``"dual-dirac"``
+        (random plus deterministic jitter, the serial-link model) and
+        ``"generalized-normal"``; default the first three. The one with the lowest BIC is
+        chosen. The law matters even for small jitter once the jitter's spread of the
+        samples is above the noise: dual-Dirac records measured with Gaussian and uniform
+        families only came out 6 % low (the uniform family chosen), 0.5 % with it.
     band_hz : (float, float), optional
         Where the frequency lies, in Hz; every alias of the record's frequency in the band
         is fitted and the one with the highest likelihood kept (:attr:`JitterMeasurement.
@@ -376,7 +380,9 @@ def measure_jitter(
         Gaussian criterion on the samples' closed-form means and variances (Lemmas 1-2),
         O(N) with a small constant, consistent for any law in the family and close to
         efficient where the jitter's phase spread 2 pi f sigma is small (the samples are
-        then nearly Gaussian); its errors are the exact sandwich. For long records.
+        then nearly Gaussian); its errors are the exact sandwich. For long records. It fits
+        the first of ``laws`` only (its criterion sees the law through chi(w) and chi(2 w)
+        alone and does not rank laws; the message says so).
     resolution : float, optional
         The smallest noise std the record can have (the converter's LSB / sqrt(12)), in
         units of y. Default: the record's own quantisation step (the smallest gap between
@@ -414,6 +420,14 @@ def measure_jitter(
         raise ValueError(f"method must be 'ml' or 'gaussian'; got {method!r}")
     if isinstance(laws, str):
         laws = (laws,)
+    note = ""
+    if method == "gaussian" and len(laws) > 1:
+        # the second-moment criterion sees a law only through chi(w) and chi(2 w): its
+        # value does not rank laws (measured: Gaussian records at 2 pi f sigma = 0.5 and 1
+        # came out as 'uniform', 8 % and 25 % low)
+        laws, note = tuple(laws[:1]), (
+            f"; method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"
+        )
     known = _families(T)
     unknown = [name for name in laws if name not in known]
     if unknown or not laws:
@@ -478,6 +492,7 @@ def measure_jitter(
     status, message = r.status, r.message
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
+    message += note
     lls = sorted((a.loglik for a in aliases), reverse=True)
     if len(lls) > 1 and lls[0] - lls[1] < _ALIAS_TIE:
         status = FitStatus.UNIDENTIFIABLE
