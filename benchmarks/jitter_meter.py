@@ -310,7 +310,7 @@ def make_figure(con, methods, grid, laws, records, with_crb, path: Path) -> None
 
     sizes, noises = grid["sizes"], grid["noises"]
     fig, axes = plt.subplots(
-        len(sizes), len(noises), figsize=(3.6 * len(noises), 3.0 * len(sizes)),
+        len(sizes), len(noises), figsize=(4.2 * len(noises) + 2.6, 3.4 * len(sizes)),
         squeeze=False, sharex=True, sharey=True,
     )
     colours = {"jitterid": "C0", "adctoolbox": "C1", "ieee1057": "C2"}
@@ -342,10 +342,11 @@ def make_figure(con, methods, grid, laws, records, with_crb, path: Path) -> None
                 ax.set_xlabel("theta = 2 pi f0 sigma (rad)")
             if j == 0:
                 ax.set_ylabel("RMSE / sigma")
-    fig.legend(loc="lower center", ncol=3, fontsize=7, frameon=False)
-    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    # one legend to the right of the panels, outside them (law = line style, method = colour)
+    fig.tight_layout(rect=(0, 0, 1 - 2.6 / fig.get_figwidth(), 1))
+    fig.legend(loc="center right", fontsize=7, frameon=False)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     print(f"# figure: {path}")
 
