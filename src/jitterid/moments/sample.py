@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import count, positive, real_array
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterLaw
-from ..systems.model import Signal
+from ..systems.model import MomentPass, Signal
 from ..systems.tf import Response, TransferFunction
 from .modal import SegmentPlan, modal_moments, tables
 from .quadrature import DEFAULT_ORDER, jitter_nodes
@@ -108,24 +108,6 @@ def sample_moments(
     out = moment_pass(signal, jitter, T, N, order=order)
     assert out.var is not None
     return SampleMoments(out.mean, out.var)
-
-
-@dataclass(frozen=True)
-class MomentPass:
-    """m_k, Var_k and their derivatives from one pass over the jitter nodes.
-
-    ``dmean``/``dvar`` have a row per parameter of the signal's gradient and ``scale_mean``/
-    ``scale_var`` are the derivatives in the jitter scale; ``None`` where not asked for or
-    not available (the signal declares no gradient or slope: the caller differences)."""
-
-    mean: FloatArray
-    var: FloatArray | None
-    dmean: FloatArray | None = None
-    dvar: FloatArray | None = None
-    scale_mean: FloatArray | None = None
-    scale_var: FloatArray | None = None
-    mu3: FloatArray | None = None  # E[(s - m_k)^3] (with ``higher``)
-    mu4: FloatArray | None = None  # E[(s - m_k)^4] (with ``higher``)
 
 
 def moment_pass(

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -36,12 +37,31 @@ if TYPE_CHECKING:
     from ..data import SampledData
     from ..inputs import Input
     from ..jitter.laws import JitterLaw
-    from ..moments.sample import MomentPass
 
-__all__ = ["Bounds", "Model", "Signal"]
+__all__ = ["Bounds", "Model", "MomentPass", "Signal"]
 
 FloatArray = NDArray[np.float64]
 Bounds = tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True)
+class MomentPass:
+    """m_k, Var_k and their derivatives (what :func:`jitterid.moments.sample.moment_pass`
+    and :meth:`Signal.jitter_moments` return; defined here, with the protocol, so that a
+    signal with closed-form moments needs nothing from :mod:`jitterid.moments`).
+
+    ``dmean``/``dvar`` have a row per parameter of the signal's gradient and ``scale_mean``/
+    ``scale_var`` are the derivatives in the jitter scale; ``None`` where not asked for or
+    not available (the signal declares no gradient or slope: the caller differences)."""
+
+    mean: FloatArray
+    var: FloatArray | None
+    dmean: FloatArray | None = None
+    dvar: FloatArray | None = None
+    scale_mean: FloatArray | None = None
+    scale_var: FloatArray | None = None
+    mu3: FloatArray | None = None  # E[(s - m_k)^3] (with ``higher``)
+    mu4: FloatArray | None = None  # E[(s - m_k)^4] (with ``higher``)
 
 
 class Signal(abc.ABC):

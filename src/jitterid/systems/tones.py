@@ -28,13 +28,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import positive
-from .model import Bounds, Model, Signal
+from .model import Bounds, Model, MomentPass, Signal
 
 if TYPE_CHECKING:
     from ..data import SampledData
     from ..inputs import Input
     from ..jitter.laws import JitterLaw
-    from ..moments.sample import MomentPass
 
 __all__ = ["MultiTone", "SineWave", "ToneSignal"]
 
@@ -167,8 +166,7 @@ class ToneSignal(Signal):
     ) -> MomentPass | None:
         """m_k, Var_k and their derivatives by (S1)-(S2) (module doc); None with ``higher``
         (the third and fourth moments take the generic quadrature path)."""
-        from ..moments.sample import MomentPass
-
+    
         if higher:
             return None
         tn = self.tones
