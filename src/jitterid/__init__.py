@@ -44,6 +44,7 @@ from .jitter.laws import (
     JitterFamily,
     JitterLaw,
     NoJitter,
+    Shifted,
     SumOfUniforms,
     SumOfUniformsFamily,
     Uniform,
@@ -72,7 +73,7 @@ from .params import ParamLayout
 from .simulate import simulate
 from .systems.model import Model, Signal
 from .systems.signals import SignalModel
-from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
+from .systems.structures import Delayed, KnownSystem, ModelStructure, PolePairGain, RationalModel
 from .systems.tf import Response, TransferFunction
 from .systems.tones import MultiTone, SineWave
 
@@ -80,6 +81,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CustomJitter",
+    "Delayed",
     "DualDirac",
     "DualDiracFamily",
     "FitResult",
@@ -104,6 +106,7 @@ __all__ = [
     "Response",
     "SampleMoments",
     "SampledData",
+    "Shifted",
     "Signal",
     "SignalModel",
     "SineWave",

@@ -44,6 +44,17 @@ def positive(x: float, name: str, *, allow_zero: bool = False) -> float:
     return val
 
 
+def finite(x: float, name: str) -> float:
+    """Return ``x`` as a float if it is a finite real number, else raise."""
+    try:
+        val = float(x)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a real number; got {x!r}") from exc
+    if not np.isfinite(val):
+        raise ValueError(f"{name} must be finite; got {x!r}")
+    return val
+
+
 def count(x: int, name: str, *, minimum: int) -> int:
     """Return ``x`` as an int if it is an integer >= ``minimum``, else raise."""
     if isinstance(x, bool) or not isinstance(x, (int, np.integer)):

@@ -26,7 +26,7 @@ from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..noise.models import NoiseModel, NoiseStructure
 from ..systems.model import Model
 from ..systems.structures import ModelStructure, as_structure
-from ..systems.tf import Response, TransferFunction
+from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
 from .checks import PostContext, Scaling, check_arguments, check_data, post_checks
@@ -443,7 +443,9 @@ def _fit(
         except ValueError:
             cost = np.inf
     problem.release()  # a fresh signal for the result, without the criterion's caches
-    law, sig, _ = problem.split(x)
+    law = problem.jitter_law(x)
+    theta = problem.layout.block(x, "system")
+    fitted = structure.system(theta) if isinstance(structure, ModelStructure) else None
     problem.release()
     return FitResult(
         method=method,
@@ -453,7 +455,7 @@ def _fit(
         status=status,
         message=msg,
         nfev=nfev,
-        system=sig.system if isinstance(sig, Response) else None,
+        system=fitted,
         jitter_law=law,
         noise_std=noise_rec,
         freqs=f,

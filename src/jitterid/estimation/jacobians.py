@@ -214,7 +214,11 @@ def moment_derivatives(
     P = x.size
     dm, dv = np.zeros((P, d.N)), np.zeros((P, d.N))
     theta = x[nj : nj + ns]
-    scale = problem.jitter.scale_index if nj else None  # type: ignore[union-attr]
+    # A delay moves the jitter law (DelayedSignal.jitter_equivalent): the law at the nodes is
+    # then a shifted one, whose scale and closed-form dp/dtheta are not the family's, so its
+    # parameters are differenced; the delay itself moves no coefficient (differenced below).
+    delay = getattr(problem.structure, "delay_index", None)
+    scale = problem.jitter.scale_index if nj and delay is None else None  # type: ignore[union-attr]
     need_var = problem.needs_variances
     a = float(x[scale]) if scale is not None else None
     analytic_scale = False
@@ -264,8 +268,23 @@ def moment_derivatives(
             for i in range(nj, nj + ns):
                 g = finite_diff.derivative(both, x, i, problem.bounds[i], rel=_CD_REL)
                 dm[i], dv[i] = g[: d.N], g[d.N :]
+    if delay is not None and _modal_path(sig):  # the modal rows hold zeros for the delay
+        i = nj + delay
+
+        def both_(v: FloatArray) -> FloatArray:
+            mv = moments(problem, v)
+            return np.concatenate([mv.mean, mv.var if need_var else mv.mean[:0]])
+
+        g = finite_diff.derivative(both_, x, i, problem.bounds[i], rel=_CD_REL)
+        dm[i] = g[: d.N]
+        if need_var:
+            dv[i] = g[d.N :]
     shape = [i for i in range(nj) if not (analytic_scale and i == scale)]
-    grad = problem.jitter.pdf_gradient(x[:nj].tolist(), np.zeros(0)) if shape else None  # type: ignore[union-attr]
+    grad = (
+        problem.jitter.pdf_gradient(x[:nj].tolist(), np.zeros(0))  # type: ignore[union-attr]
+        if shape and delay is None
+        else None
+    )
     for i in shape if grad is not None else ():  # the family's closed-form dp/dtheta_i
         dm[i], dvi = _law_derivative(problem, x, law, sig, i, mom.mean, need_var)
         if dvi is not None:

@@ -173,7 +173,7 @@ def _pole_sensitivity(tf: TransferFunction, u: PiecewiseConstant) -> NDArray[np.
         moved = TransferFunction(np.ones(1), np.real(np.poly(p - shift)))
         q = moved._modal[2]
         j = np.argmin(np.abs(q[None, :] - (pk - shift)[:, None]), axis=1)
-        states.append(moved.response(u)._switch_states[:, j])
+        states.append(moved.switch_states(u)[:, j])
     return (3 * states[0] - 4 * states[1] + states[2]) / (2 * delta)
 
 
@@ -215,8 +215,8 @@ class _NodeSignal:
         small complex matmuls are ~10x slower. Nodes before the input starts get x = 0."""
         _, rho, pk = _kept(tf._modal)
         cols = np.flatnonzero(tf._modal[2].imag >= 0)
-        assert self.u is not None
-        X = tf.response(self.u)._switch_states
+        assert isinstance(self.u, PiecewiseConstant)
+        X = tf.switch_states(self.u)
         dt = self.dt[:, 0]
         for k, (rk, p) in enumerate(zip(rho, pk, strict=True)):
             a, half = dt * p.real, 0.5 * dt * p.imag
@@ -696,7 +696,8 @@ class ExactLikelihood:
         sigma = float(x[-1]) if self.noise_std is None else self.noise_std
         if not sigma > 0:
             raise ValueError(f"noise_std must be > 0 for the likelihood; got {sigma!r}")
-        return law, self.model.signal(lay.block(x, "system"), self.u), sigma
+        law, sig = self.model.signal(lay.block(x, "system"), self.u).jitter_equivalent(law)
+        return law, sig, sigma
 
     def design(self, x: ArrayLike) -> None:
         """(Re-)design the quadrature rule for the signal and noise level at ``x``."""
@@ -760,7 +761,7 @@ class ExactLikelihood:
                 self._cache.clear()
                 self._pieces = None
                 self._window_y = np.array(y, dtype=float)
-        key = tuple(x[: self.n_jitter])
+        key = (*x[: self.n_jitter], law.mean)  # a delay shifts the law (Delayed)
         if key not in self._cache:
             if len(self._cache) > 16:
                 self._cache.clear()
@@ -969,9 +970,16 @@ class ExactLikelihood:
         """Index of the jitter family's scale parameter a (the law of a xi, xi fixed), whose
         score is analytic (:meth:`_terms`); None if there is none or the signal's slope is
         not available (then it is differenced like the shape parameters)."""
-        if not (analytic and self.n_jitter):
-            return None
+        if not (analytic and self.n_jitter) or self._delay is not None:
+            return None  # a delayed model's law is shifted: not a xi (differenced)
         return self.jitter.scale_index  # type: ignore[union-attr]
+
+    @property
+    def _delay(self) -> int | None:
+        """Index of the input-output delay in the parameter vector
+        (:class:`jitterid.Delayed`), or None."""
+        i = getattr(self.model, "delay_index", None)
+        return None if i is None else self.n_jitter + i
 
     def _weight_params(self) -> tuple[int, ...]:
         """Jitter-family parameters that move the pdf inside a fixed support (the family's
@@ -982,8 +990,8 @@ class ExactLikelihood:
 
     def _pdf_gradient(self, x: FloatArray) -> bool:
         """Whether the jitter family gives dp/dtheta in closed form (``pdf_gradient``)."""
-        if not self.n_jitter:
-            return False
+        if not self.n_jitter or self._delay is not None:
+            return False  # a delayed model's law is the family's shifted (differenced)
         fam = self.jitter
         assert isinstance(fam, JitterFamily)
         return fam.pdf_gradient(x[: self.n_jitter].tolist(), np.zeros(0)) is not None
@@ -1031,8 +1039,9 @@ class ExactLikelihood:
         # d ln p(y_k) / dtheta_i = sum_j pi_j (dp/dtheta_i / p)(tau_j) at the same nodes
         closed = [i for i in range(nj) if i not in inner] if self._pdf_gradient(x) else []
         differenced = [i for i in range(nj) if i not in inner and i not in closed]
+        delay = self._delay
         if dmodal is None and not own_gradient:
-            differenced += list(range(nj, nj + ns))
+            differenced += [i for i in range(nj, nj + ns) if i != delay]
         fwd = {i: finite_diff.forward(x, i, self.bounds[i], _SCORE_STEP) for i in differenced}
         for nd in nodes:
             if analytic and (dmodal is not None or not ns):
@@ -1045,6 +1054,8 @@ class ExactLikelihood:
                 else:  # the declared finite-difference route: forward differences of s
                     D = np.empty((ns, nd.t.size))
                     for i in range(ns):
+                        if nj + i == delay:
+                            continue  # from the slope below
                         xi, h = fwd[nj + i]
                         D[i] = (nd.signal(self.split(xi)[1]) - s) / h
                 if scale is not None:
@@ -1052,6 +1063,14 @@ class ExactLikelihood:
                         ds = nd.signal.gradient(sig, None, None, slope=True)[2]  # type: ignore[misc]
                     else:
                         ds = sig.slope(nd.t)
+            if delay is not None:  # the nodes t_j = kT + tau0_j - delay move by -d delay
+                if not analytic:
+                    def later(v: FloatArray, t: FloatArray = nd.t) -> FloatArray:
+                        return sig(t + v[0])
+
+                    ds = finite_diff.derivative(later, np.zeros(1), 0, (-np.inf, np.inf), h=1e-6 * self.T)
+                D = D.copy()
+                D[delay - nj] = -ds
             if scale is not None:
                 tau = nd.t - (nd.k0 + nd.owner) * self.T
                 D = np.vstack([ds * (tau / x[scale]), D])

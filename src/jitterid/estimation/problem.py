@@ -144,15 +144,20 @@ class Problem:
         self._split = (key, out)
         return out
 
+    def jitter_law(self, x: FloatArray) -> JitterLaw:
+        """The jitter law at ``x`` as the model states it (before a delay moves it: the
+        law of :meth:`split` is the equivalent one)."""
+        if self.estimator.ignores_jitter:
+            return NoJitter()
+        if isinstance(self.jitter, JitterFamily):
+            return self.jitter.law(self.layout.block(x, "jitter").tolist())
+        return self.jitter
+
     def _split_new(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]:
         lay = self.layout
-        if self.estimator.ignores_jitter:
-            law: JitterLaw = NoJitter()
-        elif isinstance(self.jitter, JitterFamily):
-            law = self.jitter.law(lay.block(x, "jitter").tolist())
-        else:
-            law = self.jitter
+        law = self.jitter_law(x)
         sig = self.structure.signal(lay.block(x, "system"), self.data.u)
+        law, sig = sig.jitter_equivalent(law)  # a delay moves into the jitter (Delayed)
         noise = float(x[-1]) if self.estimates_noise else float(self.noise_std or 0.0)
         return law, sig, noise
 

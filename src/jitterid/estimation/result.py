@@ -436,6 +436,12 @@ class FitResult:
         lines.append(f"  jitter law {self.jitter_law}  ({sd})")
         if self.system is not None:
             lines.append(f"  system {self.system}")
+            if getattr(self.structure, "delay_index", None) is not None:
+                lines.append(
+                    f"  delay_s is estimated with the jitter's mean held at {self.jitter_law.mean:.4g} "
+                    "s: the samples identify only delay_s - mean jitter "
+                    f"= {self.system.delay_s - self.jitter_law.mean:.4g} s"
+                )
         else:
             lines.append(f"  signal model {type(self.structure).__name__}")
         if self.noise_model is not None:

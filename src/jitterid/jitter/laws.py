@@ -45,6 +45,7 @@ __all__ = [
     "JitterFamily",
     "JitterLaw",
     "NoJitter",
+    "Shifted",
     "SumOfUniforms",
     "SumOfUniformsFamily",
     "Uniform",
@@ -823,6 +824,92 @@ class CustomJitter(JitterLaw):
             f"CustomJitter(pdf={name}, support=({self._lo!r}, {self._hi!r}), "
             f"breakpoints={self._breaks[1:-1].tolist()})"
         )
+
+
+@dataclass(frozen=True)
+class Shifted(JitterLaw):
+    """A jitter law with a non-zero mean: ``tau = mean_s + tau0``, ``tau0 ~ law``.
+
+    A converter or a scheduler that samples late on average by ``mean_s`` seconds, with the
+    spread of ``law``. ``phi(f) = exp(-i 2 pi f mean_s) phi0(f)``; the density, support,
+    breakpoints and quadrature are ``law``'s moved by ``mean_s``; the variance is ``law``'s.
+
+    A mean jitter offset cannot be told apart from an input-output delay: the samples
+    y_k = (G u)(kT + mean_s + tau0_k - delay_s) see ``delay_s - mean_s`` only
+    (:class:`jitterid.Delayed` estimates the delay with this mean held at its given value).
+
+    Parameters
+    ----------
+    law : JitterLaw
+        The law of the zero-mean part ``tau0`` (a :class:`Shifted` law is flattened).
+    mean_s : float
+        The offset in seconds, finite.
+
+    Examples
+    --------
+    >>> law = Shifted(Uniform(0.5), 0.2)
+    >>> law.support, round(law.mean, 12)
+    ((-0.3, 0.7), 0.2)
+    """
+
+    law: JitterLaw
+    mean_s: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.law, JitterLaw):
+            raise TypeError(
+                f"law must be a jitter law (Uniform(a), Gaussian(sigma), ...); got "
+                f"{type(self.law).__name__}"
+            )
+        m = _checks.finite(self.mean_s, "mean_s")
+        if isinstance(self.law, Shifted):  # one level: Shifted(Shifted(l, a), b) = Shifted(l, a + b)
+            object.__setattr__(self, "mean_s", m + self.law.mean_s)
+            object.__setattr__(self, "law", self.law.law)
+        else:
+            object.__setattr__(self, "mean_s", m)
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        arr = _checks.real_array(f, "f")
+        return np.exp(-2j * np.pi * arr * self.mean_s) * self.law.cf(arr)
+
+    def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
+        return self.law.pdf(_checks.real_array(tau, "tau") - self.mean_s)
+
+    def sample(
+        self, size: int | Sequence[int], rng: np.random.Generator | int
+    ) -> NDArray[np.float64]:
+        return self.law.sample(size, rng) + self.mean_s
+
+    @property
+    def mean(self) -> float:
+        return self.law.mean + self.mean_s
+
+    @property
+    def var(self) -> float:
+        return self.law.var
+
+    @property
+    def support(self) -> tuple[float, float]:
+        lo, hi = self.law.support
+        return (lo + self.mean_s, hi + self.mean_s)
+
+    def breakpoints(self) -> NDArray[np.float64]:
+        return np.asarray(self.law.breakpoints(), dtype=float) + self.mean_s
+
+    def quadrature(
+        self, nodes_per_panel: int = _GL_NODES
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        nodes, w = self.law.quadrature(nodes_per_panel)
+        return nodes + self.mean_s, w
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {**self.law.params, "mean_s": self.mean_s}
+
+
+def shifted(law: JitterLaw, offset_s: float) -> JitterLaw:
+    """``law`` moved by ``offset_s`` seconds (``law`` itself for a zero offset)."""
+    return law if offset_s == 0.0 else Shifted(law, offset_s)
 
 
 # --------------------------------------------------------------------------------------------

@@ -97,6 +97,7 @@ def sample_moments(
     T = positive(T, "T")
     N = count(N, "N", minimum=1)
     signal.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
+    jitter, signal = signal.jitter_equivalent(jitter)  # a delay moves into the jitter
     lo, hi = jitter.support
     if isinstance(signal, Response) and isinstance(signal.u, PiecewiseConstant) and hi > lo:
         # The same nodes, summed per input segment from the modal form (:mod:`._modal`):

@@ -32,13 +32,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import parameter_vector
+from ..jitter.laws import shifted
 
 if TYPE_CHECKING:
     from ..data import SampledData
     from ..inputs import Input
     from ..jitter.laws import JitterLaw
 
-__all__ = ["Bounds", "Model", "MomentPass", "Signal"]
+__all__ = ["Bounds", "DelayedSignal", "Model", "MomentPass", "Signal"]
 
 FloatArray = NDArray[np.float64]
 Bounds = tuple[tuple[float, float], ...]
@@ -136,6 +137,48 @@ class Signal(abc.ABC):
         """Refuse instants at or past :attr:`end` with a ValueError naming ``what``."""
         if t_max >= self.end:
             raise ValueError(f"{what} (t = {t_max:g}) is at or past the signal's end {self.end:g}")
+
+    def jitter_equivalent(self, jitter: JitterLaw) -> tuple[JitterLaw, Signal]:
+        """A (law, signal) pair whose jittered samples s(kT + tau) have the same law as this
+        signal's under ``jitter``: the pair itself, except for a pure time shift
+        (:class:`DelayedSignal`: the delay moves into the jitter's mean, so the moments and
+        the likelihood keep the fast modal path of the undelayed response)."""
+        return jitter, self
+
+
+@dataclass(frozen=True, eq=False)
+class DelayedSignal(Signal):
+    """s(t) = inner(t - delay_s): a signal delayed by ``delay_s`` seconds (an input-output
+    delay, :class:`jitterid.Delayed`).
+
+    Its jittered samples inner(kT + tau - delay_s) are those of ``inner`` under the jitter
+    moved by -delay_s (:meth:`jitter_equivalent`), which is how the moments and the
+    likelihood evaluate it.
+    """
+
+    inner: Signal
+    delay_s: float
+
+    def __post_init__(self) -> None:
+        d = float(self.delay_s)
+        object.__setattr__(self, "breaks", np.asarray(self.inner.breaks, dtype=float) + d)
+        object.__setattr__(self, "rate", self.inner.rate)
+        object.__setattr__(self, "start", self.inner.start + d)
+        object.__setattr__(self, "end", self.inner.end + d)
+
+    def __call__(self, t: ArrayLike) -> FloatArray:
+        return self.inner(np.asarray(t, dtype=float) - self.delay_s)
+
+    @property
+    def has_slope(self) -> bool:
+        return self.inner.has_slope
+
+    def slope(self, t: FloatArray) -> FloatArray | None:
+        return self.inner.slope(np.asarray(t, dtype=float) - self.delay_s)
+
+    def jitter_equivalent(self, jitter: JitterLaw) -> tuple[JitterLaw, Signal]:
+        law, sig = self.inner.jitter_equivalent(jitter)
+        return shifted(law, -self.delay_s), sig
 
 
 class Model(abc.ABC):

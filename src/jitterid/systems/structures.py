@@ -11,14 +11,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import count
-from .model import Bounds, Model
-from .tf import Response, TransferFunction
+from .model import Bounds, Model, Signal
+from .tf import TransferFunction
 
 if TYPE_CHECKING:
     from ..data import SampledData
     from ..inputs import Input
 
-__all__ = ["KnownSystem", "ModelStructure", "PolePairGain", "RationalModel"]
+__all__ = ["Delayed", "KnownSystem", "ModelStructure", "PolePairGain", "RationalModel"]
 
 FloatArray = NDArray[np.float64]
 
@@ -40,13 +40,20 @@ class ModelStructure(Model):
         """Indices of parameters that scale the output linearly (the numerator)."""
         return ()
 
+    @property
+    def delay_index(self) -> int | None:
+        """Index of the input-output delay among the parameters (:class:`Delayed`), or None.
+        Its derivative is not in :meth:`coefficient_jacobian` (the delay moves no
+        coefficient): the moments difference it, the likelihood takes it from the slope."""
+        return None
+
     @abc.abstractmethod
     def system(self, params: ArrayLike) -> TransferFunction: ...
 
     @abc.abstractmethod
     def starts(self, T: float) -> list[FloatArray]: ...
 
-    def signal(self, params: ArrayLike, u: Input | None = None) -> Response:
+    def signal(self, params: ArrayLike, u: Input | None = None) -> Signal:
         """s(t) = (G_theta u)(t), the exact response to the known input ``u``."""
         if u is None:
             raise ValueError(
@@ -197,6 +204,98 @@ class KnownSystem(ModelStructure):
 
     def starts(self, T: float) -> list[FloatArray]:
         return [np.zeros(0)]
+
+
+@dataclass(frozen=True, eq=False)
+class Delayed(ModelStructure):
+    """``structure`` with an input-output delay: G(s) = e^{-s delay_s} G_theta(s).
+
+    The parameters are the structure's, then ``delay_s`` (seconds; MATLAB's ``IODelay``).
+    The delayed input of a piecewise-constant or sinusoidal input is still one, so the
+    response stays exact; the moments and the likelihood evaluate it as the undelayed
+    response under the jitter moved by -delay_s
+    (:meth:`jitterid.systems.model.DelayedSignal.jitter_equivalent`), on the same fast path.
+
+    **Delay and mean jitter.** Samples y_k = (G u)(kT + tau_k - delay_s) see only
+    ``delay_s - E tau``: a converter that samples late on average by m seconds looks
+    exactly like a delay of -m. The fit estimates ``delay_s`` with the jitter law's mean held
+    at its given value (zero for the symmetric laws and families; a known offset is a
+    :class:`jitterid.Shifted` law); to estimate a mean jitter offset instead, allow a negative
+    delay (``min_delay_s < 0``) with a zero-mean law and read m = -delay_s.
+
+    Parameters
+    ----------
+    structure : ModelStructure
+        The rational part (``PolePairGain()``, ``RationalModel(m, n)``, ...), not itself delayed.
+    min_delay_s, max_delay_s : float
+        Bounds of ``delay_s`` in seconds; default [0, inf) (a causal delay).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> model = ji.Delayed(ji.RationalModel(0, 1), max_delay_s=5.0)
+    >>> model.param_names
+    ('b0', 'a0', 'delay_s')
+    >>> model.system([2.0, 1.0, 0.3])
+    TransferFunction(num=[2.0], den=[1.0, 1.0], delay_s=0.3)
+    """
+
+    structure: ModelStructure
+    min_delay_s: float = 0.0
+    max_delay_s: float = np.inf
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.structure, ModelStructure):
+            raise TypeError(
+                "structure must be an LTI model structure (PolePairGain(), RationalModel(m, n), "
+                f"...); got {type(self.structure).__name__}"
+            )
+        if isinstance(self.structure, Delayed) or "delay_s" in self.structure.param_names:
+            raise ValueError("structure already has a delay_s parameter: delay it once")
+        lo, hi = float(self.min_delay_s), float(self.max_delay_s)
+        if not (np.isfinite(lo) and lo < hi) or np.isnan(hi):
+            raise ValueError(
+                f"min_delay_s must be finite and below max_delay_s; got [{lo!r}, {hi!r}] "
+                "(e.g. min_delay_s=0, max_delay_s=10 * T)"
+            )
+        object.__setattr__(self, "min_delay_s", lo)
+        object.__setattr__(self, "max_delay_s", hi)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:  # type: ignore[override]
+        return (*self.structure.param_names, "delay_s")
+
+    @property
+    def bounds(self) -> Bounds:  # type: ignore[override]
+        return (*self.structure.bounds, (self.min_delay_s, self.max_delay_s))
+
+    @property
+    def gain_params(self) -> tuple[int, ...]:
+        return self.structure.gain_params
+
+    @property
+    def delay_index(self) -> int | None:
+        return len(self.structure.param_names)
+
+    def system(self, params: ArrayLike) -> TransferFunction:
+        x = self._check(params)
+        tf = self.structure.system(x[:-1])
+        return TransferFunction(tf.num, tf.den, delay_s=float(x[-1]))
+
+    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+        x = self._check(params)
+        inner = self.structure.coefficient_jacobian(x[:-1], n)
+        if inner is None:
+            return None
+        zero = np.zeros((1, n))  # the delay moves no coefficient
+        return np.vstack([inner[0], zero]), np.vstack([inner[1], zero])
+
+    def starts(self, T: float) -> list[FloatArray]:
+        # The structure's starts times a few delays in [min, max]: the criterion in the delay
+        # has a local optimum per input switch, so one delay start is not enough.
+        grid = np.array([0.0, 0.5, 1.0, 2.0, 4.0, -0.5, -1.0]) * T
+        delays = np.unique(np.clip(grid, self.min_delay_s, min(self.max_delay_s, 1e300)))
+        return [np.r_[x, d] for d in delays for x in self.structure.starts(T)]
 
 
 def as_structure(system: Model | TransferFunction) -> Model:

@@ -16,9 +16,9 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import real_array
+from .._checks import finite, real_array
 from ..inputs import Input, Multisine, PiecewiseConstant
-from .model import Signal
+from .model import DelayedSignal, Signal
 
 __all__ = ["Response", "TransferFunction"]
 
@@ -32,13 +32,16 @@ _BLOCK = 500.0
 
 @dataclass(frozen=True, eq=False)
 class TransferFunction:
-    """A continuous-time transfer function G(s) = num(s) / den(s).
+    """A continuous-time transfer function G(s) = e^{-s delay_s} num(s) / den(s).
 
     Parameters
     ----------
     num, den : array_like
         Polynomial coefficients in s, highest power first (as in ``scipy.signal``).
         Leading zeros are stripped. The model must be proper (deg num <= deg den).
+    delay_s : float, default 0
+        Input-output delay in seconds (MATLAB's ``IODelay``), finite; a negative value is a
+        lead (it stands for a mean jitter offset, see :class:`jitterid.Shifted`).
 
     Notes
     -----
@@ -49,8 +52,10 @@ class TransferFunction:
 
     num: FloatArray
     den: FloatArray
+    delay_s: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "delay_s", finite(self.delay_s, "delay_s"))
         num = _trim_leading(np.atleast_1d(real_array(self.num, "num")))
         den = _trim_leading(np.atleast_1d(real_array(self.den, "den")))
         if num.ndim != 1 or den.ndim != 1:
@@ -70,7 +75,13 @@ class TransferFunction:
         object.__setattr__(self, "den", den)
 
     def __repr__(self) -> str:
-        return f"TransferFunction(num={self.num.tolist()}, den={self.den.tolist()})"
+        delay = f", delay_s={self.delay_s!r}" if self.delay_s else ""
+        return f"TransferFunction(num={self.num.tolist()}, den={self.den.tolist()}{delay})"
+
+    @cached_property
+    def undelayed(self) -> TransferFunction:
+        """The rational part num(s) / den(s) (``self`` when there is no delay)."""
+        return TransferFunction(self.num, self.den) if self.delay_s else self
 
     @property
     def order(self) -> int:
@@ -103,7 +114,8 @@ class TransferFunction:
         (1+0j)
         """
         s = 2j * np.pi * real_array(f_hz, "f_hz")
-        return np.polyval(self.num, s) / np.polyval(self.den, s)
+        g = np.polyval(self.num, s) / np.polyval(self.den, s)
+        return g * np.exp(-s * self.delay_s) if self.delay_s else g
 
     def freqresp(self, f: ArrayLike) -> ComplexArray:
         """Deprecated: :meth:`frequency_response` (which names its unit, Hz; scipy's
@@ -120,9 +132,13 @@ class TransferFunction:
         """(D, residues, poles) of the partial-fraction form G = D + sum r / (s - p)."""
         if not self.is_stable:
             bad = self.poles[self.poles.real >= 0]
+            kind = "an integrator (a pole at 0)" if np.any(np.abs(bad) == 0) else "unstable modes"
             raise ValueError(
-                f"the system is not stable (poles {np.round(bad, 6).tolist()} have Re >= 0); "
-                "jitterid simulates stable systems only, so that the response from rest is bounded"
+                f"the system {self!r} is not stable: poles {np.round(bad, 6).tolist()} have "
+                f"Re >= 0 ({kind}). jitterid's exact response and moments are built on decaying "
+                "modes, so it models stable systems only: model a slow mode as a stable pole "
+                "(e.g. a0 > 0 small in RationalModel), or identify the system from the "
+                "differenced output when it holds an integrator"
             )
         lead = self.den[0]
         d = float(self.num[0] / lead) if self.num.size == self.den.size else 0.0
@@ -141,8 +157,12 @@ class TransferFunction:
         r = np.polyval(rem, p) / np.polyval(np.polyder(self.den), p) if p.size else p
         return d, np.asarray(r, complex), p
 
-    def response(self, u: Input) -> Response:
-        """The exact output s(t) = (g * u)(t) to input ``u`` from rest, as a :class:`Response`."""
+    def response(self, u: Input) -> Signal:
+        """The exact output s(t) = (g * u)(t) to input ``u`` from rest: a :class:`Response`,
+        or with a delay the undelayed system's :class:`Response` delayed
+        (:class:`jitterid.systems.model.DelayedSignal`)."""
+        if self.delay_s:
+            return DelayedSignal(Response(self.undelayed, u), self.delay_s)
         return Response(self, u)
 
     def _recursion(self, u: PiecewiseConstant) -> tuple[_Recursion, ComplexArray]:
