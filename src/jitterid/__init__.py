@@ -17,6 +17,8 @@ from .analysis.diagnostics import (
     model_output,
     standardized_residuals,
 )
+from .analysis.quantities import PhysicalQuantities, Quantity, physical_quantities
+from .analysis.responses import TimeResponseBand, impulse_response, step_response
 from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
 from .data import SampledData
 from .estimation.bounds import crb, gaussian_bound
@@ -70,6 +72,7 @@ from .noise.covariance import (
 )
 from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
 from .params import ParamLayout
+from .plots import plot_step_response
 from .simulate import simulate
 from .systems.model import Model, Signal
 from .systems.signals import SignalModel
@@ -187,4 +190,15 @@ __all__ += [
     "fitted_noise",
     "jittered_autocovariance",
     "sample_covariance",
+]
+
+# What a tfest user reaches for next: physical quantities, responses with bands (issue 16).
+__all__ += [
+    "PhysicalQuantities",
+    "Quantity",
+    "TimeResponseBand",
+    "impulse_response",
+    "physical_quantities",
+    "plot_step_response",
+    "step_response",
 ]

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .analysis.diagnostics import JitterDetection
+from .analysis.responses import TimeResponseBand, lti_response
 from .analysis.uncertainty import BodeBand, PdfBand
 from .jitter.laws import JitterLaw
 from .systems.tf import TransferFunction
@@ -29,6 +30,7 @@ __all__ = [
     "plot_jitter_pdf",
     "plot_jitter_phase",
     "plot_residuals",
+    "plot_step_response",
 ]
 
 
@@ -405,5 +407,64 @@ def plot_gain_factor(
     ax.set_ylabel("LS gain factor |φ(f)|")
     ax.set_ylim(bottom=0, top=1.05)
     ax.legend(loc="lower left", fontsize="small")
+    ax.grid(True, alpha=0.3)
+    return Plot(out, (ax,))
+
+
+def plot_step_response(
+    band: TimeResponseBand,
+    references: Mapping[str, TransferFunction] | None = None,
+    *,
+    label: str = "estimate",
+    ax: Any = None,
+) -> Plot:
+    """A step or impulse response (by ``band.kind``) with its pointwise confidence band.
+
+    Parameters
+    ----------
+    band : TimeResponseBand
+        From :func:`jitterid.step_response` or :func:`jitterid.impulse_response`.
+    references : mapping of str to TransferFunction, optional
+        Other systems whose response of the same kind is drawn at the same times, e.g.
+        ``{"truth": g0}``.
+    label : str
+        Legend label of the estimate.
+    ax : Axes, optional
+        New axes (a new figure) if None.
+
+    Returns
+    -------
+    Plot
+        ``response``, ``band`` (absent where the band is empty or NaN) and, per reference,
+        its name.
+    """
+    if not isinstance(band, TimeResponseBand):
+        raise TypeError(
+            f"band must be a TimeResponseBand (jitterid.step_response); got {type(band).__name__}"
+        )
+    ax = _axes(ax, 1)
+    out: Artists = {"response": ax.plot(band.t_s, band.response, color="C0", lw=2, label=label)[0]}
+    finite = np.isfinite(band.lo) & np.isfinite(band.hi)
+    if finite.any() and np.any(band.hi[finite] > band.lo[finite]):
+        how = {"delta": "delta method", "sampling": "parameter draws"}.get(band.method, band.method)
+        out["band"] = ax.fill_between(
+            band.t_s, band.lo, band.hi, where=finite, color="C0", alpha=0.25, lw=0,
+            label=f"{100 * band.level:g}% pointwise band ({how})",
+        )
+    styles = ["--", ":", "-."]
+    for i, (name, tf) in enumerate((references or {}).items()):
+        out[name] = ax.plot(
+            band.t_s, lti_response(tf, band.t_s, band.kind), color=f"C{i + 1}",
+            ls=styles[i % len(styles)], lw=1.5, label=name,
+        )[0]
+    ax.axhline(0.0, color="k", lw=0.6, alpha=0.5)
+    ax.set_ylabel(
+        "step response (output per unit input)"
+        if band.kind == "step"
+        else "impulse response g(t) (output per unit input, per s)"
+    )
+    ax.set_xlabel("time after the " + band.kind + " t (s)")
+    ax.set_xlim(float(np.min(band.t_s)), float(np.max(band.t_s)))
+    ax.legend(loc="best", fontsize="small")
     ax.grid(True, alpha=0.3)
     return Plot(out, (ax,))

@@ -27,6 +27,8 @@ from ..analysis.diagnostics import (
     bias_frequency,
     ls_gain_factor,
 )
+from ..analysis.quantities import PhysicalQuantities, physical_quantities
+from ..analysis.responses import step_response
 from ..analysis.uncertainty import bode_band, jitter_pdf_band
 from ..estimation.result import FitResult
 from ..io import Dataset, atomic_write
@@ -165,6 +167,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             warnings.append(f"jitter cross-check: {xc.message}")
     for c in rep.checks:
         diagnostics[c.name] = {"statistic": c.statistic, "dof": c.dof, "pvalue": c.pvalue}
+    quantities, why_q = _quantities(rep)
     if skipped:
         diagnostics["skipped"] = skipped
     return _clean(
@@ -206,6 +209,9 @@ def result_json(rep: FitReport) -> dict[str, Any]:
             "conf_int_notes": ci_notes or {},
             "covariance": {"names": list(res.names), "matrix": cov},
             "system": _system_dict(_tf(res)),
+            "physical_quantities": (
+                quantities.to_dict() if quantities is not None else {"skipped": why_q}
+            ),
             "ordinary_ls": {
                 "parameters": rep.ordinary.params,
                 "stderr": ls_se,
@@ -217,6 +223,38 @@ def result_json(rep: FitReport) -> dict[str, Any]:
     )
 
 
+def _quantities(rep: FitReport) -> tuple[PhysicalQuantities | None, str | None]:
+    """The physical quantities of the fit with delta-method intervals at the report's level,
+    or None and why not."""
+    with np.errstate(all="ignore"):
+        return _try(lambda: physical_quantities(rep.result, rep.level))
+
+
+def _quantity_lines(rep: FitReport) -> list[str]:
+    """The Markdown table of the physical quantities (or one line saying why there is none)."""
+    table, why = _quantities(rep)
+    if table is None:
+        return [f"Physical quantities not computed: {md_text(why or '')}.", ""]
+    pct = f"{100 * rep.level:g}%"
+    logs = [q.name for q in table if q.scale == "log"]
+    lines = [
+        "Physical quantities (poles and zeros: real part in 1/s, imaginary part in rad/s; "
+        "natural frequencies and bandwidth in Hz; delta-method intervals"
+        + (f", on the log scale for {', '.join(f'`{n}`' for n in logs)}" if logs else "")
+        + "):",
+        "",
+        f"| quantity | estimate | std err | {pct} interval | unit |",
+        "|---|---:|---:|---|---|",
+    ]
+    for q in table:
+        ci = f"[{q.low:.5g}, {q.high:.5g}]" if math.isfinite(q.low) else "-"
+        se = f"{q.stderr:.3g}" if math.isfinite(q.stderr) else "-"
+        val = f"{q.value:.5g}" if math.isfinite(q.value) else "-"
+        lines.append(f"| `{q.name}` | {val} | {se} | {ci} | {md_text(q.unit or '-')} |")
+    notes = [f"- `{q.name}`: {md_text(q.note)}" for q in table if q.note]
+    return [*lines, "", *notes, *([""] if notes else [])]
+
+
 def _save(fig: Any, path: Path) -> None:
     atomic_write(path, lambda fh: fig.savefig(fh, dpi=110, format="png"), binary=True)
 
@@ -224,7 +262,12 @@ def _save(fig: Any, path: Path) -> None:
 def _figures(rep: FitReport, out: Path) -> dict[str, str]:
     """The figures that can be drawn; a figure that cannot is noted under ``<name>_skipped``."""
     names: dict[str, str] = {}
-    for name, draw in (("bode", _bode_fig), ("jitter_pdf", _pdf_fig), ("residuals", _resid_fig)):
+    for name, draw in (
+        ("bode", _bode_fig),
+        ("step", _step_fig),
+        ("jitter_pdf", _pdf_fig),
+        ("residuals", _resid_fig),
+    ):
         try:
             names.update(draw(rep, out))
         except _ERRORS as exc:
@@ -249,6 +292,34 @@ def _bode_fig(rep: FitReport, out: Path) -> dict[str, str]:
     _save(fig, out / "bode.png")
     names["bode"] = "bode.png"
     return names
+
+
+def _step_horizon(res: FitResult, data_span_s: float) -> float:
+    """How long to draw the step response (s): 7 time constants of the slowest decaying
+    pole (the response has settled to 0.1 %), at most the record's span."""
+    p = _tf(res).poles
+    decay = -p.real[p.real < 0]
+    if not decay.size or np.any(p.real >= 0):
+        return data_span_s
+    return float(min(7.0 / decay.min(), data_span_s))
+
+
+def _step_fig(rep: FitReport, out: Path) -> dict[str, str]:
+    from matplotlib.figure import Figure
+
+    from ..plots import plot_step_response
+
+    res, data = rep.result, rep.dataset.data
+    t = np.linspace(0.0, _step_horizon(res, data.N * data.T), 400)
+    with np.errstate(all="ignore"):
+        band = step_response(res, t, rep.level)
+    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    ax = fig.subplots()
+    refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": _tf(rep.ordinary)}
+    plot_step_response(band, refs, label=f"{res.method} estimate", ax=ax)
+    ax.set_title(f"Step response, {100 * rep.level:g}% delta-method band", fontsize="medium")
+    _save(fig, out / "step.png")
+    return {"step": "step.png"}
 
 
 def _pdf_fig(rep: FitReport, out: Path) -> dict[str, str]:
@@ -432,9 +503,11 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
             for p in _tf(res).poles
         ),
         "",
-        "## 3. Frequency response",
+        *_quantity_lines(rep),
+        "## 3. Frequency and step response",
         "",
         *_image("Bode plot", figs.get("bode")),
+        *_image("step response", figs.get("step")),
     ]
     if law.std > 0:
         gain, _ = _try(lambda: (bias_frequency(law, 0.01), ls_gain_factor(law, 0.5 / data.T)))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import enum
 import json
+import math
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,6 +34,7 @@ __all__ = ["COV_TYPES", "FitResult", "FitStatus"]
 FloatArray = NDArray[np.float64]
 
 COV_TYPES = ("sandwich", "robust", "oim", "none")
+DISCRETE_METHODS = ("zoh", "foh", "bilinear", "euler", "backward_diff", "impulse")
 
 
 class FitStatus(enum.Enum):
@@ -404,6 +406,28 @@ class FitResult:
 
         return jitter_pdf_band(self, tau_s, rng, **kwargs)
 
+    def physical_quantities(self, level: float = 0.95, **kwargs: Any) -> Any:
+        """Poles, zeros, DC gain, time constants (s), natural frequencies (Hz), damping ratios
+        and the -3 dB bandwidth (Hz) with intervals; see :func:`jitterid.physical_quantities`
+        for the options (``method="delta"`` or ``"sampling"``, ``draws``, ``rng``)."""
+        from ..analysis.quantities import physical_quantities
+
+        return physical_quantities(self, level, **kwargs)
+
+    def step_response(self, t_s: Any, level: float = 0.95, **kwargs: Any) -> Any:
+        """The unit-step response at ``t_s`` (s) with a pointwise band; see
+        :func:`jitterid.step_response`."""
+        from ..analysis.responses import step_response
+
+        return step_response(self, t_s, level, **kwargs)
+
+    def impulse_response(self, t_s: Any, level: float = 0.95, **kwargs: Any) -> Any:
+        """The impulse response at ``t_s`` (s) with a pointwise band; see
+        :func:`jitterid.impulse_response`."""
+        from ..analysis.responses import impulse_response
+
+        return impulse_response(self, t_s, level, **kwargs)
+
     # ------------------------------------------------------------------ reports
     def summary(self) -> str:
         """A readable table of the estimate.
@@ -444,6 +468,8 @@ class FitResult:
                 )
         else:
             lines.append(f"  signal model {type(self.structure).__name__}")
+        if self.system is not None:
+            lines += self._quantities_lines()
         if self.noise_model is not None:
             lines.append(f"  noise model {self.noise_model}")
         if self.noise_std is None:
@@ -456,6 +482,16 @@ class FitResult:
             )
             lines.append(f"  noise std {self.noise_std:.4g} ({how})")
         return "\n".join(lines)
+
+    def _quantities_lines(self) -> list[str]:
+        """The physical-quantities table of :meth:`summary`, indented; one line saying why
+        where it cannot be computed (summary() never raises)."""
+        try:
+            table = self.physical_quantities()
+            return ["  " + line for line in table.summary().splitlines()]
+        except Exception as exc:  # noqa: BLE001 - summary() never fails for a derived table
+            why = " ".join(str(exc).split()) or type(exc).__name__
+            return [f"  physical quantities: skipped ({why})"]
 
     def __str__(self) -> str:
         return self.summary()
@@ -482,6 +518,37 @@ class FitResult:
             ) from exc
         tf = self._transfer_function()
         return control.tf(tf.num.tolist(), tf.den.tolist())
+
+    def to_discrete(self, T: float, method: str = "zoh") -> Any:
+        """The fitted G(s) discretised with sampling interval ``T`` (s), as a
+        ``scipy.signal.dlti`` (transfer-function form in z, ``dt = T``), through
+        ``scipy.signal.cont2discrete``.
+
+        Parameters
+        ----------
+        T : float
+            Sampling interval in s, > 0.
+        method : str
+            ``"zoh"`` (default: the input held between samples, exact for a
+            piecewise-constant input switching at multiples of T), ``"foh"``,
+            ``"bilinear"`` (Tustin), ``"euler"``, ``"backward_diff"`` or ``"impulse"``.
+        """
+        from scipy import signal
+
+        tf = self._transfer_function()
+        if isinstance(T, bool) or not isinstance(T, (int, float, np.integer, np.floating)):
+            raise TypeError(f"T must be the sampling interval in s, a number; got {T!r}")
+        if not (math.isfinite(float(T)) and float(T) > 0):
+            raise ValueError(f"T must be the sampling interval in s, finite and > 0; got {T!r}")
+        if method not in DISCRETE_METHODS:
+            raise ValueError(f"method must be one of {DISCRETE_METHODS}; got {method!r}")
+        numd, dend, _ = signal.cont2discrete((tf.num, tf.den), float(T), method=method)
+        num = np.ravel(numd)
+        # A strictly proper G gives a ZOH numerator whose leading coefficient is 0 up to
+        # rounding; drop such leading terms (relative 1e-12) as scipy would, but silently.
+        big = float(np.max(np.abs(num))) if num.size else 0.0
+        lead = int(np.argmax(np.abs(num) > 1e-12 * big)) if big > 0 else num.size - 1
+        return signal.dlti(num[lead:], np.ravel(dend), dt=float(T))
 
     def _transfer_function(self) -> TransferFunction:
         if self.system is None:
