@@ -246,3 +246,49 @@ def test_delay_intervals_cover_over_records(method: str) -> None:
     d = np.array(est)
     assert 0.90 <= np.mean(covered) <= 0.98
     assert abs(d.mean() - 0.7) < 3.5 * d.std(ddof=1) / np.sqrt(d.size)
+
+
+def _delayed_fit() -> ji.FitResult:
+    data = _data(ji.Uniform(0.5), 0.7, seed=4)
+    return ji.fit(data, MODEL, ji.Uniform(0.5), "bcls")
+
+
+def test_step_response_of_a_delayed_fit_is_the_rational_one_moved() -> None:
+    res = _delayed_fit()
+    d = res.system.delay_s
+    t = np.linspace(0.0, 12.0, 241)
+    band = res.step_response(t)
+    rational = ji.analysis.responses.lti_response(res.system.undelayed, np.maximum(t - d, 0.0))
+    np.testing.assert_allclose(band.response, np.where(t >= d, rational, 0.0), atol=1e-12)
+    assert np.all(band.response[t < d] == 0.0)
+
+
+def test_exports_of_a_delay_say_how_or_approximate_it() -> None:
+    from scipy import signal
+
+    res = _delayed_fit()
+    with pytest.raises(ValueError, match="pade_order"):
+        res.to_scipy()
+    # the Pade approximant against e^{-i w d} G at low frequencies (|w d| < 1)
+    lti = res.to_scipy(pade_order=4)
+    f = np.array([0.01, 0.05, 0.1])
+    _, g = signal.freqresp(lti, 2 * np.pi * f)
+    np.testing.assert_allclose(g, res.system.frequency_response(f), rtol=1e-6)
+    with pytest.raises(ValueError, match="not a whole number of periods"):
+        res.to_discrete(0.3)
+    with pytest.raises(ValueError, match="pade_order must be"):
+        res.to_scipy(pade_order=0)
+
+
+def test_to_discrete_of_a_whole_period_delay_is_z_to_the_minus_m() -> None:
+    from scipy import signal
+
+    tf = ji.TransferFunction([2.0], [1.0, 1.0], delay_s=0.75)
+    data = _data(ji.NoJitter(), 0.0, seed=6, N=60)
+    res = ji.fit(data, ji.KnownSystem(tf), ji.NoJitter(), "bcls")
+    sys_d = res.to_discrete(0.25)
+    plain = ji.fit(data, ji.KnownSystem(tf.undelayed), ji.NoJitter(), "bcls").to_discrete(0.25)
+    _, y_delayed = signal.dstep(sys_d, n=30)
+    _, y_plain = signal.dstep(plain, n=30)
+    np.testing.assert_allclose(y_delayed[0][3:, 0], y_plain[0][:-3, 0], atol=1e-12)
+    np.testing.assert_allclose(y_delayed[0][:3, 0], 0.0, atol=1e-15)

@@ -100,6 +100,9 @@ def lti_response(system: TransferFunction, t_s: ArrayLike, kind: str = "step") -
     if kind not in KINDS:
         raise ValueError(f"kind must be 'step' or 'impulse'; got {kind!r}")
     t = _times(t_s)
+    if system.delay_s:  # e^{-s d} G: G's response moved by d, zero before
+        moved = lti_response(system.undelayed, np.maximum(t - system.delay_s, 0.0), kind)
+        return np.where(t >= system.delay_s, moved, 0.0)
     num, den = np.asarray(system.num, float), np.asarray(system.den, float)
     lead = den[0]
     d = float(num[0] / lead) if num.size == den.size else 0.0

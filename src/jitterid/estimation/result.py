@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from .. import _serial, finite_diff
+from .._checks import count
 from ..data import SampledData
 from ..inputs import Input
 from ..jitter.laws import JitterFamily, JitterLaw
@@ -497,17 +498,50 @@ class FitResult:
         return self.summary()
 
     # ------------------------------------------------------------------ export
-    def to_scipy(self) -> Any:
-        """The fitted G(s) as a ``scipy.signal.lti`` (transfer-function form; s in rad/s)."""
+    def to_scipy(self, pade_order: int | None = None) -> Any:
+        """The fitted G(s) as a ``scipy.signal.lti`` (transfer-function form; s in rad/s).
+
+        Parameters
+        ----------
+        pade_order : int, optional
+            For a fit with an input-output delay (:class:`jitterid.Delayed`), which scipy's
+            ``lti`` cannot hold: the order of the Pade approximation of e^{-s delay_s}
+            multiplied in. Without it such a fit is refused (``result.system.undelayed``
+            is the rational part alone).
+        """
         from scipy import signal
 
-        tf = self._transfer_function()
-        return signal.lti(tf.num, tf.den)
+        return signal.lti(*self._rational(pade_order))
 
-    def to_control(self) -> Any:
+    def _rational(self, pade_order: int | None) -> tuple[FloatArray, FloatArray]:
+        """(num, den) of the fitted G, its delay replaced by a Pade approximation."""
+        tf = self._transfer_function()
+        if not tf.delay_s:
+            return np.asarray(tf.num, float), np.asarray(tf.den, float)
+        if pade_order is None:
+            raise ValueError(
+                f"the fitted G has an input-output delay of {tf.delay_s:g} s, which a rational "
+                "transfer function cannot hold: pass pade_order (e.g. 3) for a Pade "
+                "approximation of the delay, or export result.system.undelayed (the rational "
+                "part) and add the delay in your tool"
+            )
+        n = count(pade_order, "pade_order", minimum=1)
+        # Pade [n/n] of e^{-x}: q(x) = sum_k c_k x^k, c_k = (2n - k)! n! / ((2n)! k! (n - k)!),
+        # e^{-x} ~ q(-x) / q(x), with x = s delay_s (coefficients highest power first).
+        c = np.array([
+            math.factorial(2 * n - k) * math.factorial(n)
+            / (math.factorial(2 * n) * math.factorial(k) * math.factorial(n - k))
+            * tf.delay_s**k
+            for k in range(n, -1, -1)
+        ])
+        sign = (-1.0) ** np.arange(n, -1, -1)
+        return np.polymul(tf.num, sign * c), np.polymul(tf.den, c)
+
+    def to_control(self, pade_order: int | None = None) -> Any:
         """The fitted G(s) as a python-control ``TransferFunction`` (s in rad/s).
 
-        Needs the optional extra: ``pip install 'jitterid[control]'``.
+        Needs the optional extra: ``pip install 'jitterid[control]'``. A delay needs
+        ``pade_order``, as in :meth:`to_scipy`.
         """
         try:
             import control
@@ -516,8 +550,8 @@ class FitResult:
                 "to_control() needs python-control, an optional dependency; install it with "
                 "pip install 'jitterid[control]' (or pip install control)"
             ) from exc
-        tf = self._transfer_function()
-        return control.tf(tf.num.tolist(), tf.den.tolist())
+        num, den = self._rational(pade_order)
+        return control.tf(num.tolist(), den.tolist())
 
     def to_discrete(self, T: float, method: str = "zoh") -> Any:
         """The fitted G(s) discretised with sampling interval ``T`` (s), as a
@@ -542,7 +576,17 @@ class FitResult:
             raise ValueError(f"T must be the sampling interval in s, finite and > 0; got {T!r}")
         if method not in DISCRETE_METHODS:
             raise ValueError(f"method must be one of {DISCRETE_METHODS}; got {method!r}")
+        # A delay of m whole periods is z^-m, exactly; a fraction of a period is refused
+        # (its exact hold equivalent needs the modified z-transform).
+        m = tf.delay_s / float(T)
+        if abs(m - round(m)) > 1e-9 * max(1.0, abs(m)) or m < 0:
+            raise ValueError(
+                f"the fitted delay {tf.delay_s:g} s is not a whole number of periods T = {T!r} "
+                "s: choose a T that divides it, or discretise result.system.undelayed and "
+                "add the delay in your tool"
+            )
         numd, dend, _ = signal.cont2discrete((tf.num, tf.den), float(T), method=method)
+        dend = np.r_[np.ravel(dend), np.zeros(round(m))]
         num = np.ravel(numd)
         # A strictly proper G gives a ZOH numerator whose leading coefficient is 0 up to
         # rounding; drop such leading terms (relative 1e-12) as scipy would, but silently.
