@@ -70,6 +70,7 @@ from .noise.covariance import (
 from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
 from .params import ParamLayout
 from .simulate import simulate
+from .systems.constrained import Constrained
 from .systems.model import Model, Signal
 from .systems.signals import SignalModel
 from .systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
@@ -79,6 +80,7 @@ from .systems.tones import MultiTone, SineWave
 __version__ = "0.1.0"
 
 __all__ = [
+    "Constrained",
     "CustomJitter",
     "DualDirac",
     "DualDiracFamily",
