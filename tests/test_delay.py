@@ -292,3 +292,20 @@ def test_to_discrete_of_a_whole_period_delay_is_z_to_the_minus_m() -> None:
     _, y_plain = signal.dstep(plain, n=30)
     np.testing.assert_allclose(y_delayed[0][3:, 0], y_plain[0][:-3, 0], atol=1e-12)
     np.testing.assert_allclose(y_delayed[0][:3, 0], 0.0, atol=1e-15)
+
+
+def test_constrained_delayed_model_keeps_the_delay_derivative() -> None:
+    """Constrained maps the inner delay to its free position: fixing k0 leaves the delay's
+    moment derivative right (central differences as the referee)."""
+    model = ji.Constrained(MODEL, fixed={"k0": 6.25})
+    assert model.delay_index == 2
+    assert ji.Constrained(MODEL, fixed={"delay_s": 0.7}).delay_index is None
+    data = _data(ji.Uniform(0.5), 0.7, seed=3)
+    pr = Problem(data, model, ji.Uniform(0.5), "bcls", default_frequencies(200, 1.0), 0.01)
+    x = np.array([-1.5, 2.0, 0.7])
+    dm = jacobians.moment_derivatives(pr, x)[2]
+    ref = finite_diff.derivative(lambda v: jacobians.moments(pr, v).mean, x, 2, pr.bounds[2], rel=1e-5)
+    assert np.max(np.abs(ref - dm[2])) < 1e-6 * np.max(np.abs(ref))
+    res = ji.fit(data, ji.Constrained(MODEL, fixed={"delay_s": 0.7}), ji.Uniform(0.5), "bcls")
+    assert res.success
+    assert res.system.delay_s == 0.7

@@ -74,6 +74,7 @@ from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
 from .params import ParamLayout
 from .plots import plot_step_response
 from .simulate import simulate
+from .systems.constrained import Constrained
 from .systems.model import Model, Signal
 from .systems.signals import SignalModel
 from .systems.structures import Delayed, KnownSystem, ModelStructure, PolePairGain, RationalModel
@@ -83,6 +84,7 @@ from .systems.tones import MultiTone, SineWave
 __version__ = "0.1.0"
 
 __all__ = [
+    "Constrained",
     "CustomJitter",
     "Delayed",
     "DualDirac",

@@ -1,7 +1,10 @@
 """JSON encoding of jitterid's value objects (laws, structures, systems, noise models).
 
 A jitterid dataclass is written as ``{"__class__": "module:QualName", field: value, ...}``
-with its init fields; numpy arrays become lists. Decoding imports the class again, and only
+with its init fields; numpy arrays become lists. A field whose metadata names another
+constructor keyword, ``field(metadata={"init": "bounds"})``, is written under that keyword
+(a class with its own ``__init__``, where the field's name means something else:
+:class:`~jitterid.systems.constrained.Constrained`). Decoding imports the class again, and only
 from inside the ``jitterid`` package, so a JSON file cannot name arbitrary code. An object
 that is not a dataclass with init fields (e.g. :class:`~jitterid.CustomJitter`, which holds
 a function) cannot be written to JSON; pickle it instead.
@@ -47,7 +50,7 @@ def encode(obj: Any) -> Any:
         out: dict[str, Any] = {_TAG: f"{cls.__module__}:{cls.__qualname__}"}
         for f in dataclasses.fields(obj):
             if f.init:
-                out[f.name] = encode(getattr(obj, f.name))
+                out[f.metadata.get("init", f.name)] = encode(getattr(obj, f.name))
         return out
     raise ValueError(
         f"a {cls.__name__} cannot be written to JSON (it is not a plain jitterid value "

@@ -14,14 +14,14 @@ into a dict by name, or turns a dict / vector / fitted result back into a vector
 from __future__ import annotations
 
 import difflib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["BLOCKS", "ParamLayout"]
+__all__ = ["BLOCKS", "ParamLayout", "did_you_mean"]
 
 FloatArray = NDArray[np.float64]
 Bounds = tuple[tuple[float, float], ...]
@@ -161,12 +161,7 @@ class ParamLayout:
         if isinstance(values, Mapping):
             unknown = [k for k in values if k not in self.names]
             if unknown:
-                hints = []
-                for k in unknown:
-                    lower = {n.lower(): n for n in self.names}
-                    close = difflib.get_close_matches(str(k).lower(), list(lower), n=1)
-                    close = [lower[c] for c in close]
-                    hints.append(f"{k!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+                hints = [f"{k!r}{did_you_mean(str(k), self.names)}" for k in unknown]
                 raise ValueError(
                     f"{name}: unknown parameter(s) {', '.join(hints)}; the parameters are "
                     f"{self.names}"
@@ -194,6 +189,17 @@ class ParamLayout:
         if not np.all(np.isfinite(out)):
             raise ValueError(f"{name} must be finite; got {out.tolist()}")
         return out
+
+
+def did_you_mean(name: str, names: Sequence[str]) -> str:
+    """`` (did you mean 'x'?)`` with the entry of ``names`` closest to ``name`` (case
+    ignored; :func:`difflib.get_close_matches`), or ``""`` when none is close: the one hint
+    for a misspelt parameter name (here, :class:`jitterid.systems.constrained.Constrained`
+    and the command line's ``--start``/``--bounds``/``--fix``)."""
+    lower = {n.lower(): n for n in names}
+    # cutoff 0.5: one wrong character in a two-character name (k0 / kO) is still a match
+    close = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.5)
+    return f" (did you mean {lower[close[0]]!r}?)" if close else ""
 
 
 def _number(v: Any, name: str) -> float:

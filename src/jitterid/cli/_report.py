@@ -33,6 +33,7 @@ from ..analysis.uncertainty import bode_band, jitter_pdf_band
 from ..estimation.result import FitResult
 from ..io import Dataset, atomic_write
 from ..jitter.laws import JitterFamily, JitterLaw
+from ..systems.constrained import Constrained
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
 
@@ -123,6 +124,22 @@ def _noise_line(rep: FitReport) -> str:
     return "- noise std: not used" if res.noise_std is None else f"- noise std: {res.noise_std:.4g}{how}"
 
 
+def _constraints(structure: ModelStructure) -> dict[str, Any]:
+    """The user's --fix, --bounds and --start of a constrained structure (a bound's open end
+    null), else nothing."""
+    if not isinstance(structure, Constrained):
+        return {}
+    return {"fixed": structure.fixed, "bounds": structure.user_bounds, "start": structure.start}
+
+
+def _constraints_line(structure: ModelStructure) -> list[str]:
+    c = _constraints(structure)
+    parts = [f"fixed {n} = {v:g}" for n, v in c.get("fixed", {}).items()]
+    parts += [f"{n} in [{lo:g}, {hi:g}]" for n, (lo, hi) in c.get("bounds", {}).items()]
+    parts += [f"start {n} = {v:g}" for n, v in c.get("start", {}).items()]
+    return [f"- **Constraints**: {md_text('; '.join(parts))}"] if parts else []
+
+
 def result_json(rep: FitReport) -> dict[str, Any]:
     """The content of result.json.
 
@@ -193,6 +210,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
                 "spec": rep.model_spec,
                 "formula": rep.model_label,
                 "param_names": list(rep.structure.param_names),
+                **_constraints(rep.structure),
             },
             "jitter": {
                 "spec": rep.jitter_spec,
@@ -471,6 +489,7 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         ),
         *(f"- **Note**: {md_text(n)}" for n in ds.notes),
         f"- **Model**: {_code(rep.model_spec)}, {md_text(rep.model_label)}",
+        *_constraints_line(rep.structure),
         f"- **Jitter**: {_code(rep.jitter_spec)}; **method**: `{res.method}`",
         f"- **Status**: {res.status.value} ({res.nfev} evaluations)",
         *(

@@ -12,6 +12,11 @@ Jitter: ``none``; a known law ``known:uniform:a=0.5``, ``known:gaussian:sigma=0.
 ``sum-of-uniforms:n_max=10,a_max=0.5``, ``gaussian:sigma_max=0.3``). Where only a law makes
 sense (``simulate``, ``bias``) the ``known:`` prefix may be left out.
 
+Search constraints on the model's parameters (repeatable options of ``fit``):
+``--start NAME=VALUE``, ``--bounds NAME=LO:HI`` (either end may be empty: ``a0=0:``) and
+``--fix NAME=VALUE``; they wrap the structure in :class:`jitterid.Constrained`. Values are
+plain numbers in the model's units (rad/s for poles).
+
 Times (``a``, ``sigma``, ``std``, ``rj``, ``dj`` and their bounds) take a unit, ``sigma=80ms``;
 a bare number is in the data file's ``time_unit`` (seconds where there is no file). ``n`` and
 ``beta`` have no unit. Kinds may be spelled with ``_`` too (``sum_of_uniforms``); the one table
@@ -21,14 +26,25 @@ of kinds is :mod:`jitterid.jitter.registry`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 from ..io import parse_time
 from ..jitter import registry
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..params import did_you_mean
+from ..systems.constrained import Constrained
 from ..systems.structures import ModelStructure, PolePairGain, RationalModel
 
-__all__ = ["model_label", "parse_floats", "parse_jitter", "parse_model"]
+__all__ = [
+    "OptionError",
+    "constrain",
+    "model_label",
+    "parse_assignments",
+    "parse_floats",
+    "parse_jitter",
+    "parse_model",
+]
 
 # the registry's tables, spelled with "-" (either spelling is accepted: registry.canonical)
 _LAWS: dict[str, tuple[type[JitterLaw], tuple[str, ...]]] = registry.table(
@@ -72,7 +88,9 @@ def parse_model(spec: str) -> ModelStructure:
 
 
 def model_label(structure: ModelStructure) -> str:
-    """A readable formula for the structure."""
+    """A readable formula for the structure (a constrained one's: its inner structure's)."""
+    if isinstance(structure, Constrained):
+        return model_label(structure.structure)
     if isinstance(structure, PolePairGain):
         return "G(s) = k0 / ((s - pr)^2 + pi^2)"
     if isinstance(structure, RationalModel):
@@ -200,3 +218,132 @@ def parse_jitter(
         )
     family: Any = _build(cls, _kwargs(body.strip(), keys, f"the {name} family", spec, time_unit), spec)
     return family
+
+
+# ------------------------------------------------------------------------ search constraints
+class OptionError(ValueError):
+    """A bad value of the command-line option ``option`` (e.g. ``"--fix"``)."""
+
+    def __init__(self, option: str, message: str) -> None:
+        super().__init__(message)
+        self.option = option
+
+
+#: the options' names by the argument of :class:`Constrained` they fill
+_OPTIONS = {"start": "--start", "bounds": "--bounds", "fixed": "--fix"}
+
+
+def parse_assignments(
+    items: Sequence[str],
+    option: str,
+    structure: ModelStructure,
+    jitter: JitterLaw | JitterFamily | None = None,
+) -> dict[str, Any]:
+    """``["pr=-1.5", ...]`` of ``option`` -> ``{name: value}``; ``--bounds`` items
+    ``NAME=LO:HI`` -> ``{name: (lo, hi)}``, an empty end None. Raises :class:`OptionError`
+    naming the option: bad syntax, not a number, lo >= hi, a name given twice, a name that
+    is not the model's (with the closest one), a jitter law's parameter (say how to fix or
+    bound it with ``--jitter``), ``noise_std`` (``--noise-std``)."""
+    names = tuple(structure.param_names)
+    bounds = option == "--bounds"
+    form = "NAME=LO:HI" if bounds else "NAME=VALUE"
+    example = "pr=-3:-1 or a0=0:" if bounds else "pr=-1.5"
+    out: dict[str, Any] = {}
+    for item in items:
+        name, eq, text = item.partition("=")
+        name, text = name.strip(), text.strip()
+        if not eq or not name or not text:
+            raise OptionError(option, f"{item!r}: write {form}, e.g. {option} {example}")
+        if name not in names:
+            raise OptionError(option, f"{item!r}: {_not_a_parameter(name, option, names, jitter)}")
+        if name in out:
+            raise OptionError(option, f"{name} is given twice; give each parameter once")
+        out[name] = _bound_pair(item, text, option) if bounds else _number(item, text, option)
+    return out
+
+
+def constrain(
+    structure: ModelStructure,
+    jitter: JitterLaw | JitterFamily | None = None,
+    *,
+    start: Sequence[str] = (),
+    bounds: Sequence[str] = (),
+    fix: Sequence[str] = (),
+) -> ModelStructure:
+    """``structure`` with the ``--start``, ``--bounds`` and ``--fix`` items applied
+    (:class:`Constrained`), or ``structure`` itself when there are none. Raises
+    :class:`OptionError` naming the option at fault."""
+    if not (start or bounds or fix):
+        return structure
+    kw = {
+        "start": parse_assignments(start, "--start", structure, jitter),
+        "bounds": parse_assignments(bounds, "--bounds", structure, jitter),
+        "fixed": parse_assignments(fix, "--fix", structure, jitter),
+    }
+    try:
+        return Constrained(structure, **kw)
+    except ValueError as exc:  # the message begins with the argument: start, bounds, fixed
+        arg = next((a for a in _OPTIONS if str(exc).startswith(a)), "fixed")
+        raise OptionError(_OPTIONS[arg], str(exc)) from None
+
+
+def _number(item: str, text: str, option: str, hint: str = "") -> float:
+    try:
+        val = float(text)
+    except ValueError:
+        raise OptionError(option, f"{item!r}: {text!r} is not a number{hint}") from None
+    if not math.isfinite(val):
+        raise OptionError(option, f"{item!r}: the value must be a finite number{hint}")
+    return val
+
+
+def _bound_pair(item: str, text: str, option: str) -> tuple[float | None, float | None]:
+    lo_text, colon, hi_text = text.partition(":")
+    if not colon or ":" in hi_text:
+        raise OptionError(
+            option, f"{item!r}: write NAME=LO:HI, either end empty for no bound (a0=0:, pr=:-1)"
+        )
+    hint = " (leave an end empty for no bound: a0=0:)"
+    ends = [
+        None if not t.strip() else _number(item, t.strip(), option, hint) for t in (lo_text, hi_text)
+    ]
+    lo, hi = ends
+    if lo is None and hi is None:
+        raise OptionError(option, f"{item!r} sets no bound; give LO:, :HI or LO:HI")
+    if lo is not None and hi is not None and not lo < hi:
+        raise OptionError(
+            option,
+            f"{item!r}: the low end {lo:g} must be below the high end {hi:g} (to hold the "
+            "parameter at a value use --fix NAME=VALUE)",
+        )
+    return lo, hi
+
+
+def _not_a_parameter(
+    name: str, option: str, names: tuple[str, ...], jitter: JitterLaw | JitterFamily | None
+) -> str:
+    """Why ``name`` is refused, and what to write instead."""
+    if name == "noise_std":
+        return (
+            "noise_std is not a parameter of the model; give a known noise std with "
+            "--noise-std VALUE (without it the criteria that need one estimate it)"
+        )
+    kinds = [k for k in registry.LAWS.values() if name in k.names]
+    if kinds:
+        fam = next(
+            (k for k in registry.FAMILIES.values() if isinstance(jitter, k.cls)), None
+        )
+        kind = fam.name if fam is not None and name in registry.LAWS[fam.name].names else kinds[0].name
+        law = ",".join(f"{k}=VALUE" for k in registry.LAWS[kind].names)
+        opts = [o for o in registry.FAMILIES[kind].names if o.startswith(f"{name}_")]
+        bound = f"{kind}:{opts[0]}=VALUE" if opts else kind
+        return (
+            f"{name} is a parameter of the jitter law, not of the model ({', '.join(names) or 'none'}): "
+            f"to fix the law write --jitter known:{kind}:{law}; to bound it estimate the family "
+            f"with --jitter {bound}"
+            + (f" (options {', '.join(opts)})" if opts else "")
+        )
+    return (
+        f"{name!r} is not a parameter of the model{did_you_mean(name, names)}; its parameters "
+        f"are {', '.join(names) or 'none'}"
+    )

@@ -47,7 +47,15 @@ from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..simulate import simulate as simulate_data
 from . import main
 from ._report import FitReport, write_outputs
-from ._specs import JITTER_HELP, model_label, parse_floats, parse_jitter, parse_model
+from ._specs import (
+    JITTER_HELP,
+    OptionError,
+    constrain,
+    model_label,
+    parse_floats,
+    parse_jitter,
+    parse_model,
+)
 
 __all__ = ["bias", "detect", "fit", "simulate"]
 
@@ -473,6 +481,18 @@ def _params_line(res: object) -> str:
     help="No progress bar. (The bar goes to stderr, only on a terminal, and only for a fit "
     "that runs longer than 2 s; it never reaches the result files or stdout.)",
 )
+@click.option(
+    "--start", "start_items", multiple=True, metavar="NAME=VALUE",
+    help="Start the search with this model parameter at VALUE (repeatable).",
+)
+@click.option(
+    "--bounds", "bound_items", multiple=True, metavar="NAME=LO:HI",
+    help="Keep a model parameter in [LO, HI]; either end may be empty, e.g. a0=0: (repeatable).",
+)
+@click.option(
+    "--fix", "fix_items", multiple=True, metavar="NAME=VALUE",
+    help="Hold a model parameter at VALUE: it is not estimated (repeatable).",
+)
 def fit(
     data_path: str,
     input_path: str | None,
@@ -486,6 +506,9 @@ def fit(
     seed: int,
     plots: bool,
     quiet: bool,
+    start_items: tuple[str, ...],
+    bound_items: tuple[str, ...],
+    fix_items: tuple[str, ...],
 ) -> None:
     """Fit a continuous-time model to DATA, accounting for sampling jitter.
 
@@ -498,7 +521,9 @@ def fit(
     printed as a warning, with what to try, and listed under "warnings" in result.json.
 
     Times in --jitter and --T take a unit (sigma=80ms, --T 0.5s); a bare number is in
-    DATA's time_unit (seconds unless the file says otherwise).
+    DATA's time_unit (seconds unless the file says otherwise). --start, --bounds and --fix
+    control the search over the model's parameters (both the ordinary and the method's fit);
+    result.json lists them under "model".
     """
     from .. import __version__
 
@@ -506,6 +531,15 @@ def fit(
         structure = parse_model(model_spec)
     with _param("'--jitter'"):
         j0 = parse_jitter(jitter_spec)  # the syntax, before any work; units once DATA is read
+    try:
+        structure = constrain(structure, j0, start=start_items, bounds=bound_items, fix=fix_items)
+    except OptionError as exc:
+        raise click.BadParameter(str(exc), param_hint=f"'{exc.option}'") from None
+    if method == "ls" and not structure.param_names:
+        raise click.UsageError(
+            "--fix holds every parameter of the model, so --method ls has nothing to estimate; "
+            "free a parameter, or estimate the jitter with another method and a jitter family"
+        )
     if method == "ls" and isinstance(j0, JitterFamily):
         raise click.UsageError(
             "--method ls ignores jitter, so it cannot estimate a jitter family; use another "
@@ -521,7 +555,9 @@ def fit(
 
     def run(bar: _Progress) -> tuple[list[Path], FitReport, OSError | None]:
         with _clean_errors("the fit failed"):
-            ls = fit_model(ds.data, structure, NoJitter(), "ls")
+            # (every parameter fixed: 'ls' refuses a known system; bcls without jitter is its
+            # criterion, evaluated at the fixed system)
+            ls = fit_model(ds.data, structure, NoJitter(), "ls" if structure.param_names else "bcls")
             if method == "ls":
                 res = ls
             else:

@@ -23,7 +23,8 @@ answer cannot be trusted gets its own non-success
 :class:`~jitterid.estimation.result.FitStatus`, and a message that says what to try:
 
 * ``UNSTABLE_MODEL``: the fitted system has a pole with Re >= 0 or non-finite coefficients;
-* ``AT_BOUND``: a system parameter on (or within a relative 1e-6 of) a finite bound, or the
+* ``AT_BOUND``: a system parameter on (or within a relative 1e-6 of) a finite bound (the
+  structure's, or one set by the user through :class:`~jitterid.Constrained`), or the
   jitter scale collapsed to its floor (below 1e-3 T) while :func:`jitterid.detect_jitter`
   finds jitter at p < 1e-6. A scale at its floor on data without detectable jitter is the
   natural home of the estimate (no jitter) and stays ``CONVERGED``; so does the shape ``n``
@@ -60,6 +61,7 @@ from scipy import stats
 from ..data import SampledData
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
+from ..systems.constrained import Constrained
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
 from .result import FitStatus
@@ -349,6 +351,13 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
         lo, hi = ctx.structure.bounds[i]
         if _near(v, lo) or _near(v, hi):
             b = lo if _near(v, lo) else hi
+            if isinstance(ctx.structure, Constrained) and b in ctx.structure.user_bounds.get(name, ()):
+                return FitStatus.AT_BOUND, (
+                    f"the system parameter {name} = {v:.6g} is on the bound {b:g} you set: the "
+                    "criterion's optimum lies beyond it, so the estimate and its error bars "
+                    "hold only if the bound is a physical limit; widen or drop it (bounds=, "
+                    "--bounds) to see where the optimum is"
+                )
             return FitStatus.AT_BOUND, (
                 f"the system parameter {name} = {v:.6g} is on its bound {b:g}: the optimum lies "
                 "outside the structure's admissible set (e.g. a real pole pair for PolePairGain, "
