@@ -550,3 +550,46 @@ def test_a_parameter_on_its_bound_is_explained_in_result_json(lab, tmp_path, mon
     assert "- n: on its bound 0" in report
     assert "- a: interval cut at its bound 1e-12" in report
     assert "n: on its bound 0" in res.output
+
+
+# ------------------------------------------------------------------------------ delay, mean jitter
+
+
+def test_delay_model_and_late_jitter_round_trip(tmp_path):
+    """+delay and mean=: the truth.json written by simulate is recovered by fit, and the
+    delay estimate is the true one with the known mean held fixed."""
+    d = tmp_path / "lab"
+    ok(
+        "simulate", "--out", d, "--model", "polepair+delay", "--params", "6.25,-1.5,2,0.7",
+        "--jitter", "uniform:a=0.4,mean=100ms", "--seed", "3",
+    )
+    truth = json.loads((d / "truth.json").read_text())
+    assert truth["system"]["delay_s"] == 0.7
+    assert truth["jitter"]["mean_s"] == pytest.approx(0.1)
+    out = tmp_path / "fit"
+    res = ok(
+        "fit", d / "data.csv", "--input", d / "input.csv", "--model", "polepair+delay",
+        "--jitter", "known:uniform:a=0.4,mean=0.1", "--method", "gaussian", "--out", out,
+        "--no-plots",
+    )
+    assert "the samples identify only delay_s - mean jitter" in res.output
+    saved = json.loads((out / "result.json").read_text())
+    _within(saved, truth["params"], k=3.5)
+    assert saved["system"]["delay_s"] == pytest.approx(saved["parameters"]["delay_s"])
+
+
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [("polepair+lag", "the only addition is \\+delay"), ("tf:0,2+delay+delay", "the only addition")],
+)
+def test_bad_model_additions_are_refused(spec, match):
+    with pytest.raises(ValueError, match=match):
+        parse_model(spec)
+
+
+def test_known_law_with_a_mean_is_a_shifted_law():
+    law = parse_jitter("known:gaussian:sigma=80ms,mean=-20ms")
+    assert isinstance(law, ji.Shifted)
+    assert law.mean == pytest.approx(-0.02)
+    assert law.std == pytest.approx(0.08)
+    assert parse_jitter("known:uniform:a=0.5,mean=0") == ji.Uniform(0.5)

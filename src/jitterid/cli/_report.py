@@ -96,6 +96,7 @@ def _system_dict(tf: TransferFunction) -> dict[str, Any]:
         "den": tf.den,
         "poles_rad_per_s": [[p.real, p.imag] for p in tf.poles],
         "dc_gain": tf.dcgain if tf.den[-1] != 0 else None,
+        "delay_s": tf.delay_s,
     }
 
 

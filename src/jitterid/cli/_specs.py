@@ -3,7 +3,8 @@
 Model: ``polepair`` (the paper's (27), k0 / ((s - pr)^2 + pi^2)) or ``tf:NUM,DEN`` for a
 rational model with NUM zeros and DEN poles (``RationalModel(NUM, DEN)``: parameters
 b_NUM..b_0 of the numerator, a_{DEN-1}..a_0 of the monic denominator). ``tf:0,2`` is
-b0 / (s^2 + a1 s + a0).
+b0 / (s^2 + a1 s + a0). Either may end in ``+delay``: an input-output delay ``delay_s`` >= 0
+is estimated with the other parameters (``tf:0,2+delay``).
 
 Jitter: ``none``; a known law ``known:uniform:a=0.5``, ``known:gaussian:sigma=0.1``,
 ``known:sum-of-uniforms:n=2,a=0.5``, ``known:generalized-normal:std=0.1,beta=3``,
@@ -16,6 +17,10 @@ Search constraints on the model's parameters (repeatable options of ``fit``):
 ``--start NAME=VALUE``, ``--bounds NAME=LO:HI`` (either end may be empty: ``a0=0:``) and
 ``--fix NAME=VALUE``; they wrap the structure in :class:`jitterid.Constrained`. Values are
 plain numbers in the model's units (rad/s for poles).
+
+A known law takes ``mean=TIME`` too, for a jitter that is late on average
+(``known:uniform:a=0.5,mean=20ms``): it cannot be told apart from a delay, so a ``+delay``
+model estimates the delay with this mean held fixed.
 
 Times (``a``, ``sigma``, ``std``, ``rj``, ``dj`` and their bounds) take a unit, ``sigma=80ms``;
 a bare number is in the data file's ``time_unit`` (seconds where there is no file). ``n`` and
@@ -31,10 +36,10 @@ from typing import Any
 
 from ..io import parse_time
 from ..jitter import registry
-from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter, Shifted
 from ..params import did_you_mean
 from ..systems.constrained import Constrained
-from ..systems.structures import ModelStructure, PolePairGain, RationalModel
+from ..systems.structures import Delayed, ModelStructure, PolePairGain, RationalModel
 
 __all__ = [
     "OptionError",
@@ -58,7 +63,7 @@ MAX_TIME_S = 1e9
 JITTER_HELP = (
     "none | known:uniform:a=A | known:gaussian:sigma=S | known:sum-of-uniforms:n=N,a=A | "
     "known:generalized-normal:std=S,beta=B | known:dual-dirac:rj=R,dj=D "
-    "(a known law) | uniform | gaussian | sum-of-uniforms | generalized-normal | dual-dirac "
+    "(a known law; add ,mean=M for jitter late on average by M) | uniform | gaussian | sum-of-uniforms | generalized-normal | dual-dirac "
     "(a family to estimate, optionally "
     "bounded, e.g. uniform:a_max=0.5). Times take a unit (sigma=80ms); a bare number is in "
     "the data file's time_unit (seconds by default)"
@@ -66,8 +71,18 @@ JITTER_HELP = (
 
 
 def parse_model(spec: str) -> ModelStructure:
-    """``polepair`` or ``tf:NUM,DEN`` -> a model structure; ValueError with the fix otherwise."""
+    """``polepair`` or ``tf:NUM,DEN``, optionally ``+delay`` (an input-output delay
+    ``delay_s`` >= 0, :class:`jitterid.Delayed`) -> a model structure; ValueError with the
+    fix otherwise."""
     s = spec.strip().lower()
+    base, plus, extra = s.partition("+")
+    if plus:
+        if extra.strip() != "delay":
+            raise ValueError(
+                f"model {spec!r}: the only addition is +delay (an input-output delay), e.g. "
+                "tf:0,2+delay"
+            )
+        return Delayed(parse_model(base))
     if s == "polepair":
         return PolePairGain()
     if s.startswith("tf:"):
@@ -84,13 +99,18 @@ def parse_model(spec: str) -> ModelStructure:
                 "e.g. tf:0,2 or tf:1,2"
             )
         return RationalModel(num, den)
-    raise ValueError(f"unknown model {spec!r}; use 'polepair' or 'tf:NUM,DEN' (e.g. tf:0,2)")
+    raise ValueError(
+        f"unknown model {spec!r}; use 'polepair' or 'tf:NUM,DEN' (e.g. tf:0,2), optionally "
+        "with +delay"
+    )
 
 
 def model_label(structure: ModelStructure) -> str:
     """A readable formula for the structure (a constrained one's: its inner structure's)."""
     if isinstance(structure, Constrained):
         return model_label(structure.structure)
+    if isinstance(structure, Delayed):
+        return f"{model_label(structure.structure)} e^(-s delay_s)"
     if isinstance(structure, PolePairGain):
         return "G(s) = k0 / ((s - pr)^2 + pi^2)"
     if isinstance(structure, RationalModel):
@@ -178,7 +198,8 @@ def _law(name: str, body: str, spec: str, unit: str = "s") -> JitterLaw:
             f"jitter {spec!r}: unknown law {name!r}; use one of {sorted(_LAWS)}. {JITTER_HELP}"
         )
     cls, keys = _LAWS[name]
-    kw = _kwargs(body, keys, f"the {name} law", spec, unit)
+    kw = _kwargs(body, (*keys, "mean"), f"the {name} law", spec, unit)
+    mean = kw.pop("mean", 0.0)
     missing = [k for k in keys if k not in kw]
     if missing:
         raise ValueError(
@@ -187,7 +208,7 @@ def _law(name: str, body: str, spec: str, unit: str = "s") -> JitterLaw:
             + f" (missing {', '.join(missing)})"
         )
     law: Any = _build(cls, kw, spec)
-    return law
+    return Shifted(law, mean) if mean else law
 
 
 def parse_jitter(

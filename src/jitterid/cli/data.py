@@ -59,7 +59,10 @@ from ._specs import (
 
 __all__ = ["bias", "detect", "fit", "simulate"]
 
-MODEL_HELP = "polepair (k0 / ((s - pr)^2 + pi^2)) or tf:NUM,DEN (NUM zeros, DEN poles, e.g. tf:0,2)"
+MODEL_HELP = (
+    "polepair (k0 / ((s - pr)^2 + pi^2)) or tf:NUM,DEN (NUM zeros, DEN poles, e.g. tf:0,2); "
+    "add +delay for an input-output delay delay_s (tf:0,2+delay)"
+)
 _PAPER_PARAMS = "6.25,-1.5,2"
 
 
@@ -365,7 +368,9 @@ def simulate(
             "model": model_spec,
             "param_names": list(structure.param_names),
             "params": dict(zip(structure.param_names, theta, strict=True)),
-            "system": {"num": system.num.tolist(), "den": system.den.tolist()},
+            "system": {
+                "num": system.num.tolist(), "den": system.den.tolist(), "delay_s": system.delay_s
+            },
             "jitter": {
                 "spec": jitter_spec,
                 "law": type(law).__name__,
