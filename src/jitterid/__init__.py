@@ -17,6 +17,7 @@ from .analysis.diagnostics import (
     model_output,
     standardized_residuals,
 )
+from .analysis.selection import OrderSelection, select_order
 from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
 from .data import SampledData
 from .estimation.bounds import crb, gaussian_bound
@@ -184,4 +185,10 @@ __all__ += [
     "fitted_noise",
     "jittered_autocovariance",
     "sample_covariance",
+]
+
+# Model order selection (issue 16).
+__all__ += [
+    "OrderSelection",
+    "select_order",
 ]
