@@ -19,6 +19,7 @@ from .analysis.diagnostics import (
 )
 from .analysis.quantities import PhysicalQuantities, Quantity, physical_quantities
 from .analysis.responses import TimeResponseBand, impulse_response, step_response
+from .analysis.selection import OrderSelection, select_order
 from .analysis.uncertainty import BodeBand, PdfBand, bode_band, jitter_pdf_band
 from .data import SampledData
 from .estimation.bounds import crb, gaussian_bound
@@ -203,4 +204,10 @@ __all__ += [
     "physical_quantities",
     "plot_step_response",
     "step_response",
+]
+
+# Model order selection (issue 16).
+__all__ += [
+    "OrderSelection",
+    "select_order",
 ]

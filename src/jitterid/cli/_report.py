@@ -29,6 +29,7 @@ from ..analysis.diagnostics import (
 )
 from ..analysis.quantities import PhysicalQuantities, physical_quantities
 from ..analysis.responses import step_response
+from ..analysis.selection import OrderSelection
 from ..analysis.uncertainty import bode_band, jitter_pdf_band
 from ..estimation.result import FitResult
 from ..io import Dataset, atomic_write
@@ -59,6 +60,8 @@ class FitReport:
     version: str
     skipped: tuple[tuple[str, str], ...] = ()
     cross_check: JitterCrossCheck | None = None
+    #: the order selection that chose ``structure`` (several --model), or None
+    order: OrderSelection | None = None
 
 
 _ERRORS = (ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError)
@@ -183,6 +186,9 @@ def result_json(rep: FitReport) -> dict[str, Any]:
         }
         if not xc.consistent:
             warnings.append(f"jitter cross-check: {xc.message}")
+    best = None if rep.order is None else rep.order.best
+    if best is not None and not best.trustworthy:
+        warnings.append(f"order selection: {best.label} was chosen but {best.problem}")
     for c in rep.checks:
         diagnostics[c.name] = {"statistic": c.statistic, "dof": c.dof, "pvalue": c.pvalue}
     quantities, why_q = _quantities(rep)
@@ -237,6 +243,7 @@ def result_json(rep: FitReport) -> dict[str, Any]:
                 "system": _system_dict(_tf(rep.ordinary)),
             },
             "diagnostics": diagnostics,
+            **({} if rep.order is None else {"order_selection": _order_brief(rep.order)}),
             "seed": rep.seed,
         }
     )
@@ -272,6 +279,64 @@ def _quantity_lines(rep: FitReport) -> list[str]:
         lines.append(f"| `{q.name}` | {val} | {se} | {ci} | {md_text(q.unit or '-')} |")
     notes = [f"- `{q.name}`: {md_text(q.note)}" for q in table if q.note]
     return [*lines, "", *notes, *([""] if notes else [])]
+
+
+def _order_brief(order: OrderSelection) -> dict[str, Any]:
+    """result.json's pointer to order.json: what was compared and what was chosen."""
+    best = order.best
+    return {
+        "file": "order.json",
+        "criterion": order.criterion,
+        "candidates": list(order.labels),
+        "chosen": None if best is None else best.label,
+        "trustworthy": None if best is None else best.trustworthy,
+        "reason": order.reason,
+    }
+
+
+def _order_lines(rep: FitReport) -> list[str]:
+    """The "Order selection" section: the table of :func:`jitterid.select_order` and why."""
+    order = rep.order
+    if order is None:
+        return []
+    has_val = any(r.validation_fit_pct is not None for r in order.rows)
+    rank = (
+        "highest validation fit %" if order.criterion == "validation" else f"lowest {order.criterion.upper()}"
+    )
+    lines = [
+        "## Order selection",
+        "",
+        (
+            f"Every model was fitted with `{md_text(order.method)}`; {md_text(order.basis())}. "
+            f"The {rank} among the trustworthy candidates is chosen (full numbers in `order.json`)."
+        ),
+        "",
+        "| | model | k | status | log-lik | AIC | BIC |"
+        + (" validation fit % |" if has_val else "")
+        + " Ljung-Box p | input p |",
+        "|---|---|---:|---|---:|---:|---:|" + ("---:|" if has_val else "") + "---:|---:|",
+    ]
+
+    def num(v: float | None, spec: str) -> str:
+        return "-" if v is None or not math.isfinite(v) else format(v, spec)
+
+    for i, r in enumerate(order.rows):
+        lines.append(
+            f"| {'**chosen**' if i == order.chosen else ''} | {md_text(r.label)} | {r.n_params} "
+            f"| {md_text(r.flag)} | {num(r.loglik, '.6g')} | {num(r.aic, '.6g')} | {num(r.bic, '.6g')} |"
+            + (f" {num(r.validation_fit_pct, '.2f')} |" if has_val else "")
+            + f" {num(r.whiteness_pvalue, '.3g')} | {num(r.input_pvalue, '.3g')} |"
+        )
+    lines.append("")
+    lines += [f"- {md_text(r.label)}: {md_text(r.problem)}" for r in order.rows if r.problem]
+    lines += [
+        f"- likelihood-ratio test {md_text(t.smaller)} within {md_text(t.larger)}: LR = "
+        f"{t.statistic:.4g}, dof {t.dof}, p = {t.pvalue:.3g} (asymptotic chi-square)"
+        + (f"; {md_text(t.note)}" if t.note else "")
+        for t in order.tests
+    ]
+    lines += [f"- **Chosen**: {md_text(order.reason)}", ""]
+    return lines
 
 
 def _save(fig: Any, path: Path) -> None:
@@ -500,6 +565,7 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
         ),
         f"- jitterid {rep.version}; full numbers in `result.json`",
         "",
+        *_order_lines(rep),
         "## 1. Is there jitter?",
         "",
         *_detection_lines(rep, figs),

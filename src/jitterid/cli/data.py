@@ -38,6 +38,7 @@ from ..analysis.diagnostics import (
     ls_gain_factor,
     standardized_residuals,
 )
+from ..analysis.selection import OrderSelection, select_order
 from ..data import SampledData
 from ..estimation.fit import fit as fit_model
 from ..estimation.problem import METHODS
@@ -45,6 +46,7 @@ from ..inputs import telegraph_input, zoh_input
 from ..io import TIME_UNITS, Dataset, atomic_write, load, parse_time, save_data, save_input
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..simulate import simulate as simulate_data
+from ..systems.structures import ModelStructure
 from . import main
 from ._report import FitReport, write_outputs
 from ._specs import (
@@ -460,7 +462,15 @@ def _params_line(res: object) -> str:
 @main.command(short_help="Fit a model to DATA accounting for jitter; write a report.")
 @_data_arg
 @_input_opt
-@_model_opt
+@click.option(
+    "--model",
+    "model_specs",
+    required=True,
+    multiple=True,
+    help=MODEL_HELP + ". Repeat it (--model tf:0,1 --model tf:1,2 ...) to select the order: "
+    "every model is fitted, the table goes to OUT/order.json and report.md, and the fit "
+    "continues with the chosen one.",
+)
 @click.option("--jitter", "jitter_spec", required=True, help=JITTER_HELP)
 @click.option("--method", type=click.Choice(METHODS), default="bcls", show_default=True)
 @click.option(
@@ -498,10 +508,31 @@ def _params_line(res: object) -> str:
     "--fix", "fix_items", multiple=True, metavar="NAME=VALUE",
     help="Hold a model parameter at VALUE: it is not estimated (repeatable).",
 )
+@click.option(
+    "--criterion",
+    type=click.Choice(["bic", "aic", "validation"]),
+    default="bic",
+    show_default=True,
+    help="With several --model: what chooses (the lowest BIC or AIC, or the highest fit % "
+    "on --validation).",
+)
+@click.option(
+    "--validation",
+    "validation_path",
+    type=click.Path(dir_okay=False),
+    help="With several --model: a second data set (read like DATA) for the validation fit % "
+    "column.",
+)
+@click.option(
+    "--validation-input",
+    "validation_input",
+    type=click.Path(dir_okay=False),
+    help="The input file of --validation, unless it has a 'u' column.",
+)
 def fit(
     data_path: str,
     input_path: str | None,
-    model_spec: str,
+    model_specs: tuple[str, ...],
     jitter_spec: str,
     method: str,
     noise_std: float | None,
@@ -514,6 +545,9 @@ def fit(
     start_items: tuple[str, ...],
     bound_items: tuple[str, ...],
     fix_items: tuple[str, ...],
+    criterion: str,
+    validation_path: str | None,
+    validation_input: str | None,
 ) -> None:
     """Fit a continuous-time model to DATA, accounting for sampling jitter.
 
@@ -529,11 +563,30 @@ def fit(
     DATA's time_unit (seconds unless the file says otherwise). --start, --bounds and --fix
     control the search over the model's parameters (both the ordinary and the method's fit);
     result.json lists them under "model".
+
+    With several --model, every model is fitted first (jitterid.select_order): the table is
+    printed and written to OUT/order.json and report.md, and the fit goes on with the
+    chosen model exactly as with that one --model.
     """
     from .. import __version__
 
     with _param("'--model'"):
-        structure = parse_model(model_spec)
+        structures = [parse_model(spec) for spec in model_specs]
+        for i, st in enumerate(structures):
+            if st in structures[:i]:
+                raise ValueError(f"model {model_specs[i]!r} is given twice; give each model once")
+    structure, model_spec = structures[0], model_specs[0]
+    if len(structures) == 1 and (validation_path or criterion != "bic"):
+        raise click.UsageError("--validation and --criterion choose between several --model; give two or more")
+    if len(structures) > 1 and (start_items or bound_items or fix_items):
+        raise click.UsageError(
+            "--start, --bounds and --fix name one model's parameters; with several --model, "
+            "select the order first, then constrain the chosen model in a second fit"
+        )
+    if validation_input and not validation_path:
+        raise click.UsageError("--validation-input needs --validation (the data set it drives)")
+    if criterion == "validation" and not validation_path:
+        raise click.UsageError("--criterion validation needs a --validation data set")
     with _param("'--jitter'"):
         j0 = parse_jitter(jitter_spec)  # the syntax, before any work; units once DATA is read
     try:
@@ -555,6 +608,12 @@ def fit(
     ds = _load(data_path, input_path, T, noise_std)
     with _param("'--jitter'"):
         jitter = parse_jitter(jitter_spec, time_unit=_file_unit(ds))
+    order, chosen = None, None
+    if len(structures) > 1:
+        order = _select(ds, structures, model_specs, jitter, method, criterion, T, quiet, out_dir,
+                        validation_path, validation_input)
+        assert order.chosen is not None  # _select exits otherwise
+        structure, model_spec, chosen = structures[order.chosen], model_specs[order.chosen], order.result
     stages = ["ordinary LS fit", *([] if method == "ls" else [f"{method} fit"])]
     stages += ["diagnostics", "writing results" + (" and figures" if plots else "")]
 
@@ -567,7 +626,8 @@ def fit(
                 res = ls
             else:
                 bar.stage(f"{method} fit")
-                res = fit_model(ds.data, structure, jitter, method)
+                # the selection's fit of the chosen model is this very fit (same data and options)
+                res = chosen if chosen is not None else fit_model(ds.data, structure, jitter, method)
         bar.stage("diagnostics")
         # The fit is done: from here on nothing may throw it away. A diagnostic that cannot
         # run is reported as skipped, with its reason, and the results are written regardless.
@@ -605,6 +665,7 @@ def fit(
             seed=seed,
             version=__version__,
             skipped=tuple(skipped),
+            order=order,
         )
         bar.stage(stages[-1])
         try:
@@ -631,10 +692,50 @@ def fit(
         click.echo(c.summary())
     for name, why in skipped:
         click.echo(f"skipped {name}: {why}")
-    click.echo("wrote " + ", ".join(str(p) for p in written))
+    click.echo("wrote " + ", ".join(str(p) for p in [*written, *([out_dir / "order.json"] if order else [])]))
     if not res.success:
         click.echo(f"error: the fit did not converge: {res.status.value}", err=True)
         raise click.exceptions.Exit(3)
+
+
+def _select(
+    ds: Dataset,
+    structures: list[ModelStructure],
+    specs: tuple[str, ...],
+    jitter: JitterLaw | JitterFamily,
+    method: str,
+    criterion: str,
+    T: str | None,
+    quiet: bool,
+    out_dir: Path,
+    validation_path: str | None,
+    validation_input: str | None,
+) -> OrderSelection:
+    """``fit`` with several --model: the selection, its table on stdout and OUT/order.json;
+    exits 1 when no model could be fitted at all."""
+    from .. import __version__
+
+    val = _load(validation_path, validation_input, T, None) if validation_path else None
+    with _progress(["order selection"], quiet), _clean_errors("the order selection failed"):
+        order = select_order(
+            ds.data, structures, jitter, method, criterion=criterion,
+            validation=None if val is None else val.data,
+        )
+    click.echo(order.summary())
+    doc = {
+        "jitterid_version": __version__,
+        "models": list(specs),
+        "data_sha256": ds.sha256,
+        "validation_sha256": None if val is None else val.sha256,
+        **order.to_dict(),
+        "chosen_model": None if order.chosen is None else specs[order.chosen],
+    }
+    text = json.dumps(doc, indent=2) + "\n"
+    with _clean_errors("cannot write order.json"):
+        atomic_write(out_dir / "order.json", lambda fh: fh.write(text))
+    if order.chosen is None:
+        raise click.ClickException(f"no model could be fitted: {order.reason}; see {out_dir / 'order.json'}")
+    return order
 
 
 def _diagnostic(skipped: list[tuple[str, str]], name: str, make: Callable[[], Any]) -> Any:
