@@ -59,7 +59,7 @@ from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
 from ..systems.model import Model
-from ..systems.structures import KnownSystem, ModelStructure, PolePairGain, RationalModel
+from ..systems.structures import Delayed, KnownSystem, ModelStructure, PolePairGain, RationalModel
 from ..systems.tf import TransferFunction
 from .diagnostics import input_correlation_test, ljung_box, standardized_residuals
 
@@ -388,13 +388,16 @@ def _one_line(exc: BaseException) -> str:
 
 
 def label(structure: Model) -> str:
-    """``tf:NZ,NP``, ``polepair``, ``known`` or the structure's repr."""
+    """``tf:NZ,NP``, ``polepair``, ``known`` (each with ``+delay`` when delayed) or the
+    structure's repr."""
     if isinstance(structure, RationalModel):
         return f"tf:{structure.num_order},{structure.den_order}"
     if isinstance(structure, PolePairGain) and structure == PolePairGain():
         return "polepair"
     if isinstance(structure, KnownSystem):
         return "known"
+    if isinstance(structure, Delayed):
+        return f"{label(structure.structure)}+delay"
     return repr(structure)
 
 
