@@ -459,6 +459,9 @@ class FitResult:
         else:
             sd = f"std {self.jitter_std:.4g}, known"
         lines.append(f"  jitter law {self.jitter_law}  ({sd})")
+        fixed = getattr(self.structure, "fixed", None)
+        if fixed:  # a Constrained structure: values held, not estimated
+            lines.append("  fixed (not estimated): " + ", ".join(f"{k} = {v:.6g}" for k, v in fixed.items()))
         if self.system is not None:
             lines.append(f"  system {self.system}")
             if getattr(self.structure, "delay_index", None) is not None:
