@@ -55,7 +55,7 @@ from .. import finite_diff
 from .._checks import count, generator
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
-from .uncertainty import _Fit, _indices, _is_fit, _level, _normal_draws
+from .uncertainty import _evaluate_draws, _Fit, _indices, _is_fit, _level, _normal_draws
 
 __all__ = ["PhysicalQuantities", "Quantity", "bandwidth_hz", "physical_quantities"]
 
@@ -526,20 +526,7 @@ def _sampling_rows(
     rng: Any,
     draws: int,
 ) -> list[Quantity]:
-    samples = block.draws(rng, draws)
-    got = []
-    for th in samples:
-        try:
-            got.append(at(th))
-        except ValueError:  # e.g. a draw whose roots cannot be matched
-            continue
-    if len(got) < 0.9 * draws:
-        raise ValueError(
-            f"only {len(got)} of {draws} parameter draws give a valid model inside the "
-            "structure's bounds: the normal approximation is poor here; use method='delta' "
-            "with care"
-        )
-    Q = np.array(got)
+    Q = _evaluate_draws(at, block.draws(rng, draws), draws)
     q = [0.5 - level / 2, 0.5 + level / 2]
     rows = []
     for j, (r, v, w) in enumerate(zip(layout.rows, values, why, strict=True)):

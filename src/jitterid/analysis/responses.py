@@ -29,7 +29,7 @@ from scipy import linalg, signal, stats
 from .._checks import real_array
 from ..systems.tf import TransferFunction
 from .quantities import _system_block
-from .uncertainty import _Fit, _level
+from .uncertainty import _evaluate_draws, _Fit, _level
 
 __all__ = ["TimeResponseBand", "impulse_response", "lti_response", "step_response"]
 
@@ -174,20 +174,8 @@ def _band(
         return lti_response(block.structure.system(theta), t, kind)
 
     if method == "sampling":
-        samples = block.draws(rng, draws)
-        got = []
-        for th in samples:
-            try:
-                got.append(at(th))
-            except ValueError:  # a draw that is no valid system
-                continue
-        if len(got) < 0.9 * draws:
-            raise ValueError(
-                f"only {len(got)} of {draws} parameter draws give a valid model inside the "
-                "structure's bounds: the normal approximation is poor here; use method='delta' "
-                "with care"
-            )
-        lo, hi = np.quantile(np.array(got), [0.5 - level / 2, 0.5 + level / 2], axis=0)
+        got = _evaluate_draws(at, block.draws(rng, draws), draws)
+        lo, hi = np.quantile(got, [0.5 - level / 2, 0.5 + level / 2], axis=0)
         return make(lo, hi, "sampling")
     jac = block.jacobian(at, y)
     if not np.all(np.isfinite(jac)):

@@ -21,6 +21,7 @@ quantiles of the densities. Frequencies are in Hz; phases in degrees.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -75,6 +76,27 @@ def _normal_draws(
     w, v = np.linalg.eigh(0.5 * (cov + cov.T))
     root = (v * np.sqrt(np.maximum(w, 0.0))).T
     return x + gen.standard_normal((size, x.size)) @ root
+
+
+def _evaluate_draws(
+    at: Callable[[FloatArray], Any], samples: FloatArray, draws: int
+) -> NDArray[Any]:
+    """``at(theta)`` for every parameter draw (one row each), skipping a draw that gives no
+    valid model (``at`` raises ValueError: an unstable draw, roots that cannot be matched);
+    refused when fewer than 90 % of the ``draws`` asked for remain."""
+    got = []
+    for th in samples:
+        try:
+            got.append(at(th))
+        except ValueError:
+            continue
+    if len(got) < 0.9 * draws:
+        raise ValueError(
+            f"only {len(got)} of {draws} parameter draws give a valid model inside the "
+            "structure's bounds: the normal approximation is poor here; use method='delta' "
+            "with care"
+        )
+    return np.array(got)
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,19 +210,8 @@ def bode_band(
         gen, n = generator(rng, "rng"), count(draws, "draws", minimum=100)
         lo, hi = np.array(structure.bounds, dtype=float).reshape(-1, 2).T
         samples = _normal_draws(gen, theta, cov, n)
-        responses = []
-        for th in samples[np.all((samples >= lo) & (samples <= hi), axis=1)]:
-            try:
-                responses.append(structure.system(th).frequency_response(freqs))
-            except ValueError:  # e.g. an unstable draw
-                continue
-        if len(responses) < 0.9 * n:
-            raise ValueError(
-                f"only {len(responses)} of {n} parameter draws give a valid model inside the "
-                "structure's bounds: the normal approximation is poor here; use method='delta' "
-                "with care"
-            )
-        g = np.array(responses)
+        inside = samples[np.all((samples >= lo) & (samples <= hi), axis=1)]
+        g = _evaluate_draws(lambda th: structure.system(th).frequency_response(freqs), inside, n)
         q = [0.5 - level / 2, 0.5 + level / 2]
         m_q = np.quantile(np.abs(g), q, axis=0)
         # Phase of each draw relative to the estimate's, so no draw wraps differently.
