@@ -15,7 +15,6 @@ from jitterid import _serial
 from jitterid.cli import main
 from jitterid.estimation import jacobians
 from jitterid.estimation.problem import METHODS, Problem, default_frequencies
-from jitterid.moments import modal
 from jitterid.systems.structures import ModelStructure
 
 T, N, NOISE = 0.5, 80, 0.02
@@ -146,7 +145,7 @@ def test_coefficient_jacobian_against_differences_of_system(inner, kw, theta):
     for got, want in zip(closed, differences(c, theta, n), strict=True):
         np.testing.assert_allclose(got, want, atol=1e-7)
     # the modal fast path takes this closed form (no differences of the wrapper)
-    for got, want in zip(modal._coefficient_jacobian(c, np.asarray(theta, float), n), closed, strict=True):
+    for got, want in zip(c.coefficient_derivatives(np.asarray(theta, float), n), closed, strict=True):
         np.testing.assert_array_equal(got, want)
 
 

@@ -49,7 +49,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from .. import finite_diff
 from ..data import SampledData
 from ..estimation.checks import check_arguments
 from ..estimation.covariance import noise_variance_ml
@@ -510,26 +509,6 @@ def _noise_counted(res: FitResult, plugged: bool) -> bool:
 # ------------------------------------------------------------------------------ over-order
 
 
-def _coefficient_jacobian(structure: ModelStructure, theta: FloatArray, n: int) -> tuple[FloatArray, FloatArray]:
-    """d(num padded to n, den)/dtheta, shape (P, n) each: the structure's closed form, or
-    the one finite-difference rule of :mod:`jitterid.finite_diff`."""
-    jac = structure.coefficient_jacobian(theta, n)
-    if jac is not None and jac[0].shape == (theta.size, n) and jac[1].shape == (theta.size, n):
-        return jac
-
-    def coeffs(t: FloatArray) -> FloatArray:
-        tf = structure.system(t)
-        num = np.r_[np.zeros(n - tf.num.size), tf.num] if tf.num.size <= n else tf.num[-n:]
-        den = np.r_[np.zeros(n - tf.den.size), tf.den] if tf.den.size <= n else tf.den[-n:]
-        return np.r_[num, den]
-
-    cols = [
-        finite_diff.derivative(coeffs, theta, i, structure.bounds[i]) for i in range(theta.size)
-    ]
-    d = np.array(cols).reshape(theta.size, 2 * n)
-    return d[:, :n], d[:, n:]
-
-
 def _root_gradients(coef: FloatArray, dcoef: FloatArray) -> tuple[ComplexArray, ComplexArray]:
     """Roots r_j of the polynomial ``coef`` (highest power first) and dr_j/dtheta, shape
     (roots, P), from dr/dc_i = -r^(d - i) / c'(r) (a simple root)."""
@@ -570,7 +549,7 @@ def over_order(res: FitResult, T: float) -> str:
     cov = np.asarray(res.cov[sl, sl], dtype=float)
     n = tf.den.size
     try:
-        dnum, dden = _coefficient_jacobian(structure, theta, n)
+        dnum, dden = structure.coefficient_derivatives(theta, n)
         poles, gp = _root_gradients(np.asarray(tf.den, float), dden)
         zeros, gz = _root_gradients(np.asarray(tf.num, float), dnum)
     except (ValueError, ArithmeticError):

@@ -63,10 +63,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
-from .. import finite_diff
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import Gaussian, JitterLaw
-from ..systems.structures import ModelStructure
+from ..systems.structures import ModelStructure, padded
 from ..systems.tf import TransferFunction
 from .quadrature import (
     DEFAULT_CHUNK,
@@ -499,44 +498,6 @@ def kept_modal(tf: TransferFunction) -> tuple[float, ComplexArray, ComplexArray,
     return d, r[cols] * np.where(pk.imag > 0, 2.0, 1.0), pk, cols
 
 
-def _padded(c: FloatArray, n: int) -> FloatArray:
-    return np.r_[np.zeros(n - c.size), c]
-
-
-def _owner(cls: type, name: str) -> type:
-    return next(k for k in cls.__mro__ if name in k.__dict__)
-
-
-def _closed_form_applies(structure: ModelStructure) -> bool:
-    """False when a subclass redefines the parameter map (``system``) below the class that
-    wrote ``coefficient_jacobian``: that closed form belongs to another map."""
-    cls = type(structure)
-    system, closed = _owner(cls, "system"), _owner(cls, "coefficient_jacobian")
-    return system is closed or not issubclass(system, closed)
-
-
-def _coefficient_jacobian(
-    structure: ModelStructure, theta: FloatArray, n: int
-) -> tuple[FloatArray, FloatArray]:
-    """d(num, den)/dtheta, shape (P, n) each (num padded to the length n of den).
-
-    In closed form where the structure gives it
-    (:meth:`~jitterid.systems.structures.ModelStructure.coefficient_jacobian`); central
-    differences of the structure's map where it declares none (:mod:`jitterid.finite_diff`).
-    """
-    closed = structure.coefficient_jacobian(theta, n) if _closed_form_applies(structure) else None
-    if closed is not None:
-        return closed
-    P = theta.size
-    dnum, dden = np.zeros((P, n)), np.zeros((P, n))
-    for i in range(P):
-        up, down, h2 = finite_diff.central_pair(theta, i, structure.bounds[i], finite_diff.REL_STEP)
-        a, b = structure.system(up), structure.system(down)
-        dnum[i] = (_padded(a.num, n) - _padded(b.num, n)) / h2
-        dden[i] = (_padded(a.den, n) - _padded(b.den, n)) / h2
-    return dnum, dden
-
-
 def modal_sensitivity(
     structure: ModelStructure, theta: FloatArray, tf: TransferFunction
 ) -> tuple[FloatArray, ComplexArray, ComplexArray]:
@@ -553,8 +514,8 @@ def modal_sensitivity(
     time at N = 200.
     """
     n = tf.den.size
-    num, den = _padded(tf.num, n), tf.den
-    dnum, dden = _coefficient_jacobian(structure, theta, n)
+    num, den = padded(tf.num, n), tf.den
+    dnum, dden = structure.coefficient_derivatives(theta, n)
     _, _, p, _ = kept_modal(tf)
     # Polynomials and their first two derivatives at the poles as products with Vandermonde
     # rows: one matrix product per quantity for all parameters (np.polyval per parameter

@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..params import did_you_mean
 from .model import Bounds
-from .structures import ModelStructure
+from .structures import ModelStructure, closed_form_applies
 from .tf import TransferFunction
 
 __all__ = ["Constrained"]
@@ -231,7 +231,7 @@ class Constrained(ModelStructure):
         """The inner closed form's rows of the free parameters (None where the inner
         structure declares none: the moments then difference :meth:`system`)."""
         inner = self.structure
-        if not _closed_form_applies(inner):
+        if not closed_form_applies(inner):
             return None
         out = inner.coefficient_jacobian(self.full(params), n)
         if out is None:
@@ -299,17 +299,3 @@ def _pair(v: Any, name: str) -> tuple[float, float]:
             f"{name} at a value, fix it instead"
         )
     return lo, hi
-
-
-def _closed_form_applies(structure: ModelStructure) -> bool:
-    """Whether ``structure.coefficient_jacobian`` belongs to its own ``system``: the rule of
-    :func:`jitterid.moments.modal._closed_form_applies` (a subclass that redefines the map
-    below the class that wrote the closed form does not inherit it), restated here because
-    the systems do not import the moments."""
-    cls = type(structure)
-
-    def owner(name: str) -> type:
-        return next(k for k in cls.__mro__ if name in k.__dict__)
-
-    system, closed = owner("system"), owner("coefficient_jacobian")
-    return system is closed or not issubclass(system, closed)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import finite_diff
 from .._checks import count
 from .model import Bounds, Model, Signal
 from .tf import TransferFunction
@@ -68,10 +69,43 @@ class ModelStructure(Model):
     def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
         """d(num, den)/dtheta in closed form, shape (P, n) each (num padded to the length n
         of the denominator), or None: this structure declares no analytic derivative, and
-        the moments' sensitivities then use central differences of :meth:`system` (the
-        declared finite-difference route of :func:`jitterid.moments.modal.modal_sensitivity`).
+        :meth:`coefficient_derivatives` then takes central differences of :meth:`system`.
         A subclass that maps its parameters otherwise must override it."""
         return None
+
+    def coefficient_derivatives(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray]:
+        """d(num, den)/dtheta, shape (P, n) each (num padded to the length n of den): the
+        closed form of :meth:`coefficient_jacobian` where it belongs to this structure's
+        map (:func:`closed_form_applies`), else central differences of :meth:`system`
+        through :mod:`jitterid.finite_diff` (the one home of this rule: the moments' modal
+        sensitivities and the order selection's root gradients use it)."""
+        theta = self._check(params)
+        closed = self.coefficient_jacobian(theta, n) if closed_form_applies(self) else None
+        if closed is not None:
+            return closed
+        P = theta.size
+        dnum, dden = np.zeros((P, n)), np.zeros((P, n))
+        for i in range(P):
+            up, down, h2 = finite_diff.central_pair(theta, i, self.bounds[i], finite_diff.REL_STEP)
+            a, b = self.system(up), self.system(down)
+            dnum[i] = (padded(a.num, n) - padded(b.num, n)) / h2
+            dden[i] = (padded(a.den, n) - padded(b.den, n)) / h2
+        return dnum, dden
+
+
+def padded(c: ArrayLike, n: int) -> FloatArray:
+    """Polynomial coefficients ``c`` (highest power first) with leading zeros to length n."""
+    c = np.asarray(c, dtype=float)
+    return np.r_[np.zeros(n - c.size), c]
+
+
+def closed_form_applies(structure: ModelStructure) -> bool:
+    """Whether ``structure.coefficient_jacobian`` belongs to its own ``system``: False when a
+    subclass redefines the parameter map below the class that wrote the closed form."""
+    mro = type(structure).__mro__
+    system = next(k for k in mro if "system" in k.__dict__)
+    closed = next(k for k in mro if "coefficient_jacobian" in k.__dict__)
+    return system is closed or not issubclass(system, closed)
 
 
 @dataclass(frozen=True)
