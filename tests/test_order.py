@@ -448,3 +448,39 @@ def test_monte_carlo_confusion_table():
     for method, table in tables.items():
         for order in MC_SYSTEMS:
             assert table[order - 1, order - 1] >= MC_THRESHOLD, (method, table)
+
+
+def test_an_over_order_search_stays_where_the_samples_see_its_modes():
+    """An over-order model's extra poles used to run off to |p| T ~ 1e5..1e9, where every
+    evaluation of the jittered moments took seconds (one gaussian fit of tf:1,3 ran 633 s):
+    the search now refuses modes beyond resources.SEARCH_RATE_LIMIT, and the fit ends with
+    an honest status or a row the selection sets aside."""
+    from jitterid.estimation.resources import SEARCH_RATE_LIMIT
+
+    rng = np.random.default_rng(102)
+    u = ji.telegraph_input(230.0, rng)
+    data = ji.simulate(ji.TransferFunction([2.0], [1.0, 1.0]), u, ji.Uniform(0.5), T=1.0, N=200, noise_std=0.01, rng=rng)
+    sel = ji.select_order(data, [ji.RationalModel(0, 1), ji.RationalModel(1, 3)], ji.Uniform(0.5), "gaussian")
+    assert sel.best is not None
+    assert sel.best.label == "tf:0,1"
+    over = sel.row("tf:1,3")
+    assert not over.trustworthy
+    if over.result is not None and over.result.system is not None:
+        assert np.max(np.abs(over.result.system.poles)) * data.T <= SEARCH_RATE_LIMIT * (1 + 1e-9)
+
+
+def test_fast_modes_are_refused_for_searched_models_only():
+    from jitterid.estimation.resources import check_mode_rate
+
+    rng = np.random.default_rng(1)
+    u = ji.telegraph_input(60.0, rng)
+    fast = ji.TransferFunction([2e5], [1.0, 1e5])
+    with pytest.raises(ValueError, match="the samples cannot see it"):
+        check_mode_rate(fast.response(u), 1.0)
+    check_mode_rate(fast.response(u), 1e-5)  # |p| T = 1: fine
+    # a known system with such a mode is still evaluated (nothing is searched), and its
+    # response before the input starts is 0 without overflow warnings
+    np.testing.assert_array_equal(fast.response(u)(np.array([-0.3, -1e-6])), 0.0)
+    data = ji.simulate(fast, u, ji.Uniform(0.5), T=1.0, N=50, noise_std=0.01, rng=rng)
+    res = ji.fit(data, fast, ji.Uniform(0.5), "bcls")
+    assert np.isfinite(res.cost)

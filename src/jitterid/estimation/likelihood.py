@@ -87,7 +87,7 @@ from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
-from .resources import check_likelihood
+from .resources import check_likelihood, check_mode_rate
 from .search import evaluator, newton_search
 
 __all__ = [
@@ -697,6 +697,8 @@ class ExactLikelihood:
         if not sigma > 0:
             raise ValueError(f"noise_std must be > 0 for the likelihood; got {sigma!r}")
         law, sig = self.model.signal(lay.block(x, "system"), self.u).jitter_equivalent(law)
+        if self.model.param_names:  # a searched model: no modes the samples cannot see
+            check_mode_rate(sig, self.T)
         return law, sig, sigma
 
     def design(self, x: ArrayLike) -> None:

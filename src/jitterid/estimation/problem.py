@@ -33,6 +33,7 @@ from ..systems.model import Model, Signal
 from . import jacobians as _jacobians
 from .estimators import Estimator, as_estimator, method_names
 from .likelihood import ExactLikelihood
+from .resources import check_mode_rate
 
 __all__ = ["METHODS", "Problem", "default_frequencies"]
 
@@ -158,6 +159,8 @@ class Problem:
         law = self.jitter_law(x)
         sig = self.structure.signal(lay.block(x, "system"), self.data.u)
         law, sig = sig.jitter_equivalent(law)  # a delay moves into the jitter (Delayed)
+        if self.structure.param_names:  # a searched model: no modes the samples cannot see
+            check_mode_rate(sig, self.data.T)
         noise = float(x[-1]) if self.estimates_noise else float(self.noise_std or 0.0)
         return law, sig, noise
 

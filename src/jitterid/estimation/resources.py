@@ -69,6 +69,31 @@ LIKELIHOOD_SECONDS = 8e-6
 _ORDER = 8
 
 
+#: Fastest mode a *searched* LTI model may have, as |p| T: such a mode settles (or turns)
+#: ten thousand times within one sampling interval, so the samples see only its static
+#: part, while the quadrature's panels multiply with |p| T (seconds per evaluation at
+#: |p| T ~ 1e5 for a complex pair; an over-order fit drifting there ran 10 minutes). The
+#: search treats such a point as a refused step; the order selection flags |p| T above
+#: ``analysis.selection.FAST_POLE`` = 1e3 as over-order well before this.
+SEARCH_RATE_LIMIT = 1e4
+
+
+def check_mode_rate(sig: Signal, T: float) -> None:
+    """Refuse (ValueError) an LTI response whose fastest pole has |p| T above
+    :data:`SEARCH_RATE_LIMIT` (called for searched models only)."""
+    system = getattr(sig, "system", None)
+    poles = getattr(system, "poles", None)
+    if poles is None or not np.size(poles):
+        return
+    fastest = float(np.max(np.abs(poles))) * T
+    if fastest > SEARCH_RATE_LIMIT:
+        raise ValueError(
+            f"the model has a mode at |p| T = {fastest:.3g}, beyond {SEARCH_RATE_LIMIT:g}: "
+            "it settles within a tiny fraction of a sampling interval, so the samples cannot "
+            "see it (an over-order model?); the search does not go there"
+        )
+
+
 def _gb(b: float) -> str:
     return f"{b / 1e9:.3g} GB"
 

@@ -298,7 +298,8 @@ class Response(Signal):
             # Conjugate pole pairs give conjugate terms: keep Im p >= 0 and double the pairs.
             keep = p.imag >= 0
             pk, rk = p[keep], r[keep] * np.where(p[keep].imag > 0, 2.0, 1.0)
-            dt = (t - times[jc])[..., None]
+            # before the input starts the output is 0; dt = 0 there keeps exp(p dt) finite
+            dt = np.where(before, 0.0, t - times[jc])[..., None]
             e = np.exp(pk * dt)
             x = e * self._switch_states[jc][..., keep] + uj[..., None] * np.expm1(pk * dt) / pk
             out = out + np.where(before, 0.0, (x @ rk).real)
