@@ -85,8 +85,10 @@ def _oe_start(data: SampledData, structure: Model) -> tuple[FloatArray, float]:
         if gains and np.dot(s, s) > 0:  # give each start its least-squares gain
             # s is linear in the gain parameters: the scaled start's output is c s
             c = np.dot(data.y, s) / np.dot(s, s)
-            x0[gains] *= c
-            s = c * s
+            scaled = x0.copy()
+            scaled[gains] *= c
+            if np.all((scaled >= lo) & (scaled <= hi)):  # a bounded gain keeps its start
+                x0, s = scaled, c * s
         scored.append((float(np.sum((data.y - s) ** 2)), x0))
     x0 = min(scored, key=lambda item: item[0])[1]
     sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=200)
