@@ -3,6 +3,7 @@ fixed parameters) in Python and the fit command's --start, --bounds and --fix.""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -393,3 +394,23 @@ def test_cli_without_constraints_is_unchanged(lab, tmp_path):
     assert res.exit_code == 0, res.output
     model = json.loads((out / "result.json").read_text())["model"]
     assert set(model) == {"spec", "formula", "param_names"}
+
+
+def test_a_bounded_gain_keeps_its_start_inside_the_bounds():
+    """fit's ordinary start gives each start its least-squares gain; for a structure whose
+    gain parameter is bounded that scaling could leave the bounds (scipy then refused the
+    start: "Initial guess is outside of provided bounds"). The scaled start is now used only
+    where it stays inside."""
+
+    @dataclasses.dataclass(frozen=True)
+    class SmallGain(ji.RationalModel):
+        @property
+        def bounds(self):  # type: ignore[override]
+            return ((0.0, 1.0), (-np.inf, np.inf))
+
+    rng = np.random.default_rng(5)
+    u = ji.telegraph_input(90.0, rng)
+    data = ji.simulate(ji.TransferFunction([2.0], [1.0, 1.0]), u, ji.Uniform(0.3), T=1.0, N=80, noise_std=0.01, rng=rng)
+    res = ji.fit(data, SmallGain(0, 1), ji.Uniform(0.3), "bcls")
+    assert res.params["b0"] == pytest.approx(1.0)
+    assert res.status is ji.FitStatus.AT_BOUND
