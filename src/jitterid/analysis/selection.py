@@ -566,10 +566,11 @@ def over_order(res: FitResult, T: float) -> str:
                 why = (
                     f"{abs(d) / se:.2g} standard errors" if math.isfinite(se) and se > 0 else "no standard error"
                 )
-                text = (
-                    f"pole {_c(p)} and zero {_c(z)} rad/s cancel (|p - z| = {abs(d):.3g}, "
-                    f"{abs(d) / max(abs(p), 1e-300):.2g} of |p|, {why})"
-                )
+                if abs(d) <= CANCEL_REL * abs(p):
+                    how = f"cancel (|p - z| = {abs(d):.3g} rad/s, {abs(d) / max(abs(p), 1e-300):.2g} |p|)"
+                else:  # far apart, but not told apart by the data
+                    how = f"are not told apart (|p - z| = {abs(d):.3g} rad/s is {why})"
+                text = f"pole {_c(p)} and zero {_c(z)} rad/s {how}"
                 found.append((abs(d) / limit if limit > 0 else 0.0, text))
     for what, roots, grads in (("pole", poles, gp), ("zero", zeros, gz)):
         for r, g in zip(roots, grads, strict=True):
