@@ -14,7 +14,7 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "src"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-import jitterid  # noqa: E402
+import jitterid
 
 project = "jitterid"
 author = "jitterid contributors"
@@ -106,9 +106,9 @@ def _escape_bars(line: str) -> str:
     return "".join(p if i % 2 else p.replace("|", r"\|") for i, p in enumerate(parts))
 
 
-def _escape_docstring(app, what, name, obj, options, lines):  # noqa: ANN001, ARG001
+def _escape_docstring(app, what, name, obj, options, lines):
     lines[:] = [_escape_bars(line) for line in lines]
 
 
-def setup(app):  # noqa: ANN001
+def setup(app):
     app.connect("autodoc-process-docstring", _escape_docstring, priority=100)

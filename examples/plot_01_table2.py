@@ -51,7 +51,7 @@ for method, label in methods.items():
 # The same numbers as a figure: every estimate, with the truth dashed.
 fig, axes = plt.subplots(1, 3, figsize=(9, 3.4), layout="constrained")
 for j, (ax, name) in enumerate(zip(axes, names, strict=True)):
-    for i, (method, label) in enumerate(methods.items()):
+    for i, method in enumerate(methods):
         x = i + 0.08 * rng.standard_normal(runs)
         ax.plot(x, estimates[method][:, j], "o", ms=4, alpha=0.6, color=f"C{i}")
         ax.errorbar(i + 0.3, estimates[method][:, j].mean(),

@@ -28,9 +28,9 @@ bounds = []
 for _ in range(runs):
     u = ji.telegraph_input(N * T + 2, rng)
     data = ji.simulate(truth, u, jitter, T, N, noise_std, rng)
-    for method in est:
+    for method, rows in est.items():
         res = ji.fit(data, ji.PolePairGain(), jitter, method=method)
-        est[method].append([res.params[n] for n in names])
+        rows.append([res.params[n] for n in names])
     # The bound depends on the input realization: average it over them.
     bounds.append(np.diag(ji.crb(ji.PolePairGain(), jitter, u, T, N, noise_std, theta0)))
 sqrt_crb = np.sqrt(np.mean(bounds, axis=0))
