@@ -86,20 +86,33 @@ def fit_times(sizes: list[int], repeats: int, seeds: int) -> list[dict[str, obje
                     wall, cpu, nfev = wall + min(walls), cpu + min(cpus), nfev + int(res.nfev)
                     ok = ok and bool(res.success)
                     first = first if first is not None else [float(v) for v in res.x[:3]]
-                rows.append({
-                    "N": n, "data": kind, "fit": label, "wall": wall, "cpu": cpu, "nfev": nfev,
-                    "success": ok, "x": first, "load": os.getloadavg()[0],
-                })
+                rows.append(
+                    {
+                        "N": n,
+                        "data": kind,
+                        "fit": label,
+                        "wall": wall,
+                        "cpu": cpu,
+                        "nfev": nfev,
+                        "success": ok,
+                        "x": first,
+                        "load": os.getloadavg()[0],
+                    }
+                )
     return rows
 
 
 def print_fits(rows: list[dict[str, object]], title: str) -> None:
     print(f"## {title}")
-    print(f"{'N':>6} {'data':>9} {'fit':>3} {'wall s':>8} {'cpu s':>8} {'nfev':>6} {'ok':>3} {'load':>5}  k0, pr, pi (first set)")
+    print(
+        f"{'N':>6} {'data':>9} {'fit':>3} {'wall s':>8} {'cpu s':>8} {'nfev':>6} {'ok':>3} "
+        f"{'load':>5}  k0, pr, pi (first set)"
+    )
     for r in rows:
         x = ", ".join(f"{v:.4f}" for v in r["x"])  # type: ignore[union-attr]
         print(
-            f"{r['N']:>6} {r['data']:>9} {r['fit']:>3} {r['wall']:>8.3f} {r['cpu']:>8.3f} {r['nfev']:>6} "
+            f"{r['N']:>6} {r['data']:>9} {r['fit']:>3} {r['wall']:>8.3f} {r['cpu']:>8.3f} "
+            f"{r['nfev']:>6} "
             f"{'y' if r['success'] else 'n':>3} {r['load']:>5.2f}  {x}"
         )
     by = {(r["N"], r["data"], r["fit"]): r for r in rows}
@@ -117,15 +130,24 @@ def fits_main(args: argparse.Namespace) -> None:
         print(json.dumps(fit_times(args.fit_sizes, args.repeats, args.seeds)))
         return
     print(
-        f"# jitterid BJ vs OE fit times on {platform.node()} ({platform.processor() or platform.machine()}), "
+        f"# jitterid BJ vs OE fit times on {platform.node()} "
+        f"({platform.processor() or platform.machine()}), "
         f"{time.strftime('%Y-%m-%d %H:%M')}, load average {os.getloadavg()}"
     )
     before = None
     if args.baseline:
         env = {**os.environ, "PYTHONPATH": args.baseline}
         cmd = [
-            sys.executable, __file__, "--fits", "--json", "--repeats", str(args.repeats),
-            "--seeds", str(args.seeds), "--fit-sizes", *map(str, args.fit_sizes),
+            sys.executable,
+            __file__,
+            "--fits",
+            "--json",
+            "--repeats",
+            str(args.repeats),
+            "--seeds",
+            str(args.seeds),
+            "--fit-sizes",
+            *map(str, args.fit_sizes),
         ]
         out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
         before = json.loads(out.strip().splitlines()[-1])
@@ -137,7 +159,8 @@ def fits_main(args: argparse.Namespace) -> None:
         for r in after:
             b = old[r["N"], r["data"], r["fit"]]
             print(
-                f"after/before {r['fit']} at N = {r['N']}, {r['data']} data: wall {r['wall'] / b['wall']:.3f}, "
+                f"after/before {r['fit']} at N = {r['N']}, {r['data']} data: wall "
+                f"{r['wall'] / b['wall']:.3f}, "
                 f"cpu {r['cpu'] / b['cpu']:.3f}, evaluations {r['nfev']} / {b['nfev']}"
             )
     print(f"load average at the end: {os.getloadavg()}")
@@ -149,7 +172,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--fits", action="store_true", help="time OE vs BJ gaussian fits instead")
     ap.add_argument("--fit-sizes", type=int, nargs="+", default=[200, 2000])
-    ap.add_argument("--seeds", type=int, default=1, help="data sets per N (times summed), with --fits")
+    ap.add_argument(
+        "--seeds", type=int, default=1, help="data sets per N (times summed), with --fits"
+    )
     ap.add_argument("--baseline", help="source tree to compare against (PYTHONPATH), with --fits")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -195,7 +220,8 @@ def main() -> None:
             dense = "—"
             if n <= DENSE_MAX:
                 full = ji.SampleCovariance(d, gamma).dense()
-                dense = f"{best_of(lambda full=full: cho_factor(full), max(1, args.repeats // 2)) * 1e3:.1f} ms"
+                reps = max(1, args.repeats // 2)
+                dense = f"{best_of(lambda full=full: cho_factor(full), reps) * 1e3:.1f} ms"
             print(f"{n:>7} {t_crit * 1e3:>8.2f} ms {t_sigma * 1e3:>10.2f} ms {dense:>15}")
             sizes.append(n)
             crit.append(t_crit)

@@ -47,12 +47,18 @@ def main() -> None:
     mu, mu_cpu = float(np.median(t_mu)), float(np.median(c_mu))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(
-        f"# jitterid core benchmark on {platform.node()} ({platform.processor() or platform.machine()}, "
+        f"# jitterid core benchmark on {platform.node()} "
+        f"({platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores, load {load:.1f}), {time.strftime('%Y-%m-%d')}"
     )
     print(f"Table 2 experiment, N = {N}, 3 parameters, {args.runs} realizations")
-    print(f"one mu_Y evaluation (expected_dft): median {mu * 1e3:.2f} ms (CPU {mu_cpu * 1e3:.2f} ms)")
-    print(f"{'method':<10} {'median fit':>11} {'fit / mu_Y':>11} {'CPU fit':>10} {'CPU ratio':>10} {'success':>8}")
+    print(
+        f"one mu_Y evaluation (expected_dft): median {mu * 1e3:.2f} ms (CPU {mu_cpu * 1e3:.2f} ms)"
+    )
+    print(
+        f"{'method':<10} {'median fit':>11} {'fit / mu_Y':>11} {'CPU fit':>10} {'CPU ratio':>10} "
+        f"{'success':>8}"
+    )
     ji.fit(datasets[0], structure, law, method="bcls")  # warm-up
     for method in METHODS:
         times, cpus, ok = [], [], 0
@@ -64,7 +70,8 @@ def main() -> None:
             ok += res.success
         med, cpu = float(np.median(times)), float(np.median(cpus))
         print(
-            f"{method:<10} {med * 1e3:>8.1f} ms {med / mu:>11.1f} {cpu * 1e3:>7.1f} ms {cpu / mu_cpu:>10.1f} "
+            f"{method:<10} {med * 1e3:>8.1f} ms {med / mu:>11.1f} {cpu * 1e3:>7.1f} ms "
+            f"{cpu / mu_cpu:>10.1f} "
             f"{ok:>4}/{len(datasets)}"
         )
 

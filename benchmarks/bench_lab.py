@@ -66,8 +66,16 @@ print(json.dumps({"setting": setting, "N": N, "method": method, "wall": wall, "c
 
 def run_child(setting: str, N: int, method: str, cap_gb: float, timeout: float) -> dict:
     args = [sys.executable, "-c", CHILD, setting, str(N), method, str(cap_gb)]
-    base = {"setting": setting, "N": N, "method": method, "wall": None, "cpu": None, "rss_mb": None,
-            "success": False, "x": []}
+    base = {
+        "setting": setting,
+        "N": N,
+        "method": method,
+        "wall": None,
+        "cpu": None,
+        "rss_mb": None,
+        "success": False,
+        "x": [],
+    }
     try:
         out = subprocess.run(args, capture_output=True, text=True, timeout=timeout, check=False)
     except subprocess.TimeoutExpired:
@@ -90,19 +98,27 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
     ap.add_argument("--big", action="store_true", help="add N = 100000")
     ap.add_argument("--methods", nargs="+", default=["bcls", "gaussian"])
-    ap.add_argument("--mem-cap-gb", type=float, default=4.0, help="address-space cap per fit (0: none)")
+    ap.add_argument(
+        "--mem-cap-gb", type=float, default=4.0, help="address-space cap per fit (0: none)"
+    )
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per fit")
     args = ap.parse_args()
     sizes = list(args.sizes) + ([100000] if args.big else [])
     print(
-        f"# jitterid lab benchmark on {platform.node()} ({platform.machine()}, {os.cpu_count()} cores), "
+        f"# jitterid lab benchmark on {platform.node()} ({platform.machine()}, {os.cpu_count()} "
+        "cores), "
         f"{time.strftime('%Y-%m-%d %H:%M:%S')}, load average {os.getloadavg()}"
     )
-    print("# lab: RationalModel(1, 3), zoh +-1 input, T = 0.5, GaussianFamily (true sigma 0.08), noise 0.02")
+    print(
+        "# lab: RationalModel(1, 3), zoh +-1 input, T = 0.5, GaussianFamily (true sigma 0.08), "
+        "noise 0.02"
+    )
     print("# paper: PolePairGain, telegraph input, T = 1, known Uniform(0.5), noise 0.01 (Table 2)")
     print("# wall time, CPU time of the fit's process, peak RSS; ratio = lab / paper (wall, CPU)")
-    print(f"{'N':>7} {'method':<9} {'lab wall':>8} {'lab CPU':>8} {'lab RSS':>7}   "
-          f"{'paper wall':>8} {'CPU':>8} {'RSS':>7}   {'ratio':>6} {'CPU':>6}  note")
+    print(
+        f"{'N':>7} {'method':<9} {'lab wall':>8} {'lab CPU':>8} {'lab RSS':>7}   "
+        f"{'paper wall':>8} {'CPU':>8} {'RSS':>7}   {'ratio':>6} {'CPU':>6}  note"
+    )
     for N in sizes:
         for method in args.methods:
             lab = run_child("lab", N, method, args.mem_cap_gb, args.timeout)
@@ -118,8 +134,11 @@ def main() -> None:
                     notes.append(f"{r['setting']} not converged")
             if lab["x"]:
                 notes.append("lab x = " + " ".join(f"{v:.4g}" for v in lab["x"]))
-            print(f"{N:>7} {method:<9} {_cell(lab)}   {_cell(paper)}   {ratio:>6.1f} {cpu_ratio:>6.1f}  "
-                  + "; ".join(notes), flush=True)
+            print(
+                f"{N:>7} {method:<9} {_cell(lab)}   {_cell(paper)}   {ratio:>6.1f} "
+                f"{cpu_ratio:>6.1f}  " + "; ".join(notes),
+                flush=True,
+            )
     print(f"# load average at the end {os.getloadavg()}")
 
 

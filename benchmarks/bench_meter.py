@@ -50,11 +50,18 @@ def main() -> None:
                 times, ev, st = [], [], ""
                 for seed in range(args.runs):
                     y = record(n, seed)
-                    dt, m = cpu(lambda y=y, method=method: ji.measure_jitter(y, T, laws=["gaussian"], method=method))
+                    dt, m = cpu(
+                        lambda y=y, method=method: ji.measure_jitter(
+                            y, T, laws=["gaussian"], method=method
+                        )
+                    )
                     times.append(dt)
                     ev.append(m.fit.nfev)  # type: ignore[attr-defined]
                     st = m.status.name  # type: ignore[attr-defined]
-                print(f"{n:>7} {method:<9} {np.median(times):8.2f} {int(np.median(ev)):>6} {st:<16}", flush=True)
+                print(
+                    f"{n:>7} {method:<9} {np.median(times):8.2f} {int(np.median(ev)):>6} {st:<16}",
+                    flush=True,
+                )
     print(f"# load at the end {os.getloadavg()[0]:.1f}")
 
 

@@ -80,7 +80,8 @@ def accuracy() -> None:
     structure = ji.PolePairGain()
     print("\nquadrature of ln p(y_k), default rule (order 8, panel 4) vs order 16, panel 1")
     print(
-        f"  {'jitter law':<30} {'noise':>6} {'nodes':>8} {'eval':>8} {'max |err|':>10} {'rel err sum':>11}"
+        f"  {'jitter law':<30} {'noise':>6} {'nodes':>8} {'eval':>8} {'max |err|':>10} "
+        f"{'rel err sum':>11}"
     )
     laws = [
         ji.Uniform(0.5),
@@ -103,7 +104,8 @@ def accuracy() -> None:
             rel = abs(fast.sum() - slow.sum()) / abs(slow.sum())
             name = repr(law) if len(repr(law)) <= 30 else str(law).split(":")[0]
             print(
-                f"  {name:<30} {noise:>6g} {nodes:>8} {cpu / 5 * 1e3:>6.1f}ms {err:>10.1e} {rel:>11.1e}"
+                f"  {name:<30} {noise:>6g} {nodes:>8} {cpu / 5 * 1e3:>6.1f}ms {err:>10.1e} "
+                f"{rel:>11.1e}"
             )
 
 
@@ -115,7 +117,8 @@ def main() -> None:
     args = ap.parse_args()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(
-        f"# jitterid ML benchmark on {platform.node()} ({platform.processor() or platform.machine()}, "
+        f"# jitterid ML benchmark on {platform.node()} "
+        f"({platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores, load {load:.1f}), {time.strftime('%Y-%m-%d')}"
     )
     if args.accuracy:

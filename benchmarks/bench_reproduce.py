@@ -36,23 +36,40 @@ def main() -> None:
     args = ap.parse_args()
     exp = dataclasses.replace(load_experiment(packaged_path(args.target)), runs=args.runs)
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-c", "from jitterid.cli import main; main()", "reproduce",
-               args.target, "--runs", str(args.runs), "--workers", str(args.workers),
-               "--out", out, "--no-progress"]
+        cmd = [
+            sys.executable,
+            "-c",
+            "from jitterid.cli import main; main()",
+            "reproduce",
+            args.target,
+            "--runs",
+            str(args.runs),
+            "--workers",
+            str(args.workers),
+            "--out",
+            out,
+            "--no-progress",
+        ]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
         with Store(store_path(exp, out), exp, resume=True) as store:
             rows = store.estimates()
     n = args.runs * len(exp.cases)
-    print(f"# jitterid reproduce benchmark on {platform.node()} ({os.cpu_count()} CPUs, "
-          f"load average {os.getloadavg()[0]:.1f}), {time.strftime('%Y-%m-%d')}")
-    print(f"reproduce {args.target}: {n} realizations ({len(exp.cases)} case(s) x {args.runs}), "
-          f"{len(exp.methods)} estimators each, {args.workers} worker(s)")
+    print(
+        f"# jitterid reproduce benchmark on {platform.node()} ({os.cpu_count()} CPUs, "
+        f"load average {os.getloadavg()[0]:.1f}), {time.strftime('%Y-%m-%d')}"
+    )
+    print(
+        f"reproduce {args.target}: {n} realizations ({len(exp.cases)} case(s) x {args.runs}), "
+        f"{len(exp.methods)} estimators each, {args.workers} worker(s)"
+    )
     print(f"wall time {wall:.1f} s, {n / wall:.2f} realizations/s")
     if args.runs < 128:
-        print(f"extrapolated to 128 runs: {wall * 128 / args.runs:.0f} s (start-up counted "
-              "128/runs times: an upper estimate)")
+        print(
+            f"extrapolated to 128 runs: {wall * 128 / args.runs:.0f} s (start-up counted "
+            "128/runs times: an upper estimate)"
+        )
     print(f"{'method':<10} {'median fit (s)':>15} {'total fit (s)':>14} {'converged':>10}")
     for m in exp.methods:
         t = [e.elapsed_s for e in rows if e.method == m]

@@ -81,13 +81,27 @@ def run_child(N: int, method: str, reps: int, cap_gb: float, timeout: float) -> 
     try:
         out = subprocess.run(args, capture_output=True, text=True, timeout=timeout, check=False)
     except subprocess.TimeoutExpired:
-        return {"N": N, "method": method, "fit_s": None, "mu_s": float("nan"), "rss_mb": float("nan"),
-                "success": False, "error": f"timed out after {timeout:g} s"}
+        return {
+            "N": N,
+            "method": method,
+            "fit_s": None,
+            "mu_s": float("nan"),
+            "rss_mb": float("nan"),
+            "success": False,
+            "error": f"timed out after {timeout:g} s",
+        }
     lines = out.stdout.strip().splitlines()
     if out.returncode != 0 or not lines:
         tail = (out.stderr.strip().splitlines() or ["no output"])[-1]
-        return {"N": N, "method": method, "fit_s": None, "mu_s": float("nan"), "rss_mb": float("nan"),
-                "success": False, "error": f"exit {out.returncode}: {tail}"}
+        return {
+            "N": N,
+            "method": method,
+            "fit_s": None,
+            "mu_s": float("nan"),
+            "rss_mb": float("nan"),
+            "success": False,
+            "error": f"exit {out.returncode}: {tail}",
+        }
     return json.loads(lines[-1])
 
 
@@ -118,10 +132,13 @@ def paths_ratio(N: int) -> tuple[float, float, float]:
 
 def _fmt_row(r: dict) -> str:
     if r["fit_s"] is None:
-        return f"{r['N']:>9} {r['method']:<9} {'--':>9} {'':>9} {'':>9} {'':>7} {'':>9}  FAILED: {r['error']}"
+        blank = f"{'--':>9} {'':>9} {'':>9} {'':>7} {'':>9}"
+        return f"{r['N']:>9} {r['method']:<9} {blank}  FAILED: {r['error']}"
     return (
-        f"{r['N']:>9} {r['method']:<9} {r['fit_s']:>8.3f}s {r['fit_cpu']:>8.3f}s {r['mu_s'] * 1e3:>7.2f}ms "
-        f"{r['fit_cpu'] / r['mu_cpu']:>7.1f} {r['rss_mb']:>7.0f}MB" + ("" if r["success"] else "  NOT CONVERGED")
+        f"{r['N']:>9} {r['method']:<9} {r['fit_s']:>8.3f}s {r['fit_cpu']:>8.3f}s "
+        f"{r['mu_s'] * 1e3:>7.2f}ms "
+        f"{r['fit_cpu'] / r['mu_cpu']:>7.1f} {r['rss_mb']:>7.0f}MB"
+        + ("" if r["success"] else "  NOT CONVERGED")
     )
 
 
@@ -129,25 +146,42 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000, 1000000])
     ap.add_argument("--methods", nargs="+", default=["bcls", "gaussian", "ml"])
-    ap.add_argument("--ratio-sizes", type=int, nargs="*", default=[200, 100000],
-                    help="N for the fit / model-evaluation ratio")
+    ap.add_argument(
+        "--ratio-sizes",
+        type=int,
+        nargs="*",
+        default=[200, 100000],
+        help="N for the fit / model-evaluation ratio",
+    )
     ap.add_argument("--ratio-reps", type=int, default=7, help="repetitions (medians) for N <= 2000")
-    ap.add_argument("--paths", type=int, nargs="*", default=[200, 2000], help="N for the path ratio")
-    ap.add_argument("--mem-cap-gb", type=float, default=4.0, help="address-space cap per fit (0: none)")
+    ap.add_argument(
+        "--paths", type=int, nargs="*", default=[200, 2000], help="N for the path ratio"
+    )
+    ap.add_argument(
+        "--mem-cap-gb", type=float, default=4.0, help="address-space cap per fit (0: none)"
+    )
     ap.add_argument("--timeout", type=float, default=3600.0, help="seconds per fit")
     args = ap.parse_args()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(
-        f"# jitterid scale benchmark on {platform.node()} ({platform.machine()}, {os.cpu_count()} cores, "
+        f"# jitterid scale benchmark on {platform.node()} ({platform.machine()}, {os.cpu_count()} "
+        "cores, "
         f"load {load:.1f}), {time.strftime('%Y-%m-%d')}"
     )
     print("Table 2 experiment; time and peak RSS of one fit per N, each in a fresh process")
-    print("(wall time, and CPU time of this process: the machine may be shared; fit/mu in CPU time)")
-    print(f"{'N':>9} {'method':<9} {'fit wall':>9} {'fit CPU':>9} {'mu_Y':>9} {'fit/mu':>7} {'peak RSS':>9}")
+    print(
+        "(wall time, and CPU time of this process: the machine may be shared; fit/mu in CPU time)"
+    )
+    print(
+        f"{'N':>9} {'method':<9} {'fit wall':>9} {'fit CPU':>9} {'mu_Y':>9} {'fit/mu':>7} "
+        f"{'peak RSS':>9}"
+    )
     for method in args.methods:
         # medians of a few repetitions where one fit is short (timer and load noise)
         rows = [
-            run_child(N, method, 5 if N <= 2000 else 3 if N <= 20000 else 1, args.mem_cap_gb, args.timeout)
+            run_child(
+                N, method, 5 if N <= 2000 else 3 if N <= 20000 else 1, args.mem_cap_gb, args.timeout
+            )
             for N in args.sizes
         ]
         for r in rows:
@@ -158,10 +192,15 @@ def main() -> None:
             slope = np.polyfit(logn, np.log([r["fit_s"] for r in good]), 1)[0]
             slope_cpu = np.polyfit(logn, np.log([r["fit_cpu"] for r in good]), 1)[0]
             span = f"N = {good[0]['N']}..{good[-1]['N']}"
-            print(f"{'':>9} {method:<9} log-log slope of fit time against N ({span}): {slope:.2f} "
-                  f"(CPU time: {slope_cpu:.2f})")
+            print(
+                f"{'':>9} {method:<9} log-log slope of fit time against N ({span}): {slope:.2f} "
+                f"(CPU time: {slope_cpu:.2f})"
+            )
     if args.ratio_sizes:
-        print("\nfit time in model evaluations (one mu_Y evaluation, expected_dft), medians for N <= 2000")
+        print(
+            "\nfit time in model evaluations (one mu_Y evaluation, expected_dft), medians for N "
+            "<= 2000"
+        )
         for method in args.methods:
             for N in args.ratio_sizes:
                 reps = args.ratio_reps if N <= 2000 else 1
@@ -171,16 +210,25 @@ def main() -> None:
                     continue
                 extra = ""
                 if r.get("lik_s"):
-                    extra = (f"; one likelihood evaluation {r['lik_s'] * 1e3:.2f} ms, ratio "
-                             f"{r['fit_s'] / r['lik_s']:.1f}")
-                print(f"N = {N:>7} {method:<9} fit {r['fit_s'] * 1e3:9.1f} ms, one evaluation "
-                      f"{r['mu_s'] * 1e3:7.2f} ms, ratio {r['fit_s'] / r['mu_s']:6.1f} "
-                      f"(CPU: {r['fit_cpu'] * 1e3:.1f} / {r['mu_cpu'] * 1e3:.2f} ms = "
-                      f"{r['fit_cpu'] / r['mu_cpu']:.1f}){extra}", flush=True)
+                    extra = (
+                        f"; one likelihood evaluation {r['lik_s'] * 1e3:.2f} ms, ratio "
+                        f"{r['fit_s'] / r['lik_s']:.1f}"
+                    )
+                print(
+                    f"N = {N:>7} {method:<9} fit {r['fit_s'] * 1e3:9.1f} ms, one evaluation "
+                    f"{r['mu_s'] * 1e3:7.2f} ms, ratio {r['fit_s'] / r['mu_s']:6.1f} "
+                    f"(CPU: {r['fit_cpu'] * 1e3:.1f} / {r['mu_cpu'] * 1e3:.2f} ms = "
+                    f"{r['fit_cpu'] / r['mu_cpu']:.1f}){extra}",
+                    flush=True,
+                )
     for N in args.paths:
         t_fast, t_ref, err = paths_ratio(N)
-        print(f"mu_Y at N = {N}: fast {t_fast * 1e3:.1f} ms, paper's integral (14b) {t_ref * 1e3:.0f} ms, "
-              f"ratio {t_ref / t_fast:.0f}x, max |difference| {err:.1e}", flush=True)
+        print(
+            f"mu_Y at N = {N}: fast {t_fast * 1e3:.1f} ms, paper's integral (14b) "
+            f"{t_ref * 1e3:.0f} ms, "
+            f"ratio {t_ref / t_fast:.0f}x, max |difference| {err:.1e}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

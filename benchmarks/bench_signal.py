@@ -48,11 +48,18 @@ def main() -> None:
     args = ap.parse_args()
     law = ji.Uniform(0.8)
     model = ji.SignalModel(
-        _s, ("A", "phi", "f", "c"), starts=[TRUTH * [0.8, 1.0, 1.00005, 0.5]], rate=_rate,
+        _s,
+        ("A", "phi", "f", "c"),
+        starts=[TRUTH * [0.8, 1.0, 1.00005, 0.5]],
+        rate=_rate,
         bounds=((-np.inf, np.inf), (-np.inf, np.inf), (1e-3, 0.5), (-np.inf, np.inf)),
-        gradient=_grad, slope=_slope, gain_params=(0, 3),
+        gradient=_grad,
+        slope=_slope,
+        gain_params=(0, 3),
     )
-    print(f"# signal model fits, CPU s per fit (median of {args.runs}), load {os.getloadavg()[0]:.1f}")
+    print(
+        f"# signal model fits, CPU s per fit (median of {args.runs}), load {os.getloadavg()[0]:.1f}"
+    )
     print(f"{'N':>6} {'method':<10} {'CPU s':>8} {'success':>8}")
     for N in args.sizes:
         for method in ("ls", "bcls", "gaussian", "ml"):
@@ -64,7 +71,10 @@ def main() -> None:
                 with threadpool_limits(1, "blas"):
                     t0 = time.process_time()
                     res = ji.fit(
-                        data, model, ji.NoJitter() if method == "ls" else law, method,
+                        data,
+                        model,
+                        ji.NoJitter() if method == "ls" else law,
+                        method,
                         noise_std=None if method in ("ls", "ml") else 0.05,
                     )
                     times.append(time.process_time() - t0)

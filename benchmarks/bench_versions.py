@@ -93,12 +93,17 @@ def main() -> None:
         env = {**os.environ, "PYTHONPATH": str(Path(tree).resolve() / "src")}
         proc = subprocess.run(
             [sys.executable, __file__, "--child", "--runs", str(a.runs)],
-            env=env, capture_output=True, text=True, check=True,
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
         )
         results[name] = json.loads(proc.stdout.strip().splitlines()[-1])
     load = os.getloadavg()[0]
-    print(f"# jitterid before/after, CPU seconds per fit (median of {a.runs}), load {load:.1f}, "
-          f"{time.strftime('%Y-%m-%d %H:%M')}")
+    print(
+        f"# jitterid before/after, CPU seconds per fit (median of {a.runs}), load {load:.1f}, "
+        f"{time.strftime('%Y-%m-%d %H:%M')}"
+    )
     head = f"{'case':<13}" + "".join(f"{n + ' fit+cov':>16}" for n in results)
     head += f"{'after fit only':>16}{'after/before':>14}"
     print(head)
@@ -109,7 +114,9 @@ def main() -> None:
             row += f"{r['fit+cov']:>9.3f} ({100 * r['ok']:>3.0f}%)"
         row += f"{results['after'][label]['fit']:>14.3f} s"
         if "before" in results:
-            row += f"{results['after'][label]['fit+cov'] / results['before'][label]['fit+cov']:>14.2f}"
+            row += (
+                f"{results['after'][label]['fit+cov'] / results['before'][label]['fit+cov']:>14.2f}"
+            )
         print(row)
 
 

@@ -135,12 +135,17 @@ def available_methods(wanted: list[str]) -> dict[str, Callable[[np.ndarray], tup
         if name == "jitterid":
             fn = _jitterid_method()
             if fn is None:
-                print("# note: jitterid.measure_jitter does not exist on this branch: column skipped")
+                print(
+                    "# note: jitterid.measure_jitter does not exist on this branch: column skipped"
+                )
                 continue
             out[name] = fn
         elif name == "adctoolbox":
             if adctoolbox_version() is None:
-                print("# note: adctoolbox is not installed (pip install 'jitterid[bench]'): column skipped")
+                print(
+                    "# note: adctoolbox is not installed (pip install 'jitterid[bench]'): column "
+                    "skipped"
+                )
                 continue
             out[name] = lambda y: (adctoolbox_jitter(y, T), math.nan)
         elif name == "ieee1057":
@@ -174,8 +179,16 @@ def _crb_std(law: str, n: int, f0: float, sigma: float, noise: float) -> float |
     family, per_std = _FAMILIES[law]
     truth = [sigma * per_std, AMPLITUDE, 0.0, f0, OFFSET]
     cov = jitterid.crb(
-        jitterid.SineWave(), family(), None, T, n, noise * AMPLITUDE, truth,
-        estimate_noise=True, draws=max(1, 20000 // n), rng=0,
+        jitterid.SineWave(),
+        family(),
+        None,
+        T,
+        n,
+        noise * AMPLITUDE,
+        truth,
+        estimate_noise=True,
+        draws=max(1, 20000 // n),
+        rng=0,
     )
     return float(math.sqrt(cov[0, 0]) / per_std)
 
@@ -210,7 +223,12 @@ def _done(con: sqlite3.Connection, key: tuple[str, int, float, float, int]) -> s
 def run_cell(
     con: sqlite3.Connection,
     methods: dict[str, Callable[[np.ndarray], tuple[float, float]]],
-    law: str, n: int, theta: float, noise: float, records: int, with_crb: bool,
+    law: str,
+    n: int,
+    theta: float,
+    noise: float,
+    records: int,
+    with_crb: bool,
 ) -> int:
     """Compute and store what is missing for one setting; returns the (record, method) pairs run."""
     ran = 0
@@ -248,7 +266,12 @@ def run_cell(
 
 
 def summarize(
-    con: sqlite3.Connection, law: str, n: int, theta: float, noise: float, method: str,
+    con: sqlite3.Connection,
+    law: str,
+    n: int,
+    theta: float,
+    noise: float,
+    method: str,
     records: int,
 ) -> dict[str, float]:
     rows = con.execute(
@@ -283,7 +306,9 @@ def print_table(con, methods, grid, laws, records, with_crb) -> None:  # type: i
             for noise in grid["noises"]:
                 for theta in grid["thetas"]:
                     crb = (
-                        summarize(con, law, n, theta, noise, "sqrt_crb", records) if with_crb else {}
+                        summarize(con, law, n, theta, noise, "sqrt_crb", records)
+                        if with_crb
+                        else {}
                     )
                     crb_txt = f"{crb['bias'] + 1:9.3g}" if "bias" in crb else f"{'n/a':>9}"
                     for name in methods:
@@ -310,8 +335,12 @@ def make_figure(con, methods, grid, laws, records, with_crb, path: Path) -> None
 
     sizes, noises = grid["sizes"], grid["noises"]
     fig, axes = plt.subplots(
-        len(sizes), len(noises), figsize=(4.2 * len(noises) + 2.6, 3.4 * len(sizes)),
-        squeeze=False, sharex=True, sharey=True,
+        len(sizes),
+        len(noises),
+        figsize=(4.2 * len(noises) + 2.6, 3.4 * len(sizes)),
+        squeeze=False,
+        sharex=True,
+        sharey=True,
     )
     colours = {"jitterid": "C0", "adctoolbox": "C1", "ieee1057": "C2"}
     styles = {"gaussian": "-", "uniform": "--", "dual_dirac": ":"}
@@ -326,16 +355,29 @@ def make_figure(con, methods, grid, laws, records, with_crb, path: Path) -> None
                         summarize(con, law, n, th, noise, name, records).get("rmse", math.nan)
                         for th in thetas
                     ]
-                    ax.loglog(thetas, rmse, styles[law], color=colours[name], marker=markers[name], ms=3,
-                              label=f"{name} {law}" if (i, j) == (0, 0) else None)
+                    ax.loglog(
+                        thetas,
+                        rmse,
+                        styles[law],
+                        color=colours[name],
+                        marker=markers[name],
+                        ms=3,
+                        label=f"{name} {law}" if (i, j) == (0, 0) else None,
+                    )
                 if with_crb:
                     crb = [
                         summarize(con, law, n, th, noise, "sqrt_crb", records).get("bias", math.nan)
                         + 1
                         for th in thetas
                     ]
-                    ax.loglog(thetas, crb, styles[law], color="k", lw=1,
-                              label=f"sqrt(CRB) {law}" if (i, j) == (0, 0) else None)
+                    ax.loglog(
+                        thetas,
+                        crb,
+                        styles[law],
+                        color="k",
+                        lw=1,
+                        label=f"sqrt(CRB) {law}" if (i, j) == (0, 0) else None,
+                    )
             ax.set_title(f"N = {n}, noise = {noise:g} A", fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
             if i == len(sizes) - 1:
@@ -400,8 +442,10 @@ def main(argv: list[str] | None = None) -> None:
             for noise in grid["noises"]:
                 for theta in grid["thetas"]:
                     ran += run_cell(con, methods, law, n, theta, noise, grid["records"], with_crb)
-    print(f"# computed {ran} (record, method) results in {time.perf_counter() - t0:.1f} s "
-          f"(the rest were stored)")
+    print(
+        f"# computed {ran} (record, method) results in {time.perf_counter() - t0:.1f} s "
+        f"(the rest were stored)"
+    )
     print_table(con, methods, grid, args.laws, grid["records"], with_crb)
     if str(figure).lower() != "none":
         make_figure(con, methods, grid, args.laws, grid["records"], with_crb, figure)

@@ -77,7 +77,8 @@ def summarise(runs: list[dict], table: int, seconds: float, reps: int) -> str:  
         "",
         (
             "| parameter | true | BCLS mean | BCLS std | ML mean | ML std | sqrt(CRB) | "
-            "sqrt(Gauss bound) | ML std / sqrt(CRB) | ML std / BCLS std | BCLS coverage | ML coverage |"
+            "sqrt(Gauss bound) | ML std / sqrt(CRB) | ML std / BCLS std | BCLS coverage | ML "
+            "coverage |"
         ),
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]

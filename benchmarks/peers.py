@@ -68,7 +68,8 @@ def _baseband(frequency: float, T: float) -> float:
 
 
 def adctoolbox_jitter(y: np.ndarray, T: float, frequency: float | None = None) -> float:
-    """Jitter std (s) from adctoolbox's ``analyze_error_by_phase``: ``pm_noise_rms_rad / (2 pi f0)``.
+    """Jitter std (s) from adctoolbox's ``analyze_error_by_phase``:
+    ``pm_noise_rms_rad / (2 pi f0)``.
 
     Parameters
     ----------

@@ -54,11 +54,19 @@ for j, (ax, name) in enumerate(zip(axes, names, strict=True)):
     for i, method in enumerate(methods):
         x = i + 0.08 * rng.standard_normal(runs)
         ax.plot(x, estimates[method][:, j], "o", ms=4, alpha=0.6, color=f"C{i}")
-        ax.errorbar(i + 0.3, estimates[method][:, j].mean(),
-                    yerr=estimates[method][:, j].std(ddof=1), fmt="s", color=f"C{i}", capsize=3)
+        ax.errorbar(
+            i + 0.3,
+            estimates[method][:, j].mean(),
+            yerr=estimates[method][:, j].std(ddof=1),
+            fmt="s",
+            color=f"C{i}",
+            capsize=3,
+        )
     ax.axhline(theta0[j], color="k", ls="--", lw=1)
     ax.set_xticks(range(len(methods)), [lbl.split()[0] for lbl in methods.values()])
     ax.set_title(name)
     ax.grid(True, alpha=0.3)
-fig.suptitle(f"{runs} realizations, N = {N}: estimates (dots), mean ± std (squares), truth (dashed)")
+fig.suptitle(
+    f"{runs} realizations, N = {N}: estimates (dots), mean ± std (squares), truth (dashed)"
+)
 plt.show()

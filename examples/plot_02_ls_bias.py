@@ -32,11 +32,14 @@ laws = {
 
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4), layout="constrained")
 for i, (name, law) in enumerate(laws.items()):
-    plots.plot_gain_factor(f, ji.ls_gain_factor(law, f), label=name,
-                           tol=0.01 if i == 0 else None, ax=ax1)
+    plots.plot_gain_factor(
+        f, ji.ls_gain_factor(law, f), label=name, tol=0.01 if i == 0 else None, ax=ax1
+    )
     ax1.get_lines()[-1 if i else -2].set_color(f"C{i}")
-    print(f"{name:>26}: std {law.std:.3f} s, 1 % gain bias from f = "
-          f"{ji.bias_frequency(law, 0.01):.3f} Hz")
+    print(
+        f"{name:>26}: std {law.std:.3f} s, 1 % gain bias from f = "
+        f"{ji.bias_frequency(law, 0.01):.3f} Hz"
+    )
 ax1.legend(loc="lower left", fontsize="small")  # again, with the recoloured lines
 ax1.set_title("LS gain factor |φ(f)| of three jitter laws")
 
@@ -48,8 +51,13 @@ data = ji.simulate(truth, u, ji.Uniform(T / 2), T=T, N=200, noise_std=0.01, rng=
 g0 = np.abs(truth.frequency_response(f[1:]))
 for method, color in (("ls", "C3"), ("bcls", "C2")):
     res = ji.fit(data, ji.PolePairGain(), ji.Uniform(T / 2), method=method)
-    ax2.plot(f[1:], np.abs(res.system.frequency_response(f[1:])) / g0, color=color, lw=2,
-             label=f"{method.upper()} model / truth")
+    ax2.plot(
+        f[1:],
+        np.abs(res.system.frequency_response(f[1:])) / g0,
+        color=color,
+        lw=2,
+        label=f"{method.upper()} model / truth",
+    )
 ax2.plot(f, ji.ls_gain_factor(ji.Uniform(T / 2), f), "k--", lw=1, label="|φ(f)|, U(-T/2, T/2)")
 ax2.set_xlabel("frequency f (Hz)")
 ax2.set_ylabel("|G_est| / |G_0|")

@@ -29,8 +29,10 @@ ls = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="ls")
 # intervals.
 q = bcls.physical_quantities()
 print(q)
-print(f"damping ratio {q['zeta'].value:.3f}, 95 % interval "
-      f"[{q['zeta'].low:.3f}, {q['zeta'].high:.3f}]")
+print(
+    f"damping ratio {q['zeta'].value:.3f}, 95 % interval "
+    f"[{q['zeta'].low:.3f}, {q['zeta'].high:.3f}]"
+)
 
 # %%
 # The step response with its band, against the truth and the ordinary LS fit.

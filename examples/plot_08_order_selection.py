@@ -36,8 +36,14 @@ ax.bar(labels, bic - bic.min(), color=colors)
 ax.set_yscale("symlog", linthresh=10)
 for i, row in enumerate(sel.rows):
     note = "chosen" if i == sel.chosen else ("over-order, set aside" if row.over_order else "")
-    ax.annotate(note, (i, bic[i] - bic.min()), xytext=(0, 3), textcoords="offset points",
-                ha="center", fontsize="small")
+    ax.annotate(
+        note,
+        (i, bic[i] - bic.min()),
+        xytext=(0, 3),
+        textcoords="offset points",
+        ha="center",
+        fontsize="small",
+    )
 ax.axhline(10, color="C3", ls="--", lw=1, label="BIC gap 10")
 ax.set_ylabel("BIC - min BIC")
 ax.set_title(f"order selection by BIC, N = 200; chosen: {sel.best.label}")

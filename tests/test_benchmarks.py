@@ -12,9 +12,27 @@ BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 def test_scale_benchmark_runs_at_small_n():
     out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_scale.py"), "--sizes", "100", "300", "--methods", "bcls",
-         "gaussian", "ml", "--ratio-sizes", "200", "--ratio-reps", "1", "--paths", "50"],
-        capture_output=True, text=True, check=True, timeout=600,
+        [
+            sys.executable,
+            str(BENCH / "bench_scale.py"),
+            "--sizes",
+            "100",
+            "300",
+            "--methods",
+            "bcls",
+            "gaussian",
+            "ml",
+            "--ratio-sizes",
+            "200",
+            "--ratio-reps",
+            "1",
+            "--paths",
+            "50",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
     ).stdout
     assert "FAILED" not in out, out
     assert "NOT CONVERGED" not in out, out
@@ -28,9 +46,22 @@ def test_scale_benchmark_runs_at_small_n():
 def test_scale_benchmark_reports_a_fit_over_its_memory_cap():
     """The cap makes a fit that needs too much memory fail in its own process, reported."""
     out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_scale.py"), "--sizes", "300", "--methods", "bcls",
-         "--ratio-sizes", "--paths", "--mem-cap-gb", "0.05"],
-        capture_output=True, text=True, check=True, timeout=300,
+        [
+            sys.executable,
+            str(BENCH / "bench_scale.py"),
+            "--sizes",
+            "300",
+            "--methods",
+            "bcls",
+            "--ratio-sizes",
+            "--paths",
+            "--mem-cap-gb",
+            "0.05",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
     ).stdout
     assert "FAILED" in out, out
 
@@ -38,7 +69,10 @@ def test_scale_benchmark_reports_a_fit_over_its_memory_cap():
 def test_core_benchmark_runs():
     out = subprocess.run(
         [sys.executable, str(BENCH / "bench_core.py"), "--runs", "1"],
-        capture_output=True, text=True, check=True, timeout=300,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
     ).stdout
     assert "bcls" in out
     assert "gaussian" in out
@@ -47,7 +81,10 @@ def test_core_benchmark_runs():
 def test_signal_benchmark_runs():
     out = subprocess.run(
         [sys.executable, str(BENCH / "bench_signal.py"), "--runs", "1", "--sizes", "200"],
-        capture_output=True, text=True, check=True, timeout=300,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
     ).stdout
     assert "   200 ml" in out, out
     assert "1/1" in out, out
@@ -56,7 +93,10 @@ def test_signal_benchmark_runs():
 def test_meter_benchmark_runs():
     out = subprocess.run(
         [sys.executable, str(BENCH / "bench_meter.py"), "--runs", "1", "--sizes", "300"],
-        capture_output=True, text=True, check=True, timeout=300,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
     ).stdout
     assert "    300 ml" in out, out
     assert "    300 gaussian" in out, out
@@ -64,12 +104,31 @@ def test_meter_benchmark_runs():
 
 
 def _jitter_meter(tmp_path, *methods):
-    cmd = [sys.executable, str(BENCH / "jitter_meter.py"), "--quick", "--records", "1",
-           "--thetas", "0.05", "0.5", "--noises", "0.01", "--laws", "gaussian", "dual_dirac",
-           "--db", str(tmp_path / "jm.sqlite"), "--figure", str(tmp_path / "jm.png"),
-           "--methods", *methods]
-    return [subprocess.run(cmd, capture_output=True, text=True, check=True, timeout=600).stdout
-            for _ in range(2)]
+    cmd = [
+        sys.executable,
+        str(BENCH / "jitter_meter.py"),
+        "--quick",
+        "--records",
+        "1",
+        "--thetas",
+        "0.05",
+        "0.5",
+        "--noises",
+        "0.01",
+        "--laws",
+        "gaussian",
+        "dual_dirac",
+        "--db",
+        str(tmp_path / "jm.sqlite"),
+        "--figure",
+        str(tmp_path / "jm.png"),
+        "--methods",
+        *methods,
+    ]
+    return [
+        subprocess.run(cmd, capture_output=True, text=True, check=True, timeout=600).stdout
+        for _ in range(2)
+    ]
 
 
 def test_jitter_meter_quick_runs_and_resumes(tmp_path):
@@ -86,7 +145,7 @@ def test_jitter_meter_quick_runs_and_resumes(tmp_path):
         assert "1000   0.05    0.01 jitterid" in first, first
     assert (tmp_path / "jm.png").stat().st_size > 0
     assert "# computed 0 (record, method) results" in second
-    table = lambda out: out[out.index("law "):out.index("# figure")]
+    table = lambda out: out[out.index("law ") : out.index("# figure")]
     assert table(first) == table(second)
 
 
@@ -104,9 +163,13 @@ def test_jitter_meter_adctoolbox_column(tmp_path):
         sys.path.remove(str(BENCH))
     rng = np.random.default_rng(2)
     k = np.arange(5000)
-    y = np.sin(2 * np.pi * 0.1234 * (k + rng.normal(0.0, 0.1, k.size))) + rng.normal(0, 1e-3, k.size)
+    y = np.sin(2 * np.pi * 0.1234 * (k + rng.normal(0.0, 0.1, k.size))) + rng.normal(
+        0, 1e-3, k.size
+    )
     ours, theirs = peers.ieee1057_jitter(y, 1.0), peers.adctoolbox_jitter(y, 1.0)
     assert theirs == pytest.approx(ours, rel=2e-3)
     assert ours == pytest.approx(0.1, rel=0.05)
     # above Nyquist: the wrapper passes the alias and converts with the true frequency
-    assert peers.adctoolbox_jitter(y, 1.0, 1.1234) == pytest.approx(theirs * 0.1234 / 1.1234, rel=2e-3)
+    assert peers.adctoolbox_jitter(y, 1.0, 1.1234) == pytest.approx(
+        theirs * 0.1234 / 1.1234, rel=2e-3
+    )

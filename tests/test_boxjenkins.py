@@ -66,7 +66,10 @@ def test_autocovariance_and_spectrum_follow_from_the_impulse_response():
         return float(np.real(np.sum(r * np.exp(p * s))))
 
     for lag in (0.0, 0.7, 2.5):
-        direct = RESONANT.intensity * integrate.quad(lambda s, lag=lag: h(s) * h(s + lag), 0, np.inf, limit=200)[0]
+        direct = (
+            RESONANT.intensity
+            * integrate.quad(lambda s, lag=lag: h(s) * h(s + lag), 0, np.inf, limit=200)[0]
+        )
         assert RESONANT.autocovariance(lag) == pytest.approx(direct, rel=1e-8, abs=1e-12)
     total = integrate.quad(lambda f: float(RESONANT.spectrum(f)), -np.inf, np.inf, limit=400)[0]
     assert total == pytest.approx(RESONANT.variance, rel=1e-7)
@@ -171,7 +174,9 @@ def test_banded_criterion_and_dft_covariance_match_dense_linear_algebra(law):
     np.testing.assert_allclose(cov.dft(T, f), E @ dense @ E.conj().T, atol=1e-12)
     np.testing.assert_allclose(cov.dft(T, f, psi), E @ dense @ Epsi.conj().T, atol=1e-12)
     np.testing.assert_allclose(cov.dft(T, f, sign=-1.0), E @ dense @ E.T, atol=1e-12)
-    np.testing.assert_allclose(cov.dft_diagonal(T, psi), np.diag(Epsi @ dense @ Epsi.conj().T).real, atol=1e-12)
+    np.testing.assert_allclose(
+        cov.dft_diagonal(T, psi), np.diag(Epsi @ dense @ Epsi.conj().T).real, atol=1e-12
+    )
 
 
 def test_without_coloured_noise_the_dft_covariance_is_lemma_2s():
@@ -179,7 +184,9 @@ def test_without_coloured_noise_the_dft_covariance_is_lemma_2s():
     g = ji.PolePairGain().system(TRUTH)
     f = ji.default_frequencies(40, T)
     ours = ji.coloured_dft_covariance(g, d.u, ji.Uniform(0.5), T, 40, f, 0.01)
-    np.testing.assert_allclose(ours, ji.dft_covariance(g, d.u, ji.Uniform(0.5), T, 40, f, 0.01), atol=1e-12)
+    np.testing.assert_allclose(
+        ours, ji.dft_covariance(g, d.u, ji.Uniform(0.5), T, 40, f, 0.01), atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("method", ["bcls", "wbcls", "asml", "asml-diag", "gaussian"])
@@ -204,7 +211,9 @@ def _bj_problem(method, jitter, n=60, noise=None, seed=1):
     law = jitter if isinstance(jitter, ji.JitterLaw) else ji.Uniform(0.5)
     data = ji.simulate(ji.PolePairGain().system(TRUTH), u, law, T, n, 0.01, rng, noise_model=SLOW)
     f = ji.default_frequencies(n, T)
-    return BJProblem(data, ji.PolePairGain(), jitter, noise or ji.RationalNoise(0, 1), method, f, None)
+    return BJProblem(
+        data, ji.PolePairGain(), jitter, noise or ji.RationalNoise(0, 1), method, f, None
+    )
 
 
 def _central(fun, x, rel=1e-6):
@@ -231,7 +240,9 @@ DERIVATIVE_CASES = [
 
 
 @pytest.mark.parametrize("method", ["gaussian", "asml", "asml-diag"])
-@pytest.mark.parametrize(("jitter", "noise", "x"), DERIVATIVE_CASES, ids=["u", "u-far", "jbj", "gauss", "order2"])
+@pytest.mark.parametrize(
+    ("jitter", "noise", "x"), DERIVATIVE_CASES, ids=["u", "u-far", "jbj", "gauss", "order2"]
+)
 def test_bj_gradient_is_the_derivative_of_the_criterion(method, jitter, noise, x):
     """The analytic dV/dx of every joint BJ criterion (system, jitter, noise parameters and
     sigma_w) against central differences of V itself."""
@@ -244,7 +255,9 @@ def test_bj_gradient_is_the_derivative_of_the_criterion(method, jitter, noise, x
     assert np.all(np.linalg.eigvalsh(M) > 0)
 
 
-@pytest.mark.parametrize(("jitter", "noise", "x"), DERIVATIVE_CASES, ids=["u", "u-far", "jbj", "gauss", "order2"])
+@pytest.mark.parametrize(
+    ("jitter", "noise", "x"), DERIVATIVE_CASES, ids=["u", "u-far", "jbj", "gauss", "order2"]
+)
 def test_gaussian_grad_y_jacobian_is_the_derivative_of_grad_y(jitter, noise, x):
     """The closed-form d^2 V / dx dy^T of the Gaussian BJ criterion (used by the covariance)
     against central differences of dV/dy; the gradient alone equals objective_gradient's."""
@@ -307,9 +320,21 @@ def test_banded_derivative_gives_the_log_det_derivative_and_band_inverse_is_exac
         np.testing.assert_allclose(cov.band_inverse[b, : n - b], np.diag(Z, -b), rtol=1e-10)
 
 
-@pytest.mark.parametrize(("model", "law"), [(ji.RationalNoise(0, 1), ji.Uniform(0.5)), (ji.RationalNoise(1, 2), ji.SumOfUniforms(2, 0.5)), (ji.RationalNoise(0, 2), ji.NoJitter())], ids=str)
+@pytest.mark.parametrize(
+    ("model", "law"),
+    [
+        (ji.RationalNoise(0, 1), ji.Uniform(0.5)),
+        (ji.RationalNoise(1, 2), ji.SumOfUniforms(2, 0.5)),
+        (ji.RationalNoise(0, 2), ji.NoJitter()),
+    ],
+    ids=str,
+)
 def test_closed_form_autocovariance_derivatives_match_differences(model, law):
-    eta = {2: np.array([0.07, 0.08]), 4: np.array([0.3, 1.0, 0.8, 2.0]), 3: np.array([0.5, 3.0, 1.5])}[len(model.param_names)]
+    eta = {
+        2: np.array([0.07, 0.08]),
+        4: np.array([0.3, 1.0, 0.8, 2.0]),
+        3: np.array([0.5, 3.0, 1.5]),
+    }[len(model.param_names)]
     dc, dp = model.mode_derivatives(eta)
     dgam, dar = autocovariance_derivatives(model.model(eta), law, T, dc, dp, 25)
 
@@ -348,7 +373,9 @@ def test_gaussian_fisher_matrix_is_the_expected_hessian_by_monte_carlo():
     assert np.all(np.abs(np.diag(est) - np.diag(M)) < Z_MAX * np.diag(se) + 0.35 * np.diag(M))
     # the system block is dominated by the exact 2 dm^T S^-1 dm: 5 % there
     sys = slice(0, 3)
-    assert np.all(np.abs(est[sys, sys] - M[sys, sys]) < Z_MAX * se[sys, sys] + 0.05 * scale[sys, sys])
+    assert np.all(
+        np.abs(est[sys, sys] - M[sys, sys]) < Z_MAX * se[sys, sys] + 0.05 * scale[sys, sys]
+    )
 
 
 def test_gaussian_fisher_probes_converge_to_the_dense_trace(monkeypatch):
@@ -434,7 +461,9 @@ def test_estimated_noise_model_on_white_data_gives_the_oe_fit_in_few_evaluations
         d = data_with(None, seed)
         data = ji.SampledData(d.y, d.T, d.u)
         oe = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian")
-        bj = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(0, 1))
+        bj = ji.fit(
+            data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(0, 1)
+        )
         assert bj.success, (seed, bj.message)
         assert bj.nfev <= 150, (seed, bj.nfev)
         se = np.array([oe.stderr[n] for n in ("k0", "pr", "pi")])
@@ -454,7 +483,9 @@ def test_small_monte_carlo_bj_is_unbiased_with_honest_errors_where_oe_is_not():
     for seed in range(R):
         data = data_with(SLOW, 300 + seed)
         x_oe.append(ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian").x)
-        bj = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(0, 1))
+        bj = ji.fit(
+            data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(0, 1)
+        )
         assert bj.success, bj.message
         assert bj.names == ("k0", "pr", "pi", "hb0", "ha0")
         x_bj.append(bj.x[:3])
@@ -473,7 +504,9 @@ def test_small_monte_carlo_bj_is_unbiased_with_honest_errors_where_oe_is_not():
 
 def test_jbj_estimates_jitter_system_and_noise_jointly():
     data = data_with(SLOW, 21)
-    res = ji.fit(data, ji.PolePairGain(), ji.UniformFamily(), "gaussian", noise=ji.RationalNoise(0, 1))
+    res = ji.fit(
+        data, ji.PolePairGain(), ji.UniformFamily(), "gaussian", noise=ji.RationalNoise(0, 1)
+    )
     assert res.success
     assert res.names == ("a", "k0", "pr", "pi", "hb0", "ha0")
     se = res.stderr
@@ -499,26 +532,91 @@ def test_least_squares_criteria_plug_in_the_noise_model_for_their_error_bars(met
     assert np.isnan(res.stderr["ha0"])
     assert all(np.isfinite(res.stderr[n]) and res.stderr[n] > 0 for n in ("k0", "pr", "pi"))
     if method == "bcls":
-        np.testing.assert_array_equal(res.x[:3], ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls").x)
+        np.testing.assert_array_equal(
+            res.x[:3], ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls").x
+        )
 
 
 @pytest.mark.parametrize(
     ("call", "exc", "match"),
     [
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise="ou"), TypeError, "noise must be a noise structure"),
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ls", noise=ji.RationalNoise()), ValueError, "method must be one of .*noise=None"),
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ml", noise=ji.RationalNoise()), ValueError, "method must be one of"),
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(), start=[1.0, 2.0]), ValueError, "start must have 5 values"),
-        (lambda d: ji.simulate(ji.TransferFunction([1.0], [1.0, 1.0]), d.u, ji.Uniform(0.5), T, 10, 0.0, 0, noise_model=ji.RationalNoise()), TypeError, "noise_model must be a NoiseModel"),
+        (
+            lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise="ou"),
+            TypeError,
+            "noise must be a noise structure",
+        ),
+        (
+            lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ls", noise=ji.RationalNoise()),
+            ValueError,
+            "method must be one of .*noise=None",
+        ),
+        (
+            lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ml", noise=ji.RationalNoise()),
+            ValueError,
+            "method must be one of",
+        ),
+        (
+            lambda d: ji.fit(
+                d,
+                ji.PolePairGain(),
+                ji.Uniform(0.5),
+                "gaussian",
+                noise=ji.RationalNoise(),
+                start=[1.0, 2.0],
+            ),
+            ValueError,
+            "start must have 5 values",
+        ),
+        (
+            lambda d: ji.simulate(
+                ji.TransferFunction([1.0], [1.0, 1.0]),
+                d.u,
+                ji.Uniform(0.5),
+                T,
+                10,
+                0.0,
+                0,
+                noise_model=ji.RationalNoise(),
+            ),
+            TypeError,
+            "noise_model must be a NoiseModel",
+        ),
         (lambda d: ji.RationalNoise(1, 1), ValueError, "num_order .* strictly proper"),
-        (lambda d: ji.NoiseModel(ji.TransferFunction([1.0, 0.0], [1.0, 1.0])), ValueError, "strictly proper"),
-        (lambda d: ji.NoiseModel(ji.TransferFunction([1.0], [1.0, -1.0])), ValueError, "noise model H.* not stable"),
-        (lambda d: ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 1.0]), intensity=0.0), ValueError, "intensity"),
+        (
+            lambda d: ji.NoiseModel(ji.TransferFunction([1.0, 0.0], [1.0, 1.0])),
+            ValueError,
+            "strictly proper",
+        ),
+        (
+            lambda d: ji.NoiseModel(ji.TransferFunction([1.0], [1.0, -1.0])),
+            ValueError,
+            "noise model H.* not stable",
+        ),
+        (
+            lambda d: ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 1.0]), intensity=0.0),
+            ValueError,
+            "intensity",
+        ),
         (lambda d: ji.NoiseModel("1/(s+1)"), TypeError, "tf must be a TransferFunction"),
         (lambda d: OU.sample(np.zeros((2, 2, 2)), 0), ValueError, "instants must have shape"),
         (lambda d: ji.jittered_autocovariance(OU, ji.Uniform(0.5), 0.0), ValueError, "T must"),
-        (lambda d: ji.jittered_autocovariance(OU, ji.Uniform(300.0), 1.0), ValueError, "jitter: its support"),
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(), cov_type="robust"), ValueError, "cov_type must be 'sandwich' or 'none'"),
+        (
+            lambda d: ji.jittered_autocovariance(OU, ji.Uniform(300.0), 1.0),
+            ValueError,
+            "jitter: its support",
+        ),
+        (
+            lambda d: ji.fit(
+                d,
+                ji.PolePairGain(),
+                ji.Uniform(0.5),
+                "gaussian",
+                noise=ji.RationalNoise(),
+                cov_type="robust",
+            ),
+            ValueError,
+            "cov_type must be 'sandwich' or 'none'",
+        ),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument(call, exc, match):
@@ -589,10 +687,22 @@ def test_an_estimator_without_a_coloured_noise_form_is_refused_naming_method_and
             return 0.0
 
     data = data_with(None, 9, n=40)
-    with pytest.raises(ValueError, match=r"method must be one of .*noise=.*'test-white-only'.*noise=None"):
-        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "test-white-only", noise=ji.RationalNoise())
+    with pytest.raises(
+        ValueError, match=r"method must be one of .*noise=.*'test-white-only'.*noise=None"
+    ):
+        ji.fit(
+            data, ji.PolePairGain(), ji.Uniform(0.5), "test-white-only", noise=ji.RationalNoise()
+        )
     with pytest.raises(ValueError, match="'test-white-only' has no coloured-noise"):
-        BJProblem(data, ji.PolePairGain(), ji.Uniform(0.5), ji.RationalNoise(), WhiteOnly(), ji.default_frequencies(40, T), None)
+        BJProblem(
+            data,
+            ji.PolePairGain(),
+            ji.Uniform(0.5),
+            ji.RationalNoise(),
+            WhiteOnly(),
+            ji.default_frequencies(40, T),
+            None,
+        )
     with pytest.raises(TypeError, match="declares coloured_noise = True but implements no"):
 
         @register
@@ -628,8 +738,14 @@ UNIT_CASES = [
 ]
 
 
-@pytest.mark.parametrize(("method", "jitter", "noise", "start", "shift"), UNIT_CASES, ids=["gaussian", "wbcls", "bcls", "known-H", "start", "jbj"])
-def test_bj_estimates_and_error_bars_do_not_depend_on_the_units(method, jitter, noise, start, shift):
+@pytest.mark.parametrize(
+    ("method", "jitter", "noise", "start", "shift"),
+    UNIT_CASES,
+    ids=["gaussian", "wbcls", "bcls", "known-H", "start", "jbj"],
+)
+def test_bj_estimates_and_error_bars_do_not_depend_on_the_units(
+    method, jitter, noise, start, shift
+):
     """y scaled by 1e-6 and 1e6 (u as it is): the same estimates (gains and noise levels
     scaled), standard errors and criterion (up to its known shift). Was: the noise gain's
     difference step, rel * max(|x|, 1e-2), was absolute at 1e-6 units (hb0 ~ 1e-7), and its
@@ -638,7 +754,11 @@ def test_bj_estimates_and_error_bars_do_not_depend_on_the_units(method, jitter, 
     ref = None
     for c in (1.0, 1e-6, 1e6):
         data = ji.SampledData(d.y * c, d.T, d.u)
-        nm = ji.RationalNoise(0, 1) if noise == "rational" else ji.NoiseModel(SLOW.tf, SLOW.intensity * c**2)
+        nm = (
+            ji.RationalNoise(0, 1)
+            if noise == "rational"
+            else ji.NoiseModel(SLOW.tf, SLOW.intensity * c**2)
+        )
         x0 = None if start is None else np.array(start) * np.r_[c, 1, 1, c, 1, c]
         res = ji.fit(data, ji.PolePairGain(), jitter, method, start=x0, noise=nm)
         assert res.status is ji.FitStatus.CONVERGED, (c, res.message)
@@ -676,7 +796,16 @@ def test_bj_fits_that_cannot_be_trusted_get_an_honest_status():
     # a real pole pair: PolePairGain's optimum is on its bound pi = pi_min
     real = ji.TransferFunction([6.0], [1.0, 7.0, 6.0])
     rng = np.random.default_rng(7)
-    d = ji.simulate(real, ji.telegraph_input(N * T + 5.0, rng), ji.Uniform(0.5), T, N, 0.01, rng, noise_model=SLOW)
+    d = ji.simulate(
+        real,
+        ji.telegraph_input(N * T + 5.0, rng),
+        ji.Uniform(0.5),
+        T,
+        N,
+        0.01,
+        rng,
+        noise_model=SLOW,
+    )
     res = ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=rational)
     assert res.status is ji.FitStatus.AT_BOUND, res.message
     assert "pi" in res.message
@@ -684,21 +813,45 @@ def test_bj_fits_that_cannot_be_trusted_get_an_honest_status():
     # a far start: the default route reaches a much lower criterion
     best = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=rational)
     assert best.success, best.message
-    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=rational, start=[40.0, -0.5, 6.0, 0.06, 0.05])
+    res = ji.fit(
+        data,
+        ji.PolePairGain(),
+        ji.Uniform(0.5),
+        "gaussian",
+        noise=rational,
+        start=[40.0, -0.5, 6.0, 0.06, 0.05],
+    )
     assert res.status is ji.FitStatus.LOCAL_OPTIMUM, res.message
     assert res.cost > best.cost + 100
-    near = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=rational, start=best.x)
+    near = ji.fit(
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=rational, start=best.x
+    )
     assert near.success, near.message
     # an over-ordered system: an undamped pole pair
     rng = np.random.default_rng(7)
     truth = ji.PolePairGain().system(TRUTH)
-    d = ji.simulate(truth, ji.telegraph_input(N * T + 5.0, rng), ji.Uniform(0.5), T, N, 0.01, rng, noise_model=SLOW)
+    d = ji.simulate(
+        truth,
+        ji.telegraph_input(N * T + 5.0, rng),
+        ji.Uniform(0.5),
+        T,
+        N,
+        0.01,
+        rng,
+        noise_model=SLOW,
+    )
     res = ji.fit(d, ji.RationalModel(0, 8), ji.NoJitter(), "gaussian", noise=rational)
     assert res.status is ji.FitStatus.UNSTABLE_MODEL, res.message
     assert all(np.isnan(v) or v >= 0 for v in res.stderr.values())
     # an over-parameterised noise model (white std unknown): the zero's coefficient at 0,
     # where its information vanishes
-    res = ji.fit(ji.SampledData(d.y, T, d.u), ji.PolePairGain(), ji.Uniform(0.5), "gaussian", noise=ji.RationalNoise(1, 2))
+    res = ji.fit(
+        ji.SampledData(d.y, T, d.u),
+        ji.PolePairGain(),
+        ji.Uniform(0.5),
+        "gaussian",
+        noise=ji.RationalNoise(1, 2),
+    )
     assert res.status is ji.FitStatus.UNIDENTIFIABLE, res.message
     assert "hb1" in res.message
 
@@ -708,14 +861,26 @@ def test_ordinary_bj_fits_stay_converged(method):
     """No false alarm from the checks: Table 2's system with slow coloured noise, and with
     white noise only (the noise model then at its white limit, said in the message)."""
     for seed in (11, 12):
-        res = ji.fit(data_with(SLOW, seed), ji.PolePairGain(), ji.Uniform(0.5), method, noise=ji.RationalNoise(0, 1))
+        res = ji.fit(
+            data_with(SLOW, seed),
+            ji.PolePairGain(),
+            ji.Uniform(0.5),
+            method,
+            noise=ji.RationalNoise(0, 1),
+        )
         assert res.status is ji.FitStatus.CONVERGED, (seed, res.message)
     # seed 8119: bench_bj.py's second white data set: the noise gain ends at 0 with the pole
     # where the noise stage put it, whose Hessian row is rounding, not exactly 0 (the rule
     # that holds such a pole keeps it CONVERGED; the row alone flagged it UNIDENTIFIABLE)
     for seed in (40, 8119):
         d = data_with(None, seed)
-        res = ji.fit(ji.SampledData(d.y, d.T, d.u), ji.PolePairGain(), ji.Uniform(0.5), method, noise=ji.RationalNoise(0, 1))
+        res = ji.fit(
+            ji.SampledData(d.y, d.T, d.u),
+            ji.PolePairGain(),
+            ji.Uniform(0.5),
+            method,
+            noise=ji.RationalNoise(0, 1),
+        )
         assert res.status is ji.FitStatus.CONVERGED, (seed, res.message)
         if as_estimator(method).identifies_noise_model:  # (a plug-in model may stay coloured)
             assert "white limit" in res.message
@@ -776,7 +941,9 @@ def test_packaged_bj_study_is_table_2_with_coloured_noise():
 def test_white_noise_experiments_keep_their_fingerprint():
     """The new ``noise`` field is left out while None, so stores of Tables 1-3 stay valid."""
     exp = load_experiment(packaged_path("table2"))
-    core = dataclasses.replace(exp, runs=0, title="", paper_table=None, paper_labels=(), description="", source="")
+    core = dataclasses.replace(
+        exp, runs=0, title="", paper_table=None, paper_labels=(), description="", source=""
+    )
     fields = dataclasses.asdict(core)
     assert fields.pop("noise") is None
     text = json.dumps(fields, sort_keys=True)
@@ -831,6 +998,9 @@ def test_reproduce_bj_prints_its_definition():
 def test_bj_benchmark_runs_at_small_n():
     out = subprocess.run(
         [sys.executable, str(BENCH / "bench_bj.py"), "--sizes", "200", "800", "--repeats", "1"],
-        capture_output=True, text=True, check=True, timeout=600,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
     ).stdout
     assert "log-log slope" in out

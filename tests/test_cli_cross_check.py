@@ -33,8 +33,17 @@ def _fit(tmp_path, data: ji.SampledData, *args: str) -> tuple[Result, dict, str]
     out = tmp_path / "out"
     res = CliRunner().invoke(
         main,
-        ["fit", str(tmp_path / "d.csv"), "--input", str(tmp_path / "u.csv"), "--out", str(out),
-         "--no-plots", "--quiet", *args],
+        [
+            "fit",
+            str(tmp_path / "d.csv"),
+            "--input",
+            str(tmp_path / "u.csv"),
+            "--out",
+            str(out),
+            "--no-plots",
+            "--quiet",
+            *args,
+        ],
     )
     assert "Traceback" not in res.output
     assert res.exception is None or isinstance(res.exception, SystemExit), repr(res.exception)
@@ -61,8 +70,9 @@ def test_a_collapsed_scale_that_the_fit_calls_converged_is_flagged(tmp_path):
     assert "contradicts" in report
     # the advice works: the gaussian criterion finds the jitter (0.0185), and the
     # cross-check agrees
-    res2, result2, report2 = _fit(tmp_path, data, "--model", "polepair", "--jitter", "gaussian",
-                                  "--method", "gaussian")
+    res2, result2, report2 = _fit(
+        tmp_path, data, "--model", "polepair", "--jitter", "gaussian", "--method", "gaussian"
+    )
     assert res2.exit_code == 0, res2.output
     assert result2["diagnostics"]["jitter_cross_check"]["consistent"]
     assert result2["warnings"] == []
@@ -86,8 +96,9 @@ def test_an_assumed_law_far_wider_than_the_data_show_is_flagged(tmp_path):
     # no jitter in the data, the user assumes U(-0.5, 0.5) (e.g. a unit slip): before, the
     # fit was written with no word that the detection test finds no jitter at all
     data = _paper(2, ji.NoJitter())  # detection p = 0.71
-    res, result, report = _fit(tmp_path, data, "--model", "polepair", "--jitter",
-                               "known:uniform:a=0.5")
+    res, result, report = _fit(
+        tmp_path, data, "--model", "polepair", "--jitter", "known:uniform:a=0.5"
+    )
     xc = result["diagnostics"]["jitter_cross_check"]
     assert xc["verdict"] == "too large", xc
     assert not xc["jitter_estimated"]
@@ -107,8 +118,9 @@ def test_an_assumed_law_far_wider_than_the_data_show_is_flagged(tmp_path):
     ],
 )
 def test_no_warning_on_ordinary_fits(tmp_path, law, spec, method):
-    res, result, report = _fit(tmp_path, _paper(3, law), "--model", "polepair", "--jitter", spec,
-                               "--method", method)
+    res, result, report = _fit(
+        tmp_path, _paper(3, law), "--model", "polepair", "--jitter", spec, "--method", method
+    )
     assert res.exit_code == 0, res.output
     assert result["diagnostics"]["jitter_cross_check"]["consistent"], result["warnings"]
     assert result["warnings"] == []
@@ -116,8 +128,16 @@ def test_no_warning_on_ordinary_fits(tmp_path, law, spec, method):
 
 
 def test_an_ls_fit_has_no_cross_check(tmp_path):
-    res, result, _ = _fit(tmp_path, _paper(3, ji.Uniform(0.5)), "--model", "polepair",
-                          "--jitter", "none", "--method", "ls")
+    res, result, _ = _fit(
+        tmp_path,
+        _paper(3, ji.Uniform(0.5)),
+        "--model",
+        "polepair",
+        "--jitter",
+        "none",
+        "--method",
+        "ls",
+    )
     assert res.exit_code == 0, res.output
     assert "jitter_cross_check" not in result["diagnostics"]
     assert result["warnings"] == []
@@ -130,8 +150,11 @@ def test_the_cross_check_on_its_own():
     for seed in range(6):
         d = _paper(seed, ji.Gaussian(0.02))
         det = ji.detect_jitter(d, ji.fit(d, ji.PolePairGain(), ji.NoJitter(), "ls"))
-        for fam, method in ((ji.GaussianFamily(), "bcls"), (ji.GaussianFamily(), "asml-diag"),
-                            (ji.Gaussian(0.02), "bcls")):
+        for fam, method in (
+            (ji.GaussianFamily(), "bcls"),
+            (ji.GaussianFamily(), "asml-diag"),
+            (ji.Gaussian(0.02), "bcls"),
+        ):
             r = ji.fit(d, ji.PolePairGain(), fam, method)
             xc = cross_check_jitter(r, det)
             collapsed = r.jitter_std < 1e-3

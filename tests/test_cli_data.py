@@ -560,16 +560,35 @@ def test_delay_model_and_late_jitter_round_trip(tmp_path):
     delay estimate is the true one with the known mean held fixed."""
     d = tmp_path / "lab"
     ok(
-        "simulate", "--out", d, "--model", "polepair+delay", "--params", "6.25,-1.5,2,0.7",
-        "--jitter", "uniform:a=0.4,mean=100ms", "--seed", "3",
+        "simulate",
+        "--out",
+        d,
+        "--model",
+        "polepair+delay",
+        "--params",
+        "6.25,-1.5,2,0.7",
+        "--jitter",
+        "uniform:a=0.4,mean=100ms",
+        "--seed",
+        "3",
     )
     truth = json.loads((d / "truth.json").read_text())
     assert truth["system"]["delay_s"] == 0.7
     assert truth["jitter"]["mean_s"] == pytest.approx(0.1)
     out = tmp_path / "fit"
     res = ok(
-        "fit", d / "data.csv", "--input", d / "input.csv", "--model", "polepair+delay",
-        "--jitter", "known:uniform:a=0.4,mean=0.1", "--method", "gaussian", "--out", out,
+        "fit",
+        d / "data.csv",
+        "--input",
+        d / "input.csv",
+        "--model",
+        "polepair+delay",
+        "--jitter",
+        "known:uniform:a=0.4,mean=0.1",
+        "--method",
+        "gaussian",
+        "--out",
+        out,
         "--no-plots",
     )
     assert "the samples identify only delay_s - mean jitter" in res.output
@@ -580,7 +599,10 @@ def test_delay_model_and_late_jitter_round_trip(tmp_path):
 
 @pytest.mark.parametrize(
     ("spec", "match"),
-    [("polepair+lag", "the only addition is \\+delay"), ("tf:0,2+delay+delay", "the only addition")],
+    [
+        ("polepair+lag", "the only addition is \\+delay"),
+        ("tf:0,2+delay+delay", "the only addition"),
+    ],
 )
 def test_bad_model_additions_are_refused(spec, match):
     with pytest.raises(ValueError, match=match):

@@ -155,7 +155,8 @@ def test_phase_profile_matches_numpy() -> None:
     s2 = float(m.law.params["sigma"]) ** 2
     theta = w * T * np.arange(N) + phi
     mean = A * np.exp(-0.5 * w**2 * s2) * np.sin(theta) + c
-    # Var[A sin(theta + w tau)] = A^2/2 (1 - e^{-2 w^2 s2} cos 2 theta) - (A e^{-w^2 s2/2} sin theta)^2
+    # Var[A sin(theta + w tau)]
+    #   = A^2/2 (1 - e^{-2 w^2 s2} cos 2 theta) - (A e^{-w^2 s2/2} sin theta)^2
     var = (
         0.5 * A**2 * (1 - np.exp(-2 * w**2 * s2) * np.cos(2 * theta))
         - (A * np.exp(-0.5 * w**2 * s2) * np.sin(theta)) ** 2

@@ -93,10 +93,18 @@ def _tiny_toml(path: Path, **changes: object) -> Path:
     text = TINY
     for key, value in changes.items():
         lines = [ln for ln in text.splitlines() if not ln.startswith(f"{key} =")]
-        at = next(i for i, ln in enumerate(lines) if ln.strip() == {
-            "runs": "[experiment]", "seed": "[experiment]", "T": "[sampling]", "N": "[sampling]",
-            "mean_hold": "[input]",
-        }[key])
+        at = next(
+            i
+            for i, ln in enumerate(lines)
+            if ln.strip()
+            == {
+                "runs": "[experiment]",
+                "seed": "[experiment]",
+                "T": "[sampling]",
+                "N": "[sampling]",
+                "mean_hold": "[input]",
+            }[key]
+        )
         lines.insert(at + 1, f"{key} = {value}")
         text = "\n".join(lines)
     path.write_text(text, encoding="utf-8")
@@ -147,7 +155,8 @@ def test_broken_npy_header_and_a_header_claiming_1e13_values(tmp_path):
     msg = refused(run("detect", bad, "--model", "polepair"))
     assert "'y.npy' has a broken .npy header" in msg
     huge = _npz_with_header(
-        tmp_path / "h.npz", b"{'descr': '<f8', 'fortran_order': False, 'shape': (10000000000000,), }"
+        tmp_path / "h.npz",
+        b"{'descr': '<f8', 'fortran_order': False, 'shape': (10000000000000,), }",
     )
     msg = refused(run("detect", huge, "--model", "polepair"))
     assert "10000000000000 values" in msg
@@ -161,8 +170,16 @@ def test_bias_with_an_absurd_sigma_and_runs_beyond_any_budget(tmp_path):
 
 
 def test_scheduler_that_is_not_an_address(tmp_path):
-    msg = refused(run("run", _tiny_toml(tmp_path / "t.toml"), "--scheduler", "not an address",
-                      "--out", tmp_path / "o"))
+    msg = refused(
+        run(
+            "run",
+            _tiny_toml(tmp_path / "t.toml"),
+            "--scheduler",
+            "not an address",
+            "--out",
+            tmp_path / "o",
+        )
+    )
     assert "--scheduler" in msg
     assert "tcp://" in msg
     assert not (tmp_path / "o").exists()
@@ -179,24 +196,37 @@ def test_toml_not_utf8_nested_or_with_absurd_numbers(tmp_path):
     refused(run("run", tmp_path / "a.toml", "--out", tmp_path), "a.toml", "not UTF-8")
     (tmp_path / "b.toml").write_text("x = " + "[" * 50_000 + "]" * 50_000)
     refused(run("run", tmp_path / "b.toml", "--out", tmp_path), "b.toml")
-    refused(run("run", _tiny_toml(tmp_path / "c.toml", T="1e300"), "--out", tmp_path),
-            "sampling.T")
-    refused(run("run", _tiny_toml(tmp_path / "d.toml", N="1_000_000_000_000"), "--out",
-                tmp_path), "sampling.N", "too large")
-    refused(run("run", _tiny_toml(tmp_path / "e.toml", mean_hold="1e-12"), "--out", tmp_path),
-            "input.mean_hold", "too large")
-    refused(run("run", _tiny_toml(tmp_path / "f.toml", runs=str(10**12)), "--out", tmp_path),
-            "experiment.runs")
-    refused(run("run", _tiny_toml(tmp_path / "g.toml", seed="1" * 5000), "--out", tmp_path),
-            "g.toml")
+    refused(run("run", _tiny_toml(tmp_path / "c.toml", T="1e300"), "--out", tmp_path), "sampling.T")
+    refused(
+        run("run", _tiny_toml(tmp_path / "d.toml", N="1_000_000_000_000"), "--out", tmp_path),
+        "sampling.N",
+        "too large",
+    )
+    refused(
+        run("run", _tiny_toml(tmp_path / "e.toml", mean_hold="1e-12"), "--out", tmp_path),
+        "input.mean_hold",
+        "too large",
+    )
+    refused(
+        run("run", _tiny_toml(tmp_path / "f.toml", runs=str(10**12)), "--out", tmp_path),
+        "experiment.runs",
+    )
+    refused(
+        run("run", _tiny_toml(tmp_path / "g.toml", seed="1" * 5000), "--out", tmp_path), "g.toml"
+    )
 
 
 def test_toml_sizes_under_a_small_memory_budget(tmp_path, monkeypatch):
     monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "1e8")
-    refused(run("run", _tiny_toml(tmp_path / "a.toml", N="1_000_000_000"), "--out", tmp_path),
-            "sampling.N", "JITTERID_MEMORY_BUDGET")
-    refused(run("run", _tiny_toml(tmp_path / "b.toml", mean_hold="1e-9"), "--out", tmp_path),
-            "input.mean_hold")
+    refused(
+        run("run", _tiny_toml(tmp_path / "a.toml", N="1_000_000_000"), "--out", tmp_path),
+        "sampling.N",
+        "JITTERID_MEMORY_BUDGET",
+    )
+    refused(
+        run("run", _tiny_toml(tmp_path / "b.toml", mean_hold="1e-9"), "--out", tmp_path),
+        "input.mean_hold",
+    )
 
 
 def test_simulate_hold_and_n_beyond_memory_are_refused_up_front(tmp_path):
@@ -242,8 +272,16 @@ def test_runs_are_drawn_lazily_so_a_huge_run_count_starts_at_once(tmp_path, monk
 
 
 def _one_run(tmp_path: Path, *extra: object) -> Result:
-    return run("run", _tiny_toml(tmp_path / "t.toml"), "--workers", "1", "--no-progress",
-               "--out", tmp_path / "o", *extra)
+    return run(
+        "run",
+        _tiny_toml(tmp_path / "t.toml"),
+        "--workers",
+        "1",
+        "--no-progress",
+        "--out",
+        tmp_path / "o",
+        *extra,
+    )
 
 
 @pytest.mark.parametrize("damage", ["garbage", "truncated", "wrong-schema", "directory"])
@@ -314,9 +352,22 @@ def test_an_output_folder_that_cannot_be_written(tmp_path):
     assert run("simulate", "--out", lab, "--N", "20").exit_code == 0
     refused(run("simulate", "--out", blocker / "s"), "--out", "writable")
     refused(
-        run("fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
-            "--jitter", "none", "--method", "ls", "--out", blocker / "f"),
-        "--out", "writable",
+        run(
+            "fit",
+            lab / "data.csv",
+            "--input",
+            lab / "input.csv",
+            "--model",
+            "polepair",
+            "--jitter",
+            "none",
+            "--method",
+            "ls",
+            "--out",
+            blocker / "f",
+        ),
+        "--out",
+        "writable",
     )
 
 
@@ -341,8 +392,21 @@ def test_a_failed_write_leaves_no_partial_file(lab, tmp_path, monkeypatch):
     monkeypatch.setattr(jio.os, "fsync", full)
     out = tmp_path / "f"
     msg = refused(
-        run("fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
-            "--jitter", "none", "--method", "ls", "--out", out, "--no-plots"),
+        run(
+            "fit",
+            lab / "data.csv",
+            "--input",
+            lab / "input.csv",
+            "--model",
+            "polepair",
+            "--jitter",
+            "none",
+            "--method",
+            "ls",
+            "--out",
+            out,
+            "--no-plots",
+        ),
         "No space left",
     )
     assert "--out" in msg
@@ -359,13 +423,33 @@ def test_a_failing_diagnostic_does_not_throw_the_fit_away(tmp_path):
     # cannot run; the fit itself is fine and must be written
     T, n = 1.0, 30
     u = ji.PiecewiseConstant(np.array([-3.0, -0.5, (n + 5) * T]), np.array([0.0, 1.0]))
-    data = ji.simulate(ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Uniform(0.2), T, n,
-                       0.01, np.random.default_rng(0))
+    data = ji.simulate(
+        ji.PolePairGain().system([6.25, -1.5, 2.0]),
+        u,
+        ji.Uniform(0.2),
+        T,
+        n,
+        0.01,
+        np.random.default_rng(0),
+    )
     save_data(tmp_path / "d.csv", data)
     ji.save_input(tmp_path / "i.csv", u)
     out = tmp_path / "fit"
-    res = run("fit", tmp_path / "d.csv", "--input", tmp_path / "i.csv", "--model", "polepair",
-              "--jitter", "known:uniform:a=0.2", "--method", "bcls", "--out", out, "--no-plots")
+    res = run(
+        "fit",
+        tmp_path / "d.csv",
+        "--input",
+        tmp_path / "i.csv",
+        "--model",
+        "polepair",
+        "--jitter",
+        "known:uniform:a=0.2",
+        "--method",
+        "bcls",
+        "--out",
+        out,
+        "--no-plots",
+    )
     assert res.exit_code in (0, 3), res.output
     assert "Traceback" not in res.output
     assert "skipped" in res.output
@@ -382,21 +466,38 @@ def test_a_failing_jitter_test_in_detect_is_a_clean_error(lab, monkeypatch):
         raise ValueError("the fitted model is unstable")
 
     monkeypatch.setattr(cli_data, "detect_jitter", broken)
-    refused(run("detect", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair"),
-            "unstable", "--model")
+    refused(
+        run("detect", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair"),
+        "unstable",
+        "--model",
+    )
 
 
 def test_u_column_with_gaussian_jitter_wider_than_T_over_8_5(tmp_path):
     T, n, sigma = 1.0, 60, 0.15  # 8.5 sigma > T: the jittered last instant is past the grid
     rng = np.random.default_rng(1)
     u = ji.zoh_input(rng.choice([-0.5, 0.5], size=n + 20), T)
-    data = ji.simulate(ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Gaussian(sigma), T, n,
-                       0.01, rng)
-    lines = ["# T: 1", "t,y,u"] + [f"{k * T!r},{float(data.y[k])!r},{float(u.levels[k])!r}" for k in range(n)]
+    data = ji.simulate(
+        ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Gaussian(sigma), T, n, 0.01, rng
+    )
+    lines = ["# T: 1", "t,y,u"] + [
+        f"{k * T!r},{float(data.y[k])!r},{float(u.levels[k])!r}" for k in range(n)
+    ]
     _csv(tmp_path / "d.csv", "\n".join(lines) + "\n")
     out = tmp_path / "fit"
-    res = run("fit", tmp_path / "d.csv", "--model", "polepair", "--jitter",
-              f"known:gaussian:sigma={sigma}", "--method", "bcls", "--out", out, "--no-plots")
+    res = run(
+        "fit",
+        tmp_path / "d.csv",
+        "--model",
+        "polepair",
+        "--jitter",
+        f"known:gaussian:sigma={sigma}",
+        "--method",
+        "bcls",
+        "--out",
+        out,
+        "--no-plots",
+    )
     assert res.exit_code in (0, 3), res.output
     report = (out / "report.md").read_text()
     assert "last value" in report  # the assumption is stated
@@ -407,12 +508,18 @@ def test_u_column_with_gaussian_jitter_wider_than_T_over_8_5(tmp_path):
 # ------------------------------------------------------------------------- D: units
 
 
-@pytest.mark.parametrize(("line", "hint"), [("time_units: ms", "time_unit"), ("Ts: 0.5", "'T'"),
-                                            ("Noise_std: 0.1", "noise_std")])
+@pytest.mark.parametrize(
+    ("line", "hint"),
+    [("time_units: ms", "time_unit"), ("Ts: 0.5", "'T'"), ("Noise_std: 0.1", "noise_std")],
+)
 def test_metadata_key_typos_are_refused_with_did_you_mean(tmp_path, line, hint):
     rows = "\n".join(f"{k},{float(np.sin(k))!r},1" for k in range(8))
-    path = _csv(tmp_path / "d.csv", f"# {line}\n# T: 0.5\nk,y,u\n{rows}\n".replace(
-        "# T: 0.5\n", "" if line.startswith("Ts") else "# T: 0.5\n"))
+    path = _csv(
+        tmp_path / "d.csv",
+        f"# {line}\n# T: 0.5\nk,y,u\n{rows}\n".replace(
+            "# T: 0.5\n", "" if line.startswith("Ts") else "# T: 0.5\n"
+        ),
+    )
     with pytest.raises(DataFileError, match=f"Did you mean {hint}|Did you mean '{hint}'"):
         load(path)
     msg = refused(run("detect", path, "--model", "polepair"), "d.csv")
@@ -431,14 +538,18 @@ def test_save_data_converts_to_its_unit_and_round_trips_exactly(tmp_path, unit):
     for i, T in enumerate([0.5, 0.1, 1e-3, 0.3, 7.7e-5, *rng.uniform(1e-4, 10, 6)]):
         data = ji.SampledData(rng.normal(size=6), float(T), ji.zoh_input(np.ones(7), float(T)))
         for ext in ("csv", "npz"):
-            path = save_data(tmp_path / f"d{i}.{ext}", data, t0=3 * float(T),
-                             metadata={"time_unit": unit})
+            path = save_data(
+                tmp_path / f"d{i}.{ext}", data, t0=3 * float(T), metadata={"time_unit": unit}
+            )
             ds = load(path, _input_for(tmp_path, float(T), 3 * float(T)))
             assert ds.data.T == data.T, (unit, T)
             assert ds.t0 == 3 * float(T) or abs(ds.t0 - 3 * float(T)) <= 1e-15 * abs(ds.t0)
             assert ds.metadata["time_unit"] == unit
-    ms = save_data(tmp_path / "ms.csv", ji.SampledData(np.ones(5), 0.001, ji.zoh_input(
-        np.ones(6), 0.001)), metadata={"time_unit": "ms"})
+    ms = save_data(
+        tmp_path / "ms.csv",
+        ji.SampledData(np.ones(5), 0.001, ji.zoh_input(np.ones(6), 0.001)),
+        metadata={"time_unit": "ms"},
+    )
     assert "# T: 1.0" in ms.read_text()  # written in ms, not seconds labelled ms
 
 
@@ -448,9 +559,13 @@ def _input_for(tmp_path: Path, T: float, t0: float) -> Path:
 
 def test_save_data_never_writes_an_unloadable_file(tmp_path):
     data = ji.SampledData(np.ones(5), 1.0, ji.zoh_input(np.ones(6), 1.0))
-    for meta, match in (({"T": 5}, "remove it"), ({"time_units": "ms"}, "Did you mean"),
-                        ({"noise_std": -1}, "noise_std"), ({"y_unit": "V\nx"}, "one line"),
-                        ({"time_unit": "h"}, "time_unit")):
+    for meta, match in (
+        ({"T": 5}, "remove it"),
+        ({"time_units": "ms"}, "Did you mean"),
+        ({"noise_std": -1}, "noise_std"),
+        ({"y_unit": "V\nx"}, "one line"),
+        ({"time_unit": "h"}, "time_unit"),
+    ):
         with pytest.raises(ValueError, match=match):
             save_data(tmp_path / "d.csv", data, metadata=meta)
         assert not (tmp_path / "d.csv").exists()
@@ -458,8 +573,9 @@ def test_save_data_never_writes_an_unloadable_file(tmp_path):
     assert load(tmp_path / "d.csv", _input_for(tmp_path, 1.0, 0.0)).data.T == 1.0
 
 
-@pytest.mark.parametrize("cell", ["1_000", "١٢", "１２", "0x10", "1e5_0", "inf", "-Infinity",
-                                  "٣.٥"])
+@pytest.mark.parametrize(
+    "cell", ["1_000", "١٢", "１２", "0x10", "1e5_0", "inf", "-Infinity", "٣.٥"]
+)
 def test_cells_are_plain_ascii_decimals(tmp_path, cell):
     rows = [f"{k},{float(np.sin(k))!r},1" for k in range(8)]
     rows[3] = f"3,{cell},1"
@@ -486,15 +602,29 @@ def test_a_millisecond_file_with_a_bare_jitter_value(tmp_path):
     T, n = 0.5, 40
     rng = np.random.default_rng(4)
     u = ji.telegraph_input(n * T + 5, rng)
-    data = ji.simulate(ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Uniform(0.1), T, n,
-                       0.01, rng)
+    data = ji.simulate(
+        ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Uniform(0.1), T, n, 0.01, rng
+    )
     save_data(tmp_path / "d.csv", data, metadata={"time_unit": "ms"})
     ji.save_input(tmp_path / "i.csv", u, metadata={"time_unit": "ms"})
     outs = {}
     for spec in ("known:uniform:a=100", "known:uniform:a=0.1s"):
         out = tmp_path / spec.replace(":", "_").replace("=", "_")
-        res = run("fit", tmp_path / "d.csv", "--input", tmp_path / "i.csv", "--model", "polepair",
-                  "--jitter", spec, "--method", "bcls", "--out", out, "--no-plots")
+        res = run(
+            "fit",
+            tmp_path / "d.csv",
+            "--input",
+            tmp_path / "i.csv",
+            "--model",
+            "polepair",
+            "--jitter",
+            spec,
+            "--method",
+            "bcls",
+            "--out",
+            out,
+            "--no-plots",
+        )
         assert res.exit_code in (0, 3), res.output
         outs[spec] = json.loads((out / "result.json").read_text())
     a, b = outs.values()
@@ -532,19 +662,36 @@ def test_user_strings_are_escaped_in_report_md(lab, tmp_path):
     ds = load(lab / "data.csv", lab / "input.csv")
     save_data(tmp_path / "d.csv", ds.data, metadata={"y_unit": evil})
     out = tmp_path / "fit"
-    res = run("fit", tmp_path / "d.csv", "--input", lab / "input.csv", "--model", "polepair",
-              "--jitter", "none", "--method", "ls", "--out", out, "--no-plots")
+    res = run(
+        "fit",
+        tmp_path / "d.csv",
+        "--input",
+        lab / "input.csv",
+        "--model",
+        "polepair",
+        "--jitter",
+        "none",
+        "--method",
+        "ls",
+        "--out",
+        out,
+        "--no-plots",
+    )
     assert res.exit_code == 0, res.output
     report = (out / "report.md").read_text()
     assert "<img" not in report
     line = next(ln for ln in report.splitlines() if "output unit" in ln)
-    assert "&lt;img src=x onerror=alert(1)&gt; \\[click\\](http://evil.example) \\*\\*b\\*\\*" in line
+    assert (
+        "&lt;img src=x onerror=alert(1)&gt; \\[click\\](http://evil.example) \\*\\*b\\*\\*" in line
+    )
     assert "\\`x\\` \\| \\# h" in line
 
 
 def test_experiment_titles_are_escaped_in_the_report(tmp_path):
     path = tmp_path / "t.toml"
-    path.write_text(TINY.replace('name = "tiny"', 'name = "tiny"\ntitle = "<script>x</script> [a](b)"'))
+    path.write_text(
+        TINY.replace('name = "tiny"', 'name = "tiny"\ntitle = "<script>x</script> [a](b)"')
+    )
     res = run("run", path, "--workers", "1", "--no-progress", "--out", tmp_path / "o")
     assert res.exit_code == 0, res.output
     md = (tmp_path / "o" / "tiny.md").read_text()
@@ -573,8 +720,12 @@ def _mount_tmpfs(path: Path, options: str) -> bool:
 
     path.mkdir(parents=True, exist_ok=True)
     try:
-        done = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)],
-                              capture_output=True, timeout=10, check=False)
+        done = subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)],
+            capture_output=True,
+            timeout=10,
+            check=False,
+        )
     except (OSError, subprocess.SubprocessError):
         return False
     return done.returncode == 0
@@ -613,20 +764,43 @@ def test_a_full_disk_for_simulate_fit_and_run(lab, small_disk):
     assert all(p.stat().st_size > 0 and not p.name.endswith(".tmp") for p in left), left
     # run: the store fills the disk; what was committed is kept and --resume is suggested
     (small_disk / "filler").write_bytes(b"\0" * 40_000)
-    res = run("run", _tiny_toml(lab.parent / "t.toml", runs="400"), "--workers", "1",
-              "--no-progress", "--out", small_disk / "o")
+    res = run(
+        "run",
+        _tiny_toml(lab.parent / "t.toml", runs="400"),
+        "--workers",
+        "1",
+        "--no-progress",
+        "--out",
+        small_disk / "o",
+    )
     refused(res, "--resume")
-    with Store(small_disk / "o" / "tiny.sqlite", dataclasses.replace(tiny(), runs=400),
-               resume=True) as store:
+    with Store(
+        small_disk / "o" / "tiny.sqlite", dataclasses.replace(tiny(), runs=400), resume=True
+    ) as store:
         assert store.count_done() > 0
 
 
 def test_a_read_only_disk(lab, read_only_disk):
     refused(run("simulate", "--out", read_only_disk / "s"), "--out", "writable")
-    refused(run("run", _tiny_toml(lab.parent / "t2.toml"), "--out", read_only_disk / "o"),
-            "cannot create the results store")
     refused(
-        run("fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
-            "--jitter", "none", "--method", "ls", "--out", read_only_disk),
-        "--out", "writable",
+        run("run", _tiny_toml(lab.parent / "t2.toml"), "--out", read_only_disk / "o"),
+        "cannot create the results store",
+    )
+    refused(
+        run(
+            "fit",
+            lab / "data.csv",
+            "--input",
+            lab / "input.csv",
+            "--model",
+            "polepair",
+            "--jitter",
+            "none",
+            "--method",
+            "ls",
+            "--out",
+            read_only_disk,
+        ),
+        "--out",
+        "writable",
     )

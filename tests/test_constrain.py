@@ -25,7 +25,9 @@ TRUTH = {"k0": 6.25, "pr": -1.5, "pi": 2.0}
 @pytest.fixture(scope="module")
 def data() -> ji.SampledData:
     u = ji.telegraph_input(N * T + 2, 1)
-    return ji.simulate(ji.PolePairGain().system(list(TRUTH.values())), u, ji.Uniform(0.3), T, N, NOISE, 2)
+    return ji.simulate(
+        ji.PolePairGain().system(list(TRUTH.values())), u, ji.Uniform(0.3), T, N, NOISE, 2
+    )
 
 
 # ------------------------------------------------------------------ independent referees
@@ -146,7 +148,9 @@ def test_coefficient_jacobian_against_differences_of_system(inner, kw, theta):
     for got, want in zip(closed, differences(c, theta, n), strict=True):
         np.testing.assert_allclose(got, want, atol=1e-7)
     # the modal fast path takes this closed form (no differences of the wrapper)
-    for got, want in zip(c.coefficient_derivatives(np.asarray(theta, float), n), closed, strict=True):
+    for got, want in zip(
+        c.coefficient_derivatives(np.asarray(theta, float), n), closed, strict=True
+    ):
         np.testing.assert_array_equal(got, want)
 
 
@@ -165,7 +169,9 @@ def test_moment_derivatives_are_the_inner_ones_free_rows(data):
     f = default_frequencies(N, T)
     law = ji.Uniform(0.3)
     c = ji.Constrained(ji.PolePairGain(), fixed={"pi": 2.0})
-    mine = jacobians.moment_derivatives(Problem(data, c, law, "bcls", f, None), np.array([6.0, -1.4]))
+    mine = jacobians.moment_derivatives(
+        Problem(data, c, law, "bcls", f, None), np.array([6.0, -1.4])
+    )
     ref = jacobians.moment_derivatives(
         Problem(data, ji.PolePairGain(), law, "bcls", f, None), np.array([6.0, -1.4, 2.0])
     )
@@ -224,8 +230,12 @@ def test_a_fixed_parameter_gives_the_fit_without_it(data, method, fixed, referee
     [(m, f) for m in METHODS for f in (False, True) if not (m == "ls" and f)],  # ls: no family
 )
 def test_every_method_fits_a_constrained_structure(data, method, family):
-    jitter = ji.UniformFamily() if family else (ji.NoJitter() if method == "ls" else ji.Uniform(0.3))
-    c = ji.Constrained(ji.PolePairGain(), fixed={"k0": 6.25}, bounds={"pi": (0.5, 5)}, start={"pr": -1.0})
+    jitter = (
+        ji.UniformFamily() if family else (ji.NoJitter() if method == "ls" else ji.Uniform(0.3))
+    )
+    c = ji.Constrained(
+        ji.PolePairGain(), fixed={"k0": 6.25}, bounds={"pi": (0.5, 5)}, start={"pr": -1.0}
+    )
     res = ji.fit(data, c, jitter, method)
     assert res.success, res.message
     assert res.layout.system == ("pr", "pi")
@@ -241,7 +251,9 @@ def test_every_method_fits_a_constrained_structure(data, method, family):
 
 
 def test_every_parameter_fixed_estimates_the_jitter_alone(data):
-    res = ji.fit(data, ji.Constrained(ji.PolePairGain(), fixed=TRUTH), ji.UniformFamily(), "gaussian")
+    res = ji.fit(
+        data, ji.Constrained(ji.PolePairGain(), fixed=TRUTH), ji.UniformFamily(), "gaussian"
+    )
     assert res.success
     assert res.names[:1] == ("a",)
     assert "k0" not in res.names
@@ -260,7 +272,12 @@ def test_bounds_are_respected_and_an_estimate_on_one_is_at_bound(data):
     assert "pr" in res.message
     assert "the bound -1 you set" in res.message
     # a bound that does not bind changes nothing
-    loose = ji.fit(data, ji.Constrained(ji.PolePairGain(), bounds={"pr": (-5.0, -0.1)}), ji.Uniform(0.3), "bcls")
+    loose = ji.fit(
+        data,
+        ji.Constrained(ji.PolePairGain(), bounds={"pr": (-5.0, -0.1)}),
+        ji.Uniform(0.3),
+        "bcls",
+    )
     assert loose.success
     np.testing.assert_allclose(loose.x, free.x, rtol=1e-5)
 
@@ -312,8 +329,21 @@ def lab(tmp_path_factory) -> Path:
 
 def fit_args(lab: Path, out: Path, *extra: str) -> list[str | Path]:
     return [
-        "fit", lab / "data.csv", "--input", lab / "input.csv", "--model", "polepair",
-        "--jitter", "uniform", "--method", "bcls", "--out", out, "--no-plots", "-q", *extra,
+        "fit",
+        lab / "data.csv",
+        "--input",
+        lab / "input.csv",
+        "--model",
+        "polepair",
+        "--jitter",
+        "uniform",
+        "--method",
+        "bcls",
+        "--out",
+        out,
+        "--no-plots",
+        "-q",
+        *extra,
     ]
 
 
@@ -344,7 +374,9 @@ def fit_args(lab: Path, out: Path, *extra: str) -> list[str | Path]:
         (["--bounds", "pr=-3:", "--bounds", "pr=:-1"], "--bounds", "pr is given twice"),
     ],
 )
-def test_bad_constraint_options_are_usage_errors_naming_the_option(lab, tmp_path, extra, option, text):
+def test_bad_constraint_options_are_usage_errors_naming_the_option(
+    lab, tmp_path, extra, option, text
+):
     res = run(*fit_args(lab, tmp_path / "out", *extra))
     assert res.exit_code == 2, res.output
     assert f"Invalid value for '{option}'" in res.output
@@ -410,7 +442,15 @@ def test_a_bounded_gain_keeps_its_start_inside_the_bounds():
 
     rng = np.random.default_rng(5)
     u = ji.telegraph_input(90.0, rng)
-    data = ji.simulate(ji.TransferFunction([2.0], [1.0, 1.0]), u, ji.Uniform(0.3), T=1.0, N=80, noise_std=0.01, rng=rng)
+    data = ji.simulate(
+        ji.TransferFunction([2.0], [1.0, 1.0]),
+        u,
+        ji.Uniform(0.3),
+        T=1.0,
+        N=80,
+        noise_std=0.01,
+        rng=rng,
+    )
     res = ji.fit(data, SmallGain(0, 1), ji.Uniform(0.3), "bcls")
     assert res.params["b0"] == pytest.approx(1.0)
     assert res.status is ji.FitStatus.AT_BOUND

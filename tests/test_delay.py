@@ -38,7 +38,9 @@ def test_shifted_law_moves_density_support_and_characteristic_function() -> None
     # cf against a quadrature of the density itself (an independent route)
     f = np.array([0.0, 0.3, 1.1])
     tau = np.linspace(-0.3, 0.7, 200_001)
-    direct = np.trapezoid(law.pdf(tau)[None, :] * np.exp(-2j * np.pi * f[:, None] * tau), tau, axis=1)
+    direct = np.trapezoid(
+        law.pdf(tau)[None, :] * np.exp(-2j * np.pi * f[:, None] * tau), tau, axis=1
+    )
     np.testing.assert_allclose(law.cf(f), direct, atol=1e-8)
     draws = law.sample(200_000, np.random.default_rng(0))
     assert abs(draws.mean() - 0.2) < 4 * base.std / np.sqrt(draws.size)
@@ -177,7 +179,9 @@ def test_delay_estimate_is_unbiased_over_records(
     for seed in range(8):
         data = _data(true_law, 0.7, seed=100 + seed)
         method = "gaussian" if not isinstance(assumed, ji.NoJitter) else "ls"
-        res = ji.fit(data, ji.Delayed(ji.PolePairGain(), min_delay_s=-2.0, max_delay_s=10.0), assumed, method)
+        res = ji.fit(
+            data, ji.Delayed(ji.PolePairGain(), min_delay_s=-2.0, max_delay_s=10.0), assumed, method
+        )
         assert res.status is ji.FitStatus.CONVERGED, res.message
         assert res.system is not None
         assert res.system.delay_s == res.params["delay_s"]
@@ -210,7 +214,11 @@ def test_result_of_a_delayed_fit_reports_the_identifiability() -> None:
     [
         ({"structure": ji.TransferFunction([1.0], [1.0, 1.0])}, TypeError, "LTI model structure"),
         ({"structure": MODEL}, ValueError, "delay it once"),
-        ({"structure": ji.PolePairGain(), "min_delay_s": 1.0, "max_delay_s": 0.5}, ValueError, "min_delay_s"),
+        (
+            {"structure": ji.PolePairGain(), "min_delay_s": 1.0, "max_delay_s": 0.5},
+            ValueError,
+            "min_delay_s",
+        ),
     ],
 )
 def test_delayed_refuses_bad_arguments(kwargs: dict, error: type, match: str) -> None:
@@ -304,7 +312,9 @@ def test_constrained_delayed_model_keeps_the_delay_derivative() -> None:
     pr = Problem(data, model, ji.Uniform(0.5), "bcls", default_frequencies(200, 1.0), 0.01)
     x = np.array([-1.5, 2.0, 0.7])
     dm = jacobians.moment_derivatives(pr, x)[2]
-    ref = finite_diff.derivative(lambda v: jacobians.moments(pr, v).mean, x, 2, pr.bounds[2], rel=1e-5)
+    ref = finite_diff.derivative(
+        lambda v: jacobians.moments(pr, v).mean, x, 2, pr.bounds[2], rel=1e-5
+    )
     assert np.max(np.abs(ref - dm[2])) < 1e-6 * np.max(np.abs(ref))
     res = ji.fit(data, ji.Constrained(MODEL, fixed={"delay_s": 0.7}), ji.Uniform(0.5), "bcls")
     assert res.success

@@ -1,4 +1,5 @@
-"""Diagnostics against independent referees: finite differences, scipy, closed forms, Monte Carlo."""
+"""Diagnostics against independent referees: finite differences, scipy, closed forms, Monte
+Carlo."""
 
 from __future__ import annotations
 

@@ -87,7 +87,9 @@ def test_unknown_noise_is_estimated_by_likelihood_criteria():
 
 def test_a_failed_search_is_reported_as_failed():
     data = table2_data(6)
-    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="bcls", start=[1.0, -0.2, 0.5], max_nfev=2)
+    res = ji.fit(
+        data, ji.PolePairGain(), ji.Uniform(0.5), method="bcls", start=[1.0, -0.2, 0.5], max_nfev=2
+    )
     assert not res.success
     assert res.status is ji.FitStatus.MAX_EVALUATIONS
     assert "failed" in res.summary()
@@ -103,11 +105,23 @@ def test_summary_lists_every_parameter():
 @pytest.mark.parametrize(
     ("call", "exc", "match"),
     [
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), method="bcsl"), ValueError, "method"),
+        (
+            lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), method="bcsl"),
+            ValueError,
+            "method",
+        ),
         (lambda d: ji.fit(d, "polepair", ji.Uniform(0.5)), TypeError, "system"),
         (lambda d: ji.fit(d, ji.PolePairGain(), 0.5), TypeError, "jitter"),
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.SumOfUniformsFamily(), method="ls"), ValueError, "ls"),
-        (lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), start=[1, 2]), ValueError, "start"),
+        (
+            lambda d: ji.fit(d, ji.PolePairGain(), ji.SumOfUniformsFamily(), method="ls"),
+            ValueError,
+            "ls",
+        ),
+        (
+            lambda d: ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), start=[1, 2]),
+            ValueError,
+            "start",
+        ),
         (lambda d: ji.fit(d.y, ji.PolePairGain(), ji.Uniform(0.5)), TypeError, "data"),
     ],
 )

@@ -17,7 +17,9 @@ N = 200
 G = ji.TransferFunction([6.25], [1.0, 3.0, 6.25])  # the paper's (27) at the truth
 
 
-def _paper(seed: int = 7, law: ji.JitterLaw | None = None, n: int = N, noise: float = 0.01) -> ji.SampledData:
+def _paper(
+    seed: int = 7, law: ji.JitterLaw | None = None, n: int = N, noise: float = 0.01
+) -> ji.SampledData:
     rng = np.random.default_rng(seed)
     u = ji.telegraph_input(n * T + 5.0, rng)
     return ji.simulate(G, u, law or ji.Uniform(0.5), T, n, noise, rng)
@@ -186,7 +188,9 @@ def test_a_30th_order_rational_model_is_unidentifiable(data, method):
     assert "fewer parameters" in res.message
     # and the lab setting (T = 0.5, N = 1000, a zero and three poles; Gaussian jitter)
     lab = _lab(1, n=1000)
-    res = ji.fit(lab, ji.RationalModel(0, 30), ji.Gaussian(0.08), method if method == "bcls" else "ls")
+    res = ji.fit(
+        lab, ji.RationalModel(0, 30), ji.Gaussian(0.08), method if method == "bcls" else "ls"
+    )
     assert not res.success, res.message
 
 
@@ -310,7 +314,12 @@ def test_lack_of_fit_reports_a_known_law_the_data_contradict():
     # U(-0.5, 0.5) data, fitted with the given triangular law of half its variance and the
     # true noise std: most such fits are flagged (15 of 20 bcls measured)
     flagged = [
-        ji.fit(_bench_data(100 + s, ji.Uniform(0.5)), ji.PolePairGain(), ji.SumOfUniforms(2, 0.5), "bcls").status
+        ji.fit(
+            _bench_data(100 + s, ji.Uniform(0.5)),
+            ji.PolePairGain(),
+            ji.SumOfUniforms(2, 0.5),
+            "bcls",
+        ).status
         is ji.FitStatus.LACK_OF_FIT
         for s in range(6)
     ]

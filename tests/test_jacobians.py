@@ -110,8 +110,9 @@ def test_switch_state_sensitivity_matches_differences_in_the_poles(system):
     exact = system.switch_state_sensitivity(u)
     p = system.poles
     keep = p.imag >= 0
-    np.testing.assert_allclose(exact[:, keep], _pole_sensitivity(system, u), rtol=0,
-                               atol=1e-7 * np.max(np.abs(exact)))
+    np.testing.assert_allclose(
+        exact[:, keep], _pole_sensitivity(system, u), rtol=0, atol=1e-7 * np.max(np.abs(exact))
+    )
     # Shifting every pole by h moves each state column by dx/dp h (a column depends on its own
     # pole only): a fourth-order central difference in the shift.
     h = 1e-3
@@ -183,7 +184,9 @@ def test_frozen_wbcls_jacobian_matches_differences(case):
     """With R frozen at weights_at (what fit uses), the residuals' Jacobian has no dR term."""
     _name, jitter, x = case
     data = _data(ji.SumOfUniforms(2.0, 0.3))
-    pb = Problem(data, ji.PolePairGain(), jitter, "wbcls", default_frequencies(N, T), NOISE, x * 1.02)
+    pb = Problem(
+        data, ji.PolePairGain(), jitter, "wbcls", default_frequencies(N, T), NOISE, x * 1.02
+    )
     _check_columns(pb.jacobian(x), _central(pb.residuals, x).T, pb.n_jitter)
 
 
@@ -210,7 +213,11 @@ def test_gradients_match_differences_of_the_criterion(case, method, noise):
 
 @pytest.mark.parametrize(
     ("family", "xj"),
-    [(ji.UniformFamily(), [0.4]), (ji.GaussianFamily(), [0.12]), (ji.SumOfUniformsFamily(), [1.6, 0.35])],
+    [
+        (ji.UniformFamily(), [0.4]),
+        (ji.GaussianFamily(), [0.12]),
+        (ji.SumOfUniformsFamily(), [1.6, 0.35]),
+    ],
     ids=["uniform", "gaussian", "sum-of-uniforms"],
 )
 @pytest.mark.parametrize(
@@ -230,22 +237,31 @@ def test_scale_derivative_matches_differences_of_the_moments(family, xj, structu
     up[i] += h
     down[i] -= h
     mu, md = _jacobians.moments(pb, up), _jacobians.moments(pb, down)
-    for analytic, ref in ((dm[i], (mu.mean - md.mean) / (2 * h)), (dw[i], (mu.var - md.var) / (2 * h))):
+    for analytic, ref in (
+        (dm[i], (mu.mean - md.mean) / (2 * h)),
+        (dw[i], (mu.var - md.var) / (2 * h)),
+    ):
         assert np.max(np.abs(analytic - ref)) <= 1e-7 * np.max(np.abs(ref))
 
 
 def test_moment_derivatives_with_a_multisine_input_fall_back_to_differences():
     u = ji.Multisine([0.05, 0.13], [1.0, 0.5], end=80.0)
     data = ji.simulate(ji.PolePairGain().system(TRUTH), u, ji.Uniform(0.5), T, 60, NOISE, 3)
-    pb = Problem(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", default_frequencies(60, T), NOISE)
+    pb = Problem(
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", default_frequencies(60, T), NOISE
+    )
     _, grad, _ = pb.objective_gradient(TRUTH)
-    _check_columns(grad[None, :], _central(pb.objective, TRUTH, rel=1e-5)[None, :], 0, tol_system=1e-5)
+    _check_columns(
+        grad[None, :], _central(pb.objective, TRUTH, rel=1e-5)[None, :], 0, tol_system=1e-5
+    )
 
 
 def test_expected_hessian_of_the_gaussian_criterion_is_close_to_its_hessian_at_the_optimum():
     data = _data(ji.Uniform(0.5), n=400)
     res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="gaussian")
-    pb = Problem(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", default_frequencies(400, T), NOISE)
+    pb = Problem(
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", default_frequencies(400, T), NOISE
+    )
     _, grad, info = pb.objective_gradient(res.x)
     H = _central(lambda z: pb.objective_gradient(z)[1], res.x, rel=1e-5)
     assert np.max(np.abs(grad / np.sqrt(np.diag(info)))) < 1e-3  # stationary
@@ -260,9 +276,16 @@ def test_newton_search_ends_where_a_tight_quasi_newton_search_ends(method):
     data = _data(ji.Uniform(0.5), seed=9, n=200)
     res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method=method, noise_std=NOISE)
     assert res.success
-    pb = Problem(data, ji.PolePairGain(), ji.Uniform(0.5), method, default_frequencies(200, T), NOISE)
-    ref = minimize(lambda z: pb.objective_gradient(z)[:2], res.x * 1.01, jac=True, method="BFGS",
-                   options={"gtol": 1e-9})
+    pb = Problem(
+        data, ji.PolePairGain(), ji.Uniform(0.5), method, default_frequencies(200, T), NOISE
+    )
+    ref = minimize(
+        lambda z: pb.objective_gradient(z)[:2],
+        res.x * 1.01,
+        jac=True,
+        method="BFGS",
+        options={"gtol": 1e-9},
+    )
     assert res.cost <= ref.fun + 1e-7 * abs(ref.fun)
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-5)
 
@@ -276,7 +299,9 @@ def test_adjoint_dtft_on_the_dft_grid_is_the_direct_sum():
     np.testing.assert_allclose(adjoint_dtft(z, T, f, n), direct, rtol=0, atol=1e-12)
     off = f + 0.1 / (n * T)  # off the grid: the chunked sum
     np.testing.assert_allclose(
-        adjoint_dtft(z, T, off, n), np.exp(2j * np.pi * np.outer(np.arange(n) * T, off)) @ z, atol=1e-12
+        adjoint_dtft(z, T, off, n),
+        np.exp(2j * np.pi * np.outer(np.arange(n) * T, off)) @ z,
+        atol=1e-12,
     )
 
 

@@ -32,8 +32,9 @@ def _fine(resp, law, n, factor=4):
     """The reference: panels ``factor`` x shorter than the default rule's, 8 nodes each."""
     rel = relative_cuts(law, resp.rate)
     mean, var = np.empty(n), np.empty(n)
-    for ch in jitter_nodes(law, T, n, resp.breaks, resp.rate, order=8,
-                           max_panel=float(np.max(np.diff(rel))) / factor):
+    for ch in jitter_nodes(
+        law, T, n, resp.breaks, resp.rate, order=8, max_panel=float(np.max(np.diff(rel))) / factor
+    ):
         s = resp(ch.t)
         mean[ch.k0 : ch.k1] = ch.expect(s)
         var[ch.k0 : ch.k1] = ch.expect((s - mean[ch.k0 : ch.k1][ch.owner]) ** 2)
@@ -101,8 +102,11 @@ def test_a_gaussian_plan_serves_every_sigma_of_its_band():
     assert shared._store is first._store
     assert len(_modal._plans) == 1
     own = _modal.SegmentPlan(law, T, n, u, 1.5, poles=p)
-    for a, b in zip(_modal.modal_moments(shared, tab, dtab, scale=0.0806),
-                    _modal.modal_moments(own, tab, dtab, scale=0.0806), strict=True):
+    for a, b in zip(
+        _modal.modal_moments(shared, tab, dtab, scale=0.0806),
+        _modal.modal_moments(own, tab, dtab, scale=0.0806),
+        strict=True,
+    ):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-13)
     _modal.clear_plans()
 
@@ -177,8 +181,13 @@ CHILD = textwrap.dedent(
 def test_one_order_too_many_ends_under_a_2_gb_address_space_limit():
     # The OE start of the over-fitted model puts a pole near -1e4..-1e6 rad/s; it used to
     # explode the panels (22 GB, OOM-killed).
-    out = subprocess.run([sys.executable, "-c", CHILD, "3000"], capture_output=True, text=True,
-                         timeout=600, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", CHILD, "3000"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     last = out.stdout.strip().splitlines()[-1]
     assert last.startswith(("RESULT", "REFUSED")), out.stdout

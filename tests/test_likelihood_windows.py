@@ -81,7 +81,9 @@ def test_windowed_rule_redesigns_when_the_signal_moves_far():
     np.testing.assert_allclose(moved, fresh.logpdf(far, y), rtol=0, atol=1e-8)
 
 
-@pytest.mark.parametrize("family", [ji.GaussianFamily(), ji.UniformFamily()], ids=["gauss", "uniform"])
+@pytest.mark.parametrize(
+    "family", [ji.GaussianFamily(), ji.UniformFamily()], ids=["gauss", "uniform"]
+)
 def test_observed_information_is_exact_for_tones(family):
     """(L5) with the tones' closed-form second derivatives: -d^2 ln L equals the Jacobian of
     the analytic scores (central differences), at a point that is not the optimum, over the

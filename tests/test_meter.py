@@ -124,8 +124,16 @@ def test_monte_carlo_coverage_and_efficiency_of_the_jitter_std():
         cover += lo <= std <= hi
     truth = [std, 1.3, 0.3, F, 0.2]  # sigma, amplitude, phase, frequency, offset
     bound = ji.crb(
-        ji.SineWave(), ji.GaussianFamily(), None, T, N, 1e-2, truth, estimate_noise=True,
-        draws=40, rng=5,
+        ji.SineWave(),
+        ji.GaussianFamily(),
+        None,
+        T,
+        N,
+        1e-2,
+        truth,
+        estimate_noise=True,
+        draws=40,
+        rng=5,
     )
     ratio = np.std(est) / np.sqrt(bound[0, 0])
     assert 0.85 <= ratio <= 1.2, ratio
@@ -140,8 +148,16 @@ def test_sampled_fisher_information_agrees_with_the_integral_over_y():
     N = 60
     a = ji.crb(ji.SineWave(), ji.GaussianFamily(), None, T, N, 5e-2, truth, estimate_noise=True)
     b = ji.crb(
-        ji.SineWave(), ji.GaussianFamily(), None, T, N, 5e-2, truth, estimate_noise=True,
-        draws=300, rng=1,
+        ji.SineWave(),
+        ji.GaussianFamily(),
+        None,
+        T,
+        N,
+        5e-2,
+        truth,
+        estimate_noise=True,
+        draws=300,
+        rng=1,
     )
     # relative error of the sampled information ~ sqrt(2 / (300 * 60)) = 1 % per element
     np.testing.assert_allclose(np.sqrt(np.diag(b)), np.sqrt(np.diag(a)), rtol=0.06)

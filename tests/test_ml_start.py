@@ -32,7 +32,9 @@ def at_zero():
     # the search ended at the boundary minimum, which the checks flag (jitter is detected)
     assert bcls.status in (ji.FitStatus.CONVERGED, ji.FitStatus.AT_BOUND), bcls.message
     assert bcls.x[0] < 1e-9, bcls.x  # the premise of the test
-    best = ji.fit(data, ji.PolePairGain(), ji.GaussianFamily(), method="ml", start=np.r_[0.1, TRUTH])
+    best = ji.fit(
+        data, ji.PolePairGain(), ji.GaussianFamily(), method="ml", start=np.r_[0.1, TRUTH]
+    )
     assert best.success
     return data, bcls, best
 
@@ -88,7 +90,9 @@ def test_a_stop_at_zero_jitter_is_restarted_from_a_wider_scored_start(at_zero, m
 
     monkeypatch.setattr(ml, "_ml_start", zero_first)
     monkeypatch.setattr(ml, "_search", stuck_first)
-    res = ji.fit(data, ji.PolePairGain(), ji.GaussianFamily(), method="ml", start=np.r_[3e-11, bcls.x[1:]])
+    res = ji.fit(
+        data, ji.PolePairGain(), ji.GaussianFamily(), method="ml", start=np.r_[3e-11, bcls.x[1:]]
+    )
     assert len(calls) == 2
     assert calls[0][0] < 1e-9 < calls[1][0]
     assert res.success, res.message

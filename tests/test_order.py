@@ -29,7 +29,9 @@ G2 = ji.PolePairGain().system([6.25, -1.5, 2.0])  # the paper's pole pair (27)
 TF01, TF02, TF12 = ji.RationalModel(0, 1), ji.RationalModel(0, 2), ji.RationalModel(1, 2)
 
 
-def simulate(system: ji.TransferFunction, seed: int, n: int = 60, hold: float = 3.0) -> ji.SampledData:
+def simulate(
+    system: ji.TransferFunction, seed: int, n: int = 60, hold: float = 3.0
+) -> ji.SampledData:
     rng = np.random.default_rng(seed)
     u = ji.telegraph_input(n * T + 2.0, rng, mean_hold=hold)
     return ji.simulate(system, u, JITTER, T=T, N=n, noise_std=NOISE, rng=rng)
@@ -112,7 +114,9 @@ def test_aic_bic_are_the_hand_formulas_of_the_rows_log_likelihoods(gaussian_firs
 def test_gaussian_log_likelihood_is_the_gaussian_criterion(gaussian_first, first):
     """Referee: the fit's own criterion V = sum (e^2/w + ln w), so l = -(V + N ln 2 pi) / 2."""
     for r in gaussian_first.rows:
-        assert r.loglik == pytest.approx(-(r.cost + first.N * np.log(2 * np.pi)) / 2, rel=1e-9, abs=1e-9)
+        assert r.loglik == pytest.approx(
+            -(r.cost + first.N * np.log(2 * np.pi)) / 2, rel=1e-9, abs=1e-9
+        )
 
 
 def test_bcls_log_likelihood_by_hand_with_known_noise(first):
@@ -171,9 +175,7 @@ def test_nesting_of_rational_models():
     assert not nested(TF12, TF12)
 
 
-@pytest.mark.parametrize(
-    "den", [[1.0, 3.0, 6.25], [1.0, 2.5, 1.0, 0.3], [1.0, 0.7, 5.0, 2.0, 4.0]]
-)
+@pytest.mark.parametrize("den", [[1.0, 3.0, 6.25], [1.0, 2.5, 1.0, 0.3], [1.0, 0.7, 5.0, 2.0, 4.0]])
 def test_root_sensitivities_match_differences_of_numpy_roots(den):
     """Referee for the delta-method standard errors: central differences of np.roots."""
     den = np.asarray(den, float)
@@ -191,7 +193,7 @@ def test_root_sensitivities_match_differences_of_numpy_roots(den):
             assert abs(grad[j, i] - fd) <= 1e-5 * max(1.0, abs(fd)), (i, r, grad[j, i], fd)
 
 
-# ------------------------------------------------------------------------------ over-order, failures
+# ----------------------------------------------------------------------- over-order, failures
 
 
 def test_over_order_candidates_are_reported_and_not_chosen(first):
@@ -269,7 +271,9 @@ def test_validation_column_is_compares_fit_percent(first):
         hand = 100 * (1 - np.linalg.norm(val.y - yhat) / np.linalg.norm(val.y - val.y.mean()))
         assert r.validation_fit_pct == pytest.approx(hand, rel=1e-12)
     assert sel.best.validation_fit_pct > 50
-    by_val = ji.select_order(first, [TF01, TF02], JITTER, "bcls", validation=val, criterion="validation")
+    by_val = ji.select_order(
+        first, [TF01, TF02], JITTER, "bcls", validation=val, criterion="validation"
+    )
     trusted = [r for r in by_val.rows if r.trustworthy]
     assert by_val.best is max(trusted, key=lambda r: r.validation_fit_pct)
     assert "highest validation fit" in by_val.reason
@@ -323,8 +327,17 @@ def lab(tmp_path_factory) -> Path:
 
 def test_cli_with_two_models_selects_and_writes_order_json(lab, tmp_path):
     out = tmp_path / "fit"
-    args = ["fit", lab / "data.csv", "--input", lab / "input.csv", "--jitter", "known:uniform:a=0.5",
-            "--out", out, "--no-plots"]
+    args = [
+        "fit",
+        lab / "data.csv",
+        "--input",
+        lab / "input.csv",
+        "--jitter",
+        "known:uniform:a=0.5",
+        "--out",
+        out,
+        "--no-plots",
+    ]
     res = run(*args, "--model", "tf:0,1", "--model", "polepair")
     assert res.exit_code == 0, res.output
     assert "order selection" in res.output
@@ -355,11 +368,30 @@ def test_cli_with_two_models_selects_and_writes_order_json(lab, tmp_path):
 def test_cli_validation_and_usage_errors(lab, tmp_path):
     val = tmp_path / "val"
     assert run("simulate", "--out", val, "--seed", "4", "--N", "100").exit_code == 0
-    base = ["fit", lab / "data.csv", "--input", lab / "input.csv", "--jitter", "known:uniform:a=0.5",
-            "--no-plots"]
-    res = run(*base, "--out", tmp_path / "v", "--model", "tf:0,1", "--model", "polepair",
-              "--validation", val / "data.csv", "--validation-input", val / "input.csv",
-              "--criterion", "validation")
+    base = [
+        "fit",
+        lab / "data.csv",
+        "--input",
+        lab / "input.csv",
+        "--jitter",
+        "known:uniform:a=0.5",
+        "--no-plots",
+    ]
+    res = run(
+        *base,
+        "--out",
+        tmp_path / "v",
+        "--model",
+        "tf:0,1",
+        "--model",
+        "polepair",
+        "--validation",
+        val / "data.csv",
+        "--validation-input",
+        val / "input.csv",
+        "--criterion",
+        "validation",
+    )
     assert res.exit_code == 0, res.output
     order = json.loads((tmp_path / "v" / "order.json").read_text())
     assert order["criterion"] == "validation"
@@ -368,9 +400,14 @@ def test_cli_validation_and_usage_errors(lab, tmp_path):
     for extra, match in (
         (["--model", "tf:0,1", "--model", "TF:0,1"], "given twice"),
         (["--model", "tf:0,1", "--validation", val / "data.csv"], "several --model"),
-        (["--model", "tf:0,1", "--model", "polepair", "--criterion", "validation"], "needs a --validation"),
-        (["--model", "tf:0,1", "--model", "polepair", "--validation-input", val / "input.csv"],
-         "needs --validation"),
+        (
+            ["--model", "tf:0,1", "--model", "polepair", "--criterion", "validation"],
+            "needs a --validation",
+        ),
+        (
+            ["--model", "tf:0,1", "--model", "polepair", "--validation-input", val / "input.csv"],
+            "needs --validation",
+        ),
     ):
         bad = run(*base, "--out", tmp_path / "bad", *extra)
         assert bad.exit_code == 2, bad.output
@@ -425,8 +462,10 @@ def test_monte_carlo_confusion_table():
         print(f"\n{method}: true order \\ chosen   1   2   3  none   | lowest BIC alone 1   2   3")
         for order in MC_SYSTEMS:
             print(
-                f"  order {order}            " + " ".join(f"{v:>3}" for v in table[order - 1])
-                + "      |                 " + " ".join(f"{v:>3}" for v in bic_only[order - 1])
+                f"  order {order}            "
+                + " ".join(f"{v:>3}" for v in table[order - 1])
+                + "      |                 "
+                + " ".join(f"{v:>3}" for v in bic_only[order - 1])
             )
     for method, table in tables.items():
         for order in MC_SYSTEMS:
@@ -442,8 +481,18 @@ def test_an_over_order_search_stays_where_the_samples_see_its_modes():
 
     rng = np.random.default_rng(102)
     u = ji.telegraph_input(230.0, rng)
-    data = ji.simulate(ji.TransferFunction([2.0], [1.0, 1.0]), u, ji.Uniform(0.5), T=1.0, N=200, noise_std=0.01, rng=rng)
-    sel = ji.select_order(data, [ji.RationalModel(0, 1), ji.RationalModel(1, 3)], ji.Uniform(0.5), "gaussian")
+    data = ji.simulate(
+        ji.TransferFunction([2.0], [1.0, 1.0]),
+        u,
+        ji.Uniform(0.5),
+        T=1.0,
+        N=200,
+        noise_std=0.01,
+        rng=rng,
+    )
+    sel = ji.select_order(
+        data, [ji.RationalModel(0, 1), ji.RationalModel(1, 3)], ji.Uniform(0.5), "gaussian"
+    )
     assert sel.best is not None
     assert sel.best.label == "tf:0,1"
     over = sel.row("tf:1,3")

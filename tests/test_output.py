@@ -20,14 +20,18 @@ def table2_data(seed, known_noise=True):
     input, T = 1, N = 200, noise 0.01, jitter U(-0.5, 0.5)."""
     rng = np.random.default_rng(seed)
     u = ji.telegraph_input(N * T + 2, rng)
-    data = ji.simulate(ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Uniform(0.5), T, N, NOISE, rng)
+    data = ji.simulate(
+        ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Uniform(0.5), T, N, NOISE, rng
+    )
     return data if known_noise else ji.SampledData(data.y, T, data.u)
 
 
 @pytest.fixture(scope="module")
 def gaussian_fit():
     """noise_std estimated: the jitter scale a and noise_std are both standard deviations."""
-    return ji.fit(table2_data(3, known_noise=False), ji.PolePairGain(), ji.UniformFamily(), "gaussian")
+    return ji.fit(
+        table2_data(3, known_noise=False), ji.PolePairGain(), ji.UniformFamily(), "gaussian"
+    )
 
 
 def with_cov(res, diag):
@@ -67,7 +71,9 @@ def test_well_determined_intervals_are_unchanged_and_arguments_are_checked(gauss
     res = gaussian_fit
     se = res.stderr
     for n, (lo, hi) in res.conf_int(0.9).items():
-        assert (lo, hi) == pytest.approx((res.params[n] - 1.644854 * se[n], res.params[n] + 1.644854 * se[n]))
+        assert (lo, hi) == pytest.approx(
+            (res.params[n] - 1.644854 * se[n], res.params[n] + 1.644854 * se[n])
+        )
     assert res.conf_int_notes() == {}
     with pytest.raises(ValueError, match="scale must be 'linear' or 'log'"):
         res.conf_int(scale="logit")
@@ -77,7 +83,13 @@ def test_well_determined_intervals_are_unchanged_and_arguments_are_checked(gauss
 
 def test_a_shape_parameter_is_cut_at_zero_and_a_bound_is_explained():
     data = table2_data(4, known_noise=False)
-    res = ji.fit(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), "bcls", start=[0.5, 0.45, 6.25, -1.5, 2.0])
+    res = ji.fit(
+        data,
+        ji.PolePairGain(),
+        ji.SumOfUniformsFamily(),
+        "bcls",
+        start=[0.5, 0.45, 6.25, -1.5, 2.0],
+    )
     # n = 0.5 +- 3: [0, 6.4], never negative; 0 (the uniform law) stays admissible.
     i = res.names.index("n")
     x = np.array(res.x)
@@ -119,14 +131,20 @@ def test_a_shape_parameter_is_cut_at_zero_and_a_bound_is_explained():
             [2.0, 0.6],
             lambda n, a: [-a / (2 * math.sqrt(3) * (n + 1) ** 1.5), 1 / math.sqrt(3 * (n + 1))],
         ),
-        (ji.SumOfUniformsFamily(), [0.0, 0.6], lambda n, a: [-a / (2 * math.sqrt(3)), 1 / math.sqrt(3)]),
+        (
+            ji.SumOfUniformsFamily(),
+            [0.0, 0.6],
+            lambda n, a: [-a / (2 * math.sqrt(3)), 1 / math.sqrt(3)],
+        ),
     ],
 )
 def test_the_std_gradient_through_each_family_is_the_closed_form(family, theta, grad):
     """std = a / sqrt(3 (n + 1)) for (26), a / sqrt(3) for U(-a, a), sigma for N(0, sigma^2);
     at n = 0 (on its bound) the difference is one-sided."""
     args = (theta[0], theta[1]) if len(theta) == 2 else (0.0, theta[0])
-    np.testing.assert_allclose(_jitter_std_gradient(family, np.array(theta)), grad(*args), rtol=1e-5)
+    np.testing.assert_allclose(
+        _jitter_std_gradient(family, np.array(theta)), grad(*args), rtol=1e-5
+    )
 
 
 def test_jitter_std_stderr_is_the_delta_method(gaussian_fit):
@@ -136,14 +154,24 @@ def test_jitter_std_stderr_is_the_delta_method(gaussian_fit):
     known = ji.fit(table2_data(3), ji.PolePairGain(), ji.Uniform(0.5), "bcls")
     assert known.jitter_std_stderr == 0.0
     assert "std 0.2887, known" in known.summary()
-    assert math.isnan(dataclasses.replace(res, cov=np.full_like(res.cov, np.nan), cov_type="none").jitter_std_stderr)
+    assert math.isnan(
+        dataclasses.replace(
+            res, cov=np.full_like(res.cov, np.nan), cov_type="none"
+        ).jitter_std_stderr
+    )
 
 
 def test_jitter_std_stderr_of_the_sum_of_uniforms_family():
     """Both (n, a) free: the full 2 x 2 block, correlation included; n on its bound is held
     fixed, as the covariance holds it for every other parameter."""
     data = table2_data(4, known_noise=False)
-    res = ji.fit(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), "bcls", start=[0.5, 0.45, 6.25, -1.5, 2.0])
+    res = ji.fit(
+        data,
+        ji.PolePairGain(),
+        ji.SumOfUniformsFamily(),
+        "bcls",
+        start=[0.5, 0.45, 6.25, -1.5, 2.0],
+    )
     n, a = 2.0, 0.6
     C = np.eye(len(res.names)) * 1e-4
     C[:2, :2] = [[0.25, 0.01], [0.01, 0.0009]]
@@ -168,7 +196,14 @@ def table2_monte_carlo():
     with the uniform family and the Gaussian criterion."""
     fits = []
     for seed in range(64):
-        fits.append(ji.fit(table2_data(1000 + seed, known_noise=False), ji.PolePairGain(), ji.UniformFamily(), "gaussian"))
+        fits.append(
+            ji.fit(
+                table2_data(1000 + seed, known_noise=False),
+                ji.PolePairGain(),
+                ji.UniformFamily(),
+                "gaussian",
+            )
+        )
     return fits
 
 
@@ -189,7 +224,9 @@ def test_intervals_of_positive_parameters_keep_their_coverage(table2_monte_carlo
     for name in ("a", "k0", "pr", "pi", "noise_std"):
         plain = np.mean([abs(r.params[name] - TRUTH[name]) <= z * r.stderr[name] for r in fits])
         cut = np.mean([lo <= TRUTH[name] <= hi for r in fits for lo, hi in [r.conf_int()[name]]])
-        log = np.mean([lo <= TRUTH[name] <= hi for r in fits for lo, hi in [r.conf_int(scale="log")[name]]])
+        log = np.mean(
+            [lo <= TRUTH[name] <= hi for r in fits for lo, hi in [r.conf_int(scale="log")[name]]]
+        )
         assert cut == plain, name
         assert (log if name == "noise_std" else cut) >= 0.85, (name, cut, log)
         assert log >= cut - 1.5 / len(fits), (name, log, cut)
@@ -217,7 +254,13 @@ def test_jitter_std_stderr_agrees_with_parameter_sampling():
     """The sum-of-uniforms family, (n, a) correlated: draws of (n, a) from N(x, C) give a
     spread of the law's std equal to the delta method's standard error."""
     data = table2_data(4, known_noise=False)
-    res = ji.fit(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), "bcls", start=[0.5, 0.45, 6.25, -1.5, 2.0])
+    res = ji.fit(
+        data,
+        ji.PolePairGain(),
+        ji.SumOfUniformsFamily(),
+        "bcls",
+        start=[0.5, 0.45, 6.25, -1.5, 2.0],
+    )
     x = np.array(res.x)
     x[:2] = 2.0, 0.6
     C = np.eye(len(res.names)) * 1e-4

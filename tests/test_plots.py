@@ -37,7 +37,9 @@ def test_bode_draws_the_band_and_references_in_db(band):
     art = plots.plot_bode(band, {"other": ref})
     np.testing.assert_allclose(art["magnitude"].get_ydata(), db(band.magnitude))
     np.testing.assert_array_equal(art["phase"].get_xdata(), band.f)
-    np.testing.assert_allclose(art["other magnitude"].get_ydata(), db(np.abs(ref.frequency_response(band.f))))
+    np.testing.assert_allclose(
+        art["other magnitude"].get_ydata(), db(np.abs(ref.frequency_response(band.f)))
+    )
     verts = art["magnitude_band"].get_paths()[0].vertices
     assert verts[:, 1].min() == pytest.approx(db(band.magnitude_lo).min())
     assert verts[:, 1].max() == pytest.approx(db(band.magnitude_hi).max())
@@ -56,7 +58,9 @@ def _tick_labels(ax, which):
     return [t for t in axis.get_ticklabels(which="both") if t.get_visible() and t.get_text()]
 
 
-@pytest.mark.parametrize("f", [np.geomspace(0.01, 0.5, 50), np.geomspace(1e-3, 50, 200), np.geomspace(0.2, 0.3, 40)])
+@pytest.mark.parametrize(
+    "f", [np.geomspace(0.01, 0.5, 50), np.geomspace(1e-3, 50, 200), np.geomspace(0.2, 0.3, 40)]
+)
 def test_bode_ticks_are_round_and_do_not_overlap(f):
     """The issue: a linear magnitude with every minor tick labelled, overlapping. Now dB
     ticks at multiples of 1, 2, 2.5 or 5 x 10^k, phase at multiples of 15 degrees, and no
@@ -68,7 +72,9 @@ def test_bode_ticks_are_round_and_do_not_overlap(f):
     step = np.diff(ax_mag.get_yticks())[0]
     mant = step / 10 ** np.floor(np.log10(step))
     assert min(abs(mant - m) for m in (1, 2, 2.5, 5)) < 1e-9
-    assert np.allclose(np.mod(ax_ph.get_yticks(), 15), 0) or np.allclose(np.mod(ax_ph.get_yticks(), 1.5), 0)
+    assert np.allclose(np.mod(ax_ph.get_yticks(), 15), 0) or np.allclose(
+        np.mod(ax_ph.get_yticks(), 1.5), 0
+    )
     # The -inf dB lower edge (|G| = 0) does not set the range: the curve fills the axes.
     lo, _ = ax_mag.get_ylim()
     assert np.isfinite(lo)

@@ -114,7 +114,12 @@ def test_quantities_of_a_known_third_order_system_by_hand():
 def test_one_mode_names_have_no_number_and_match_the_closed_form():
     pq = ji.physical_quantities(fit_of(ji.PolePairGain(), TRUTH, C_SMALL))
     assert pq.names == (
-        "pole_re_per_s", "pole_im_rad_per_s", "dc_gain", "bandwidth_hz", "wn_hz", "zeta",
+        "pole_re_per_s",
+        "pole_im_rad_per_s",
+        "dc_gain",
+        "bandwidth_hz",
+        "wn_hz",
+        "zeta",
     )
     wn, zeta, dc, bw = second_order(TRUTH)
     assert pq["wn_hz"].value == pytest.approx(2.5 / (2 * math.pi), rel=1e-14) == pytest.approx(wn)
@@ -143,7 +148,9 @@ def test_bandwidth_is_nan_with_a_note_where_there_is_none(num, den, why):
     assert math.isnan(bw)
     assert why in note
     struct = ji.RationalModel(len(num) - 1, len(den) - 1)
-    pq = ji.physical_quantities(fit_of(struct, [*num, *den[1:]], np.eye(len(num) + len(den) - 1) * 1e-6))
+    pq = ji.physical_quantities(
+        fit_of(struct, [*num, *den[1:]], np.eye(len(num) + len(den) - 1) * 1e-6)
+    )
     assert math.isnan(pq["bandwidth_hz"].value)
     assert why in pq["bandwidth_hz"].note
     assert math.isnan(pq["bandwidth_hz"].low)
@@ -364,7 +371,9 @@ def test_bad_inputs_are_refused_clearly():
         ji.physical_quantities(wide, method="sampling", draws=200, rng=0)
     sine = sine_fit()
     assert "physical quantities" not in sine.summary()
-    with pytest.raises(ValueError, match=r"needs an LTI fit.*signal model \(SignalModel\).*use its params"):
+    with pytest.raises(
+        ValueError, match=r"needs an LTI fit.*signal model \(SignalModel\).*use its params"
+    ):
         ji.physical_quantities(sine)
     with pytest.raises(ValueError, match="signal model"):
         sine.to_discrete(1.0)
@@ -451,10 +460,23 @@ def test_fit_command_reports_quantities_and_the_step_response(tmp_path):
     lab, out = tmp_path / "lab", tmp_path / "fit"
     run = CliRunner().invoke
     assert run(main, ["simulate", "--out", str(lab), "--seed", "3"]).exit_code == 0
-    res = run(main, [
-        "fit", str(lab / "data.csv"), "--input", str(lab / "input.csv"), "--model", "polepair",
-        "--jitter", "known:uniform:a=0.5", "--method", "bcls", "--out", str(out),
-    ])
+    res = run(
+        main,
+        [
+            "fit",
+            str(lab / "data.csv"),
+            "--input",
+            str(lab / "input.csv"),
+            "--model",
+            "polepair",
+            "--jitter",
+            "known:uniform:a=0.5",
+            "--method",
+            "bcls",
+            "--out",
+            str(out),
+        ],
+    )
     assert res.exit_code == 0, res.output
     result = json.loads((out / "result.json").read_text())
     pq = result["physical_quantities"]

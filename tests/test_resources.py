@@ -56,7 +56,9 @@ def test_a_moment_fit_over_the_budget_is_refused_before_any_work(monkeypatch):
 
 def test_the_moment_estimate_scales_with_n_and_the_parameters():
     assert resources.moment_bytes(10**7, 3) == pytest.approx(1e10)  # measured 8.6 GB at 1e6 x 10
-    assert resources.moment_bytes(2 * 10**5, 5) == pytest.approx(2 * resources.moment_bytes(10**5, 5))
+    assert resources.moment_bytes(2 * 10**5, 5) == pytest.approx(
+        2 * resources.moment_bytes(10**5, 5)
+    )
 
 
 def test_ml_whose_rule_cannot_fit_is_refused_before_the_first_stage(monkeypatch):
@@ -81,14 +83,22 @@ def test_ml_is_refused_when_its_designed_rule_is_over_the_budget(monkeypatch):
     assert "per sample" in str(err.value)
     # the same guard holds for the Cramer-Rao bound, which builds the same rule
     with pytest.raises(TooLargeError, match="exact likelihood"):
-        ji.crb(ji.RationalModel(1, 3), ji.Gaussian(0.08), d.u, 0.5, 1000, 0.02,
-               [4.0, 8.0, 6.0, 10.0, 8.0])
+        ji.crb(
+            ji.RationalModel(1, 3),
+            ji.Gaussian(0.08),
+            d.u,
+            0.5,
+            1000,
+            0.02,
+            [4.0, 8.0, 6.0, 10.0, 8.0],
+        )
 
 
 def test_the_node_estimate_matches_the_rule_that_is_built():
     d = _lab(1000)
-    lik = likelihood_module.ExactLikelihood(ji.RationalModel(1, 3), ji.Gaussian(0.08), d.u, 0.5,
-                                            1000, 0.02)
+    lik = likelihood_module.ExactLikelihood(
+        ji.RationalModel(1, 3), ji.Gaussian(0.08), d.u, 0.5, 1000, 0.02
+    )
     x = np.array([4.0, 8.0, 6.0, 10.0, 8.0])
     lik.design(x)
     law, resp, _ = lik.split(x)  # the signal: the system's response to d.u
@@ -111,10 +121,23 @@ def test_the_cli_refuses_in_one_line(tmp_path, monkeypatch):
     save_data(tmp_path / "d.csv", d)
     ji.save_input(tmp_path / "u.csv", d.u)
     monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "1e6")
-    res = CliRunner().invoke(main, ["fit", str(tmp_path / "d.csv"), "--input",
-                                    str(tmp_path / "u.csv"), "--model", "polepair", "--jitter",
-                                    "known:uniform:a=0.5", "--out", str(tmp_path / "o"),
-                                    "--no-plots", "--quiet"])
+    res = CliRunner().invoke(
+        main,
+        [
+            "fit",
+            str(tmp_path / "d.csv"),
+            "--input",
+            str(tmp_path / "u.csv"),
+            "--model",
+            "polepair",
+            "--jitter",
+            "known:uniform:a=0.5",
+            "--out",
+            str(tmp_path / "o"),
+            "--no-plots",
+            "--quiet",
+        ],
+    )
     assert res.exit_code not in (0, None)
     assert isinstance(res.exception, SystemExit)
     assert "Traceback" not in res.output

@@ -27,8 +27,20 @@ def fit_of(structure, theta, cov=None, cov_type="sandwich") -> ji.FitResult:
     theta = np.asarray(theta, float)
     cov = np.zeros((theta.size, theta.size)) if cov is None else np.asarray(cov, float)
     return ji.FitResult(
-        "bcls", tuple(structure.param_names), theta, 0.0, ji.FitStatus.CONVERGED, "", 0,
-        structure.system(theta), ji.NoJitter(), 0.01, np.zeros(0), cov, cov_type, structure,
+        "bcls",
+        tuple(structure.param_names),
+        theta,
+        0.0,
+        ji.FitStatus.CONVERGED,
+        "",
+        0,
+        structure.system(theta),
+        ji.NoJitter(),
+        0.01,
+        np.zeros(0),
+        cov,
+        cov_type,
+        structure,
         ji.NoJitter(),
     )
 
@@ -36,8 +48,10 @@ def fit_of(structure, theta, cov=None, cov_type="sandwich") -> ji.FitResult:
 def sine_fit() -> ji.FitResult:
     """A fit of a signal model (no transfer function)."""
     sine = ji.SignalModel(
-        lambda t, th: th[0] * np.sin(2 * np.pi * 0.1 * t), param_names=("A",),
-        starts=[(1.0,)], rate=2 * np.pi * 0.1,
+        lambda t, th: th[0] * np.sin(2 * np.pi * 0.1 * t),
+        param_names=("A",),
+        starts=[(1.0,)],
+        rate=2 * np.pi * 0.1,
     )
     t = np.arange(60.0)
     y = 1.5 * np.sin(2 * np.pi * 0.1 * t) + 0.05 * np.random.default_rng(0).standard_normal(60)
@@ -67,8 +81,14 @@ def ode_response(num, den, t, kind):
     u = 1.0 if kind == "step" else 0.0
     x0 = np.zeros(n) if kind == "step" else B
     sol = solve_ivp(
-        lambda _t, x: A @ x + B * u, (0.0, float(t[-1])), x0, t_eval=t, method="DOP853",
-        rtol=1e-11, atol=1e-13, max_step=0.01,
+        lambda _t, x: A @ x + B * u,
+        (0.0, float(t[-1])),
+        x0,
+        t_eval=t,
+        method="DOP853",
+        rtol=1e-11,
+        atol=1e-13,
+        max_step=0.01,
     )
     return c @ sol.y + (d if kind == "step" else 0.0)
 
@@ -99,7 +119,9 @@ def test_near_repeated_poles_agree_on_both_routes():
     a = lti_response(ji.TransferFunction([1.0], np.poly([-1.0, -1.0 - 1e-5]).real), t)
     b = lti_response(ji.TransferFunction([1.0], np.poly([-1.0, -1.0 - 1e-3]).real), t)
     np.testing.assert_allclose(a, b, atol=1e-3)
-    np.testing.assert_allclose(a, ode_response([1.0], np.poly([-1.0, -1.0 - 1e-5]), t, "step"), atol=1e-9)
+    np.testing.assert_allclose(
+        a, ode_response([1.0], np.poly([-1.0, -1.0 - 1e-5]), t, "step"), atol=1e-9
+    )
 
 
 # ------------------------------------------------------------------------------ bands
@@ -163,14 +185,18 @@ def test_bands_without_covariance_known_systems_and_biproper_impulses():
     assert np.all(np.isnan(band.lo))
     assert np.all(np.isfinite(band.response))
     assert "no standard error for pi" in band.note
-    known = ji.step_response(fit_of(ji.KnownSystem(ji.TransferFunction([2.0], [1.0, 2.0])), []), [0, 1])
+    known = ji.step_response(
+        fit_of(ji.KnownSystem(ji.TransferFunction([2.0], [1.0, 2.0])), []), [0, 1]
+    )
     np.testing.assert_array_equal(known.lo, known.hi)
     assert known.method == "known"
     np.testing.assert_allclose(known.response, [0.0, 1 - math.exp(-2.0)])
     bip = fit_of(ji.RationalModel(1, 1), [3.0, 1.0, 2.0], np.eye(3) * 1e-4)
     imp = ji.impulse_response(bip, [0.0, 1.0])
     assert "3 delta(t)" in imp.note
-    np.testing.assert_allclose(imp.response, [-5.0, -5.0 * math.exp(-2.0)])  # (3s + 1)/(s + 2) = 3 - 5/(s + 2)
+    np.testing.assert_allclose(
+        imp.response, [-5.0, -5.0 * math.exp(-2.0)]
+    )  # (3s + 1)/(s + 2) = 3 - 5/(s + 2)
 
 
 def test_response_bad_inputs():

@@ -31,7 +31,9 @@ def ls_covariance_by_hand(data, x):
         up, down = x.copy(), x.copy()
         up[i] += h
         down[i] -= h
-        J[:, i] = (st.system(up).response(data.u)(t) - st.system(down).response(data.u)(t)) / (2 * h)
+        J[:, i] = (st.system(up).response(data.u)(t) - st.system(down).response(data.u)(t)) / (
+            2 * h
+        )
     return NOISE**2 * np.linalg.inv(J.T @ J)
 
 
@@ -123,8 +125,12 @@ def test_cov_types_differ_where_they_should_and_none_skips_the_work():
     base = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian")
     assert base.cov_type == "sandwich"
     oim = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", start=base.x, cov_type="oim")
-    rob = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", start=base.x, cov_type="robust")
-    none = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", start=base.x, cov_type="none")
+    rob = ji.fit(
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", start=base.x, cov_type="robust"
+    )
+    none = ji.fit(
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", start=base.x, cov_type="none"
+    )
     np.testing.assert_allclose(oim.x, base.x, rtol=1e-6)
     se = {r.cov_type: np.sqrt(np.diag(r.cov)) for r in (base, oim, rob)}
     # the Gaussian criterion is the likelihood of the second-moment model: sandwich ~ oim
@@ -182,7 +188,9 @@ def test_json_refuses_classes_outside_the_package():
 
 # ------------------------------------------------------------------ the parameter layout
 def test_layout_blocks_and_conversions():
-    lay = ParamLayout.build(ji.SumOfUniformsFamily(), ji.PolePairGain(), ji.RationalNoise(0, 1), noise_std=True)
+    lay = ParamLayout.build(
+        ji.SumOfUniformsFamily(), ji.PolePairGain(), ji.RationalNoise(0, 1), noise_std=True
+    )
     assert lay.names == ("n", "a", "k0", "pr", "pi", "hb0", "ha0", "noise_std")
     x = np.arange(8.0)
     assert lay.block(x, "jitter").tolist() == [0, 1]
@@ -380,5 +388,7 @@ def test_closed_form_d2v_dx_dy_against_differences_of_grad_y(method, jitter):
         problem = Problem(data, ji.PolePairGain(), jitter, method, f, noise, weights_at=x * 1.01)
     G = problem.estimator.grad_y_jacobian(problem, x)
     assert G is not None
-    ref = np.array([finite_diff.derivative(problem.grad_y, x, i, problem.bounds[i]) for i in range(x.size)])
+    ref = np.array(
+        [finite_diff.derivative(problem.grad_y, x, i, problem.bounds[i]) for i in range(x.size)]
+    )
     np.testing.assert_allclose(G, ref, rtol=1e-5, atol=1e-6 * np.max(np.abs(ref)))

@@ -25,16 +25,30 @@ SYSTEM = ji.PolePairGain().system([6.25, -1.5, 2.0])
 
 def _scores(method, jitter, x0, law, R, rng, u):
     def prob(y):
-        return Problem(ji.SampledData(y, T, u), ji.PolePairGain(), jitter, method, default_frequencies(N, T), None)
+        return Problem(
+            ji.SampledData(y, T, u),
+            ji.PolePairGain(),
+            jitter,
+            method,
+            default_frequencies(N, T),
+            None,
+        )
 
-    psi = [prob(ji.simulate(SYSTEM, u, law, T=T, N=N, noise_std=0.01, rng=rng).y).objective_gradient(x0)[1] for _ in range(R)]
+    psi = [
+        prob(ji.simulate(SYSTEM, u, law, T=T, N=N, noise_std=0.01, rng=rng).y).objective_gradient(
+            x0
+        )[1]
+        for _ in range(R)
+    ]
     p = prob(ji.simulate(SYSTEM, u, law, T=T, N=N, noise_std=0.01, rng=rng).y)
     G = C._grad_y_jacobian(p, x0, np.arange(x0.size))
     A = p.estimator.y_hessian_diagonal(p, x0)
     if A is not None:
         new = C._per_sample_score_covariance(p, x0, G, A, False)
     else:
-        new = C._frequency_score_covariance(p, x0, G, np.asarray(p.estimator.frequency_kernel(p, x0)))
+        new = C._frequency_score_covariance(
+            p, x0, G, np.asarray(p.estimator.frequency_kernel(p, x0))
+        )
     return np.cov(np.array(psi).T), new, (G * p.variances(x0)) @ G.T
 
 
@@ -68,8 +82,14 @@ def test_fft_products_of_the_squared_covariances_match_the_matrices(n, T):
 
     rng = np.random.default_rng(0)
     w = rng.uniform(0.1, 2.0, n)
-    for f in (np.arange(n // 2) / (n * T), (3 + np.arange(20)) / (n * T), np.linspace(0.01, 0.2, 15)):
+    for f in (
+        np.arange(n // 2) / (n * T),
+        (3 + np.arange(20)) / (n * T),
+        np.linspace(0.01, 0.2, 15),
+    ):
         k = rng.standard_normal((f.size, 3))
         S, Cp = covariance_from_variances(w, T, f, f), covariance_from_variances(w, T, f, -f)
         ref = (np.abs(S) ** 2 + np.abs(Cp) ** 2) @ k
-        np.testing.assert_allclose(C._squared_covariance_products(w, T, f, k), ref, atol=1e-12 * np.abs(ref).max())
+        np.testing.assert_allclose(
+            C._squared_covariance_products(w, T, f, k), ref, atol=1e-12 * np.abs(ref).max()
+        )

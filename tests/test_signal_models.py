@@ -98,8 +98,11 @@ def test_moment_derivatives_against_central_differences(jitter, analytic):
     data = ji.SampledData(np.linspace(-1, 1, 40), T, None, noise_std=0.05)
     prob = Problem(data, model, jitter, "gaussian", default_frequencies(40, T), None)
     x = np.r_[
-        {ji.Uniform: [], ji.GaussianFamily: [0.25], ji.SumOfUniformsFamily: [1.6, 0.4]}[type(jitter)],
-        TRUTH, 0.05,
+        {ji.Uniform: [], ji.GaussianFamily: [0.25], ji.SumOfUniformsFamily: [1.6, 0.4]}[
+            type(jitter)
+        ],
+        TRUTH,
+        0.05,
     ]
     _mom, _w, dm, dw = prob.derivatives(x)
     for i in range(x.size):
@@ -177,7 +180,9 @@ def test_joint_jitter_and_sinusoid_estimation_with_a_family():
     res = ji.fit(data, sine(), ji.GaussianFamily(), "gaussian", noise_std=0.03)
     assert res.success, res.message
     assert abs(res.params["sigma"] - sigma) < 3.5 * res.stderr["sigma"]
-    fd = ji.fit(data, sine(gradient=False, slope=False), ji.GaussianFamily(), "gaussian", noise_std=0.03)
+    fd = ji.fit(
+        data, sine(gradient=False, slope=False), ji.GaussianFamily(), "gaussian", noise_std=0.03
+    )
     np.testing.assert_allclose(fd.x, res.x, rtol=2e-4, atol=2e-5)
 
 
@@ -195,7 +200,9 @@ def test_units_do_not_change_the_estimate_of_a_signal_model():
 
 def test_crb_and_gaussian_bound_of_a_signal_model_take_no_input():
     law = ji.Uniform(0.5)
-    crb = ji.crb(sine(), law, None, T, 200, 0.05, dict(zip(("A", "phi", "f", "c"), TRUTH, strict=True)))
+    crb = ji.crb(
+        sine(), law, None, T, 200, 0.05, dict(zip(("A", "phi", "f", "c"), TRUTH, strict=True))
+    )
     gb = ji.gaussian_bound(sine(), law, None, T, 200, 0.05, TRUTH)
     for bound in (crb, gb):
         assert bound.shape == (4, 4)

@@ -88,8 +88,13 @@ def test_periodogram_peak_within_a_small_fraction_of_a_bin_and_aliases():
     n, T = 1000, 1e-3
     t = T * np.arange(n)
     bin_hz = 1 / (n * T)
-    for fT, alias in [(0.0971234, 0.0971234), (0.41234, 0.41234), (1.2, 0.2), (1.8, 0.2),
-                      (3.3712, 0.3712)]:
+    for fT, alias in [
+        (0.0971234, 0.0971234),
+        (0.41234, 0.41234),
+        (1.2, 0.2),
+        (1.8, 0.2),
+        (3.3712, 0.3712),
+    ]:
         y = _sine(t, 1.0, fT / T, 0.7, 3.0)
         f = periodogram_peak(y, T)
         assert 0 < f < 0.5 / T
@@ -112,8 +117,12 @@ def _crb_4(t, amplitude, f, phase, sigma):
     """Exact finite-N Cramer-Rao bound of (amplitude, phase, f, offset) in white Gaussian noise."""
     arg = 2 * np.pi * f * t + phase
     jac = np.column_stack(
-        (np.sin(arg), amplitude * np.cos(arg), 2 * np.pi * t * amplitude * np.cos(arg),
-         np.ones_like(t))
+        (
+            np.sin(arg),
+            amplitude * np.cos(arg),
+            2 * np.pi * t * amplitude * np.cos(arg),
+            np.ones_like(t),
+        )
     )
     return np.linalg.inv(jac.T @ jac) * sigma**2
 

@@ -45,7 +45,9 @@ LAWS = [ji.Uniform(0.4), ji.Gaussian(0.3), ji.SumOfUniforms(2, 0.5), ji.NoJitter
 
 
 @pytest.mark.parametrize("law", LAWS, ids=str)
-@pytest.mark.parametrize(("model", "theta"), CASES, ids=lambda c: getattr(c, "param_names", [""])[0])
+@pytest.mark.parametrize(
+    ("model", "theta"), CASES, ids=lambda c: getattr(c, "param_names", [""])[0]
+)
 def test_closed_form_moments_match_the_quadrature_path(model, theta, law):
     N = 40
     closed = moment_pass(model.signal(theta), law, T, N, gradient=True, scale=0.5)
@@ -107,7 +109,9 @@ def test_gradient_and_slope_match_differences_of_the_signal():
         up, dn = theta.copy(), theta.copy()
         up[i] += 1e-6
         dn[i] -= 1e-6
-        np.testing.assert_allclose(G[i], (model.signal(up)(t) - model.signal(dn)(t)) / 2e-6, atol=1e-6)
+        np.testing.assert_allclose(
+            G[i], (model.signal(up)(t) - model.signal(dn)(t)) / 2e-6, atol=1e-6
+        )
     np.testing.assert_allclose(sig.slope(t), (sig(t + 1e-6) - sig(t - 1e-6)) / 2e-6, atol=1e-6)
 
 

@@ -2,10 +2,10 @@
 
 ```console`` blocks: each line starting with ``$ jitterid`` is run, and the lines shown
 below it (except ``...``) must appear in its real output, numbers equal to the printed
-precision (so the tutorial shows what the commands print). ```python`` blocks are executed in order in one namespace. Everything runs in a
-temporary directory. The figures the tutorial shows (``tutorial/...png``) must be produced
-by the run and exist under ``docs/``; set ``JITTERID_UPDATE_TUTORIAL=1`` to copy the freshly
-made figures into ``docs/tutorial/``.
+precision (so the tutorial shows what the commands print). ```python`` blocks are executed
+in order in one namespace. Everything runs in a temporary directory. The figures the
+tutorial shows (``tutorial/...png``) must be produced by the run and exist under ``docs/``;
+set ``JITTERID_UPDATE_TUTORIAL=1`` to copy the freshly made figures into ``docs/tutorial/``.
 """
 
 from __future__ import annotations

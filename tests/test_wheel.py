@@ -37,7 +37,9 @@ def test_version_has_one_source():
 def test_installed_metadata_version_is_the_package_version():
     try:
         installed = importlib.metadata.version("jitterid")
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - source tree on sys.path only
+    except (
+        importlib.metadata.PackageNotFoundError
+    ):  # pragma: no cover - source tree on sys.path only
         pytest.skip("jitterid is not installed (no metadata); `make test` installs it")
     assert installed == jitterid.__version__
 
@@ -72,10 +74,18 @@ def test_wheel_installs_and_runs_the_readme_example(tmp_path):
 
     with tarfile.open(sdist) as tf:
         members = [m.split("/", 1)[1] for m in tf.getnames() if "/" in m]
-    for needed in ("pyproject.toml", "README.md", "CHANGELOG.md", "src/jitterid/__init__.py",
-                   "src/jitterid/py.typed", "tests/test_readme.py"):
+    for needed in (
+        "pyproject.toml",
+        "README.md",
+        "CHANGELOG.md",
+        "src/jitterid/__init__.py",
+        "src/jitterid/py.typed",
+        "tests/test_readme.py",
+    ):
         assert needed in members, needed
-    junk = re.compile(r"(^|/)(\.venv|__pycache__|_build|results|reproduction)(/|$)|\.(pyc|sqlite|db)$")
+    junk = re.compile(
+        r"(^|/)(\.venv|__pycache__|_build|results|reproduction)(/|$)|\.(pyc|sqlite|db)$"
+    )
     assert not [m for m in members if junk.search(m)]
 
     env_dir = tmp_path / "venv"
@@ -96,7 +106,12 @@ def test_wheel_installs_and_runs_the_readme_example(tmp_path):
     example.write_text(_first_readme_python_block())
     run = subprocess.run(
         [str(python), str(example)],
-        cwd=work, env=env, capture_output=True, text=True, timeout=600, check=False,
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
     )
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip()
@@ -108,7 +123,11 @@ def test_wheel_installs_and_runs_the_readme_example(tmp_path):
     )
     probe = subprocess.run(
         [str(python), "-c", probe_code],
-        cwd=work, env=env, capture_output=True, text=True, check=True,
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     where, same_version, typed = probe.stdout.split()
     assert Path(where).resolve().is_relative_to(env_dir.resolve())
@@ -117,12 +136,20 @@ def test_wheel_installs_and_runs_the_readme_example(tmp_path):
 
     cli = subprocess.run(
         [str(bindir / "jitterid"), "--help"],
-        cwd=work, env=env, capture_output=True, text=True, check=False,
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
     )
     assert cli.returncode == 0, cli.stderr
     assert "Usage" in cli.stdout
     version = subprocess.run(
         [str(bindir / "jitterid"), "--version"],
-        cwd=work, env=env, capture_output=True, text=True, check=True,
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     assert jitterid.__version__ in version.stdout
