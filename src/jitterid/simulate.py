@@ -47,7 +47,7 @@ def simulate(
     jitter : JitterLaw
         Law of the sampling-time jitter tau_k.
     T : float
-        Nominal sampling interval (> 0).
+        Nominal sampling interval (s) (> 0).
     N : int
         Number of samples (>= 4).
     noise_std : float

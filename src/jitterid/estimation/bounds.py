@@ -88,7 +88,7 @@ def crb(
     input : Input or None
         The known input (None for a signal model).
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     N : int
         Number of samples.
     noise_std : float

@@ -595,7 +595,7 @@ class ExactLikelihood:
     u : Input or None
         The known input (None for a signal model with no input).
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     N : int
         Number of samples.
     noise_std : float or None
@@ -1277,7 +1277,7 @@ def log_density(
     jitter : JitterLaw
         The jitter law.
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     y : array_like, shape (N,)
         Samples requested at kT, k = 0..N-1.
     noise_std : float

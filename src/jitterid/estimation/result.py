@@ -564,7 +564,7 @@ class FitResult:
         Parameters
         ----------
         T : float
-            Sampling interval in s, > 0.
+            Sampling interval (s) in s, > 0.
         method : str
             ``"zoh"`` (default: the input held between samples, exact for a
             piecewise-constant input switching at multiples of T), ``"foh"``,

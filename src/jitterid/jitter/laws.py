@@ -1029,7 +1029,7 @@ class JitterFamily(abc.ABC):
         Parameters
         ----------
         T : float
-            Nominal sampling interval; the scale parameters are fractions of ``T/2``, clipped
+            Nominal sampling interval (s); the scale parameters are fractions of ``T/2``, clipped
             into :attr:`bounds`.
 
         Returns

@@ -177,7 +177,7 @@ def dtft(y: ArrayLike, T: float, f: ArrayLike) -> ComplexArray:
         Samples, real or complex, along the last axis; leading axes are batches (e.g. Monte
         Carlo realisations).
     T : float
-        Nominal sampling interval, > 0.
+        Nominal sampling interval (s), > 0.
     f : array_like
         Frequencies in Hz, any shape.
 
@@ -226,7 +226,7 @@ def dirichlet(f: ArrayLike, N: int, T: float) -> ComplexArray:
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -272,7 +272,7 @@ def stochastic_window(f: ArrayLike, psi: ArrayLike, tau: ArrayLike, T: float) ->
         Jitter realisations ``tau_k`` along the last axis; leading axes are independent
         realisations.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -314,7 +314,7 @@ def mean_window(f: ArrayLike, psi: ArrayLike, jitter: SupportsCF, N: int, T: flo
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -376,7 +376,7 @@ def window_second_moment(
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -428,7 +428,7 @@ def window_covariance(
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -482,7 +482,7 @@ def expected_dft_lines(
     jitter : SupportsCF
         Object with a vectorised ``cf``.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     f : array_like
@@ -526,7 +526,7 @@ def dft_covariance_lines(
     jitter : SupportsCF
         Object with a vectorised ``cf``.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     f : array_like, shape (M,)
@@ -591,7 +591,7 @@ def integral_grid_size(psi_max: float, T: float, N: int, support: tuple[float, f
     psi_max : float
         Truncation frequency in Hz, > 0.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     support : (float, float)
@@ -641,7 +641,7 @@ def expected_dft_integral(
     jitter : SupportsCF
         Object with a vectorised ``cf``.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     f : array_like

@@ -205,7 +205,7 @@ def expected_dft(
     jitter : JitterLaw
         Law of the sampling jitter tau_k.
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     N : int
         Number of samples.
     f : array_like

@@ -139,7 +139,7 @@ class JitteredAutocovariance:
     Attributes
     ----------
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     near : ndarray, shape (M0,)
         gamma(0..M0-1): r_v(0) and the lags where the jitter can reverse the order of samples.
     weights, ratios : ndarray of complex
@@ -201,7 +201,7 @@ def jittered_autocovariance(noise: NoiseModel, jitter: JitterLaw, T: float) -> J
     jitter : JitterLaw
         Law of the i.i.d. jitter (``NoJitter()`` gives r_v(m T), the uniformly sampled noise).
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
 
     Returns
     -------
