@@ -212,6 +212,16 @@ def telegraph_input(
         The two levels (default +-0.5 as in the paper).
     mean_hold : float
         Mean holding time in seconds (default 1 s as in the paper).
+    Returns
+    -------
+    PiecewiseConstant
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(10.0, rng=0)
+    >>> sorted(set(u.levels.tolist()))
+    [-0.5, 0.5]
     """
     duration = positive(duration, "duration")
     mean_hold = positive(mean_hold, "mean_hold")
@@ -244,6 +254,25 @@ def zoh_input(samples: ArrayLike, T: float, start: float = 0.0) -> PiecewiseCons
     """Zero-order hold of ``samples`` on the grid ``start + k T`` (a DAC's output).
 
     The last sample is held for one interval, so the input ends at ``start + len(samples) T``.
+    Parameters
+    ----------
+    samples : array_like, shape (n,)
+        The held values, at least one.
+    T : float
+        Hold interval (s).
+    start : float, optional
+        Time of the first sample (s).
+
+    Returns
+    -------
+    PiecewiseConstant
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> u = jid.zoh_input([0.0, 1.0, -1.0], T=0.5)
+    >>> u.times.tolist(), u.levels.tolist()
+    ([0.0, 0.5, 1.0, 1.5], [0.0, 1.0, -1.0])
     """
     T = positive(T, "T")
     u = real_array(samples, "samples", ndim=1)

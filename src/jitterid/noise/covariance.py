@@ -613,7 +613,7 @@ def sample_covariance(
     Parameters
     ----------
     system, u, jitter, T, N
-        As in :func:`jitterid.dft_covariance`.
+        As in :func:`jitterid.dft_covariance` (T in s).
     noise_std : float
         Std of the white part w_k (>= 0).
     noise_model : NoiseModel, optional
