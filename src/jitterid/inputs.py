@@ -129,12 +129,14 @@ class Multisine(Input):
 
     Parameters
     ----------
-    freqs, amplitudes, phases : array_like
-        Frequencies in Hz (>= 0), amplitudes and phases in radians (default 0).
+    freqs, amplitudes : array_like
+        Frequencies in Hz (>= 0) and amplitudes, of equal length.
     end : float
-        End of the input; sampling at or past it is an error.
+        End of the input (s); sampling at or past it is an error.
+    phases : array_like, optional
+        Phases in radians (default 0).
     start : float
-        Switch-on time (default 0). Ignored when ``steady_state`` is True.
+        Switch-on time in s (default 0). Ignored when ``steady_state`` is True.
     steady_state : bool
         If True the sinusoids have been on forever (no start transient): the input is
         defined for every t < end and a system's response is its periodic steady state.
@@ -212,6 +214,7 @@ def telegraph_input(
         The two levels (default +-0.5 as in the paper).
     mean_hold : float
         Mean holding time in seconds (default 1 s as in the paper).
+
     Returns
     -------
     PiecewiseConstant
@@ -254,6 +257,7 @@ def zoh_input(samples: ArrayLike, T: float, start: float = 0.0) -> PiecewiseCons
     """Zero-order hold of ``samples`` on the grid ``start + k T`` (a DAC's output).
 
     The last sample is held for one interval, so the input ends at ``start + len(samples) T``.
+
     Parameters
     ----------
     samples : array_like, shape (n,)

@@ -110,7 +110,17 @@ class DataFileError(ValueError):
 
 @dataclass(frozen=True)
 class Source:
-    """A file that went into a data set: its role, path and SHA-256 checksum."""
+    """A file that went into a data set: its role, path and SHA-256 checksum.
+
+    Parameters
+    ----------
+    role : str
+        What the file holds (e.g. data, input, sidecar).
+    path : str
+        The file's path, as read.
+    sha256 : str
+        Hex SHA-256 checksum of its bytes.
+    """
 
     role: str
     path: str
@@ -1002,9 +1012,9 @@ def save_input(
     t0 : float
         File time of the library's t = 0 (s).
     T : float, optional
-        If given, the input must be a zero-order hold on the grid k T (as from
-        :func:`jitterid.zoh_input`) and is written as columns ``t,u``; otherwise as switch
-        times ``time,level`` with metadata ``end``.
+        Hold interval (s). If given, the input must be a zero-order hold on the grid k T
+        (as from :func:`jitterid.zoh_input`) and is written as columns ``t,u``; otherwise
+        as switch times ``time,level`` with metadata ``end``.
     metadata : mapping, optional
         Extra metadata such as ``u_unit``; ``time_unit`` (default ``s``) is the unit the
         times are written in (they are converted).

@@ -126,6 +126,15 @@ class PhysicalQuantities:
     Index by name (``pq["zeta"]``, a :class:`Quantity`), iterate over the rows, ``len``,
     ``in``; :meth:`summary` is a text table, :meth:`to_dict` JSON-ready values (NaN kept as
     float NaN).
+
+    Parameters
+    ----------
+    quantities : tuple of Quantity
+        The rows.
+    level : float
+        Coverage of the intervals, in (0, 1).
+    method : str
+        How the intervals were computed: ``"delta"`` or ``"sampling"``.
     """
 
     quantities: tuple[Quantity, ...]

@@ -238,5 +238,26 @@ def impulse_response(
 ) -> TimeResponseBand:
     """The impulse response g(t) of an LTI fit at times ``t_s`` (s) with a pointwise band;
     the options as :func:`step_response`. A biproper model's Dirac term D delta(t) is not in
-    the response (``note`` gives D)."""
+    the response (``note`` gives D).
+
+    Parameters
+    ----------
+    result : FitResult
+        A fit of an LTI structure (``result.system`` a TransferFunction).
+    t_s : array_like
+        Times (s) after the impulse, >= 0.
+    level : float
+        Confidence level in (0, 1).
+    method : {"delta", "sampling"}
+        As in :func:`step_response`.
+    draws : int
+        Number of parameter draws for ``"sampling"`` (at least 100).
+    rng : numpy.random.Generator or int
+        Source of randomness, required for ``"sampling"``.
+
+    Returns
+    -------
+    TimeResponseBand
+        ``kind="impulse"``.
+    """
     return _band(result, t_s, "impulse", level, method, draws, rng)

@@ -177,6 +177,26 @@ def gaussian_bound(
     criterion attains when the samples really are Gaussian with those moments. Arguments as
     in :func:`crb`; the derivatives dm, dw from the moments' derivative pass (analytic where
     the model declares them; :mod:`jitterid.estimation.jacobians`).
+
+    Parameters
+    ----------
+    system_structure, jitter, input
+        As in :func:`crb`.
+    T : float
+        Nominal sampling interval (s).
+    N : int
+        Number of samples.
+    noise_std : float
+        The measurement-noise std (> 0).
+    true_params : dict, array_like or FitResult
+        The point of evaluation, as in :func:`crb`.
+    estimate_noise : bool, optional
+        Whether the noise std is a last, estimated parameter (as in :func:`crb`).
+
+    Returns
+    -------
+    ndarray, shape (P, P)
+        The bound's covariance matrix.
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
     if estimate_noise:

@@ -649,6 +649,21 @@ def coloured_dft_covariance(
 
     :func:`jitterid.dft_covariance` plus the Toeplitz noise term E Gamma E^H; equal to it
     for ``noise_model=None``. Rows over ``f``, columns over ``psi`` (default ``f``).
+
+    Parameters
+    ----------
+    system, u, jitter, T, N, f
+        As in :func:`jitterid.dft_covariance` (T in s, f in Hz).
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    noise_model : NoiseModel, optional
+        The coloured noise v(t); None for white noise only.
+    psi : array_like, optional
+        Column frequencies in Hz; default ``f``.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(f), len(psi))
     """
     cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
     return cov.dft(T, f, psi, sign=1.0)
@@ -665,6 +680,22 @@ def coloured_dft_pseudo_covariance(
     noise_model: NoiseModel | None = None,
     psi: ArrayLike | None = None,
 ) -> ComplexArray:
-    """C_Y(f, psi) = E[(Y(f) - mu(f))(Y(psi) - mu(psi))] with coloured noise, (C2)."""
+    """C_Y(f, psi) = E[(Y(f) - mu(f))(Y(psi) - mu(psi))] with coloured noise, (C2).
+
+    Parameters
+    ----------
+    system, u, jitter, T, N, f
+        As in :func:`jitterid.dft_covariance` (T in s, f in Hz).
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    noise_model : NoiseModel, optional
+        The coloured noise v(t); None for white noise only.
+    psi : array_like, optional
+        Column frequencies in Hz; default ``f``.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(f), len(psi))
+    """
     cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
     return cov.dft(T, f, psi, sign=-1.0)

@@ -221,6 +221,13 @@ class RationalNoise(NoiseStructure):
     unstable candidate is refused when evaluated), ``hb0`` >= 0 (H and -H give the same
     noise, so the sign is fixed). Only the spectrum |H|^2 is identifiable: zeros are
     determined up to reflection in the imaginary axis.
+
+    Parameters
+    ----------
+    num_order : int, optional
+        Numerator order m (>= 0), below ``den_order``.
+    den_order : int, optional
+        Denominator order n (>= 1).
     """
 
     num_order: int = 0
@@ -310,7 +317,13 @@ class RationalNoise(NoiseStructure):
 
 @dataclass(frozen=True, eq=False)
 class KnownNoise(NoiseStructure):
-    """A fixed, known noise model (no free parameters): BJ with known H."""
+    """A fixed, known noise model (no free parameters): BJ with known H.
+
+    Parameters
+    ----------
+    noise_model : NoiseModel
+        The known noise model.
+    """
 
     noise_model: NoiseModel
 

@@ -113,6 +113,22 @@ class PolePairGain(ModelStructure):
     """The paper's (27): G(s) = k0 / ((s - pr - i pi)(s - pr + i pi)), theta = (k0, pr, pi).
 
     Bounds keep the system stable (pr <= -pr_min) with a true complex pair (pi >= pi_min).
+
+    Parameters
+    ----------
+    pr_min : float, optional
+        Smallest decay rate -pr allowed, in rad/s.
+    pi_min : float, optional
+        Smallest imaginary part pi allowed, in rad/s.
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> model = jid.PolePairGain()
+    >>> model.param_names
+    ('k0', 'pr', 'pi')
+    >>> model.system([5.0, -1.0, 2.0]).den.tolist()
+    [1.0, 2.0, 5.0]
     """
 
     pr_min: float = 1e-6
@@ -159,6 +175,22 @@ class RationalModel(ModelStructure):
 
     Parameters are named ``b{m}..b0`` then ``a{n-1}..a0`` (as MATLAB's tfest). Requires
     ``num_order <= den_order`` (a proper model) and ``den_order >= 1``.
+
+    Parameters
+    ----------
+    num_order : int
+        Numerator order m (>= 0).
+    den_order : int
+        Denominator order n (>= 1).
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> model = jid.RationalModel(0, 2)
+    >>> model.param_names
+    ('b0', 'a1', 'a0')
+    >>> model.system([2.0, 3.0, 2.0]).den.tolist()
+    [1.0, 3.0, 2.0]
     """
 
     num_order: int
@@ -216,7 +248,13 @@ class RationalModel(ModelStructure):
 
 @dataclass(frozen=True, eq=False)
 class KnownSystem(ModelStructure):
-    """A fixed, known system (no free parameters), e.g. Table 1's G = 1/(s+2)."""
+    """A fixed, known system (no free parameters), e.g. Table 1's G = 1/(s+2).
+
+    Parameters
+    ----------
+    tf : TransferFunction
+        The known system.
+    """
 
     tf: TransferFunction
 

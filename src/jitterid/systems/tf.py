@@ -108,6 +108,11 @@ class TransferFunction:
     def frequency_response(self, f_hz: ArrayLike) -> ComplexArray:
         """G(i 2 pi f) at frequencies ``f_hz`` in Hz.
 
+        Parameters
+        ----------
+        f_hz : array_like
+            Frequencies in Hz.
+
         Examples
         --------
         >>> complex(TransferFunction([2.0], [1.0, 2.0]).frequency_response(0.0))
@@ -119,7 +124,13 @@ class TransferFunction:
 
     def freqresp(self, f: ArrayLike) -> ComplexArray:
         """Deprecated: :meth:`frequency_response` (which names its unit, Hz; scipy's
-        ``freqresp`` takes rad/s)."""
+        ``freqresp`` takes rad/s).
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies in Hz.
+        """
         warnings.warn(
             "TransferFunction.freqresp is deprecated; use frequency_response(f_hz) (Hz)",
             DeprecationWarning,
@@ -160,7 +171,13 @@ class TransferFunction:
     def response(self, u: Input) -> Signal:
         """The exact output s(t) = (g * u)(t) to input ``u`` from rest: a :class:`Response`,
         or with a delay the undelayed system's :class:`Response` delayed
-        (:class:`jitterid.systems.model.DelayedSignal`)."""
+        (:class:`jitterid.systems.model.DelayedSignal`).
+
+        Parameters
+        ----------
+        u : Input
+            The input, zero before it starts.
+        """
         if self.delay_s:
             return DelayedSignal(Response(self.undelayed, u), self.delay_s)
         return Response(self, u)
@@ -184,7 +201,13 @@ class TransferFunction:
         return rec, states
 
     def kept_switch_states(self, u: PiecewiseConstant) -> ComplexArray:
-        """:meth:`switch_states` over the poles with Im p >= 0 only, shape (J+1, n_kept)."""
+        """:meth:`switch_states` over the poles with Im p >= 0 only, shape (J+1, n_kept).
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
+        """
         return self._recursion(u)[1]
 
     def switch_states(self, u: PiecewiseConstant) -> ComplexArray:
@@ -192,6 +215,11 @@ class TransferFunction:
 
         x_{j+1} = e^{p dt_j} x_j + u_j expm1(p dt_j) / p from rest. A real input's state for
         a pole's conjugate is the conjugate, so only the poles with Im p >= 0 are solved for.
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
         """
         memo = self.__dict__.get("_states_memo")
         if memo is None or memo[0] is not u:
@@ -211,11 +239,22 @@ class TransferFunction:
 
         the same linear recursion with another forcing, solved with the same exponentials
         (a fraction of one recursion, against three for a difference in p).
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
         """
         return _conjugate_fill(self._modal[2], self.kept_switch_state_sensitivity(u))
 
     def kept_switch_state_sensitivity(self, u: PiecewiseConstant) -> ComplexArray:
-        """:meth:`switch_state_sensitivity` over the poles with Im p >= 0, (J+1, n_kept)."""
+        """:meth:`switch_state_sensitivity` over the poles with Im p >= 0, (J+1, n_kept).
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
+        """
         rec, X = self._recursion(u)
         q, dt, a = rec.p, rec.dt, rec.step
         forcing = dt * a * X[:-1] + u.levels[:, None] * (dt * a / q - rec.expm1 / q**2)

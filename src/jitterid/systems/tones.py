@@ -375,6 +375,14 @@ class SineWave(Model):
         return (*amps, len(self.param_names) - 1)
 
     def tones(self, params: ArrayLike) -> _ToneMap:
+        """theta -> (offset c, complex amplitudes a_h, angular frequencies w_h in rad/s),
+        with their derivatives with respect to the parameters.
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        """
         x = self._check(params)
         H, P = self.harmonics, x.size
         f = self.frequency_hz if self.frequency_hz is not None else float(x[2 * H])
@@ -504,6 +512,14 @@ class MultiTone(Model):
         return (*amps, 2 * J)
 
     def tones(self, params: ArrayLike) -> _ToneMap:
+        """theta -> (offset c, complex amplitudes a_h, angular frequencies w_h in rad/s),
+        with their derivatives with respect to the parameters.
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        """
         x = self._check(params)
         J, P = len(self.frequencies_hz), x.size
         j = np.arange(J)
