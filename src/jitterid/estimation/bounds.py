@@ -117,6 +117,15 @@ def crb(
     ndarray, shape (p, p)
         Lower bound on the covariance of any unbiased estimator, rows and columns in the
         order of ``true_params`` (plus ``noise_std`` last if ``estimate_noise``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> C = jid.crb(jid.RationalModel(0, 1), jid.Uniform(0.05), u, 0.1, 2000, 0.01, [2.0, 2.0])
+    >>> C.shape, bool(np.all(np.diag(C) > 0))
+    ((2, 2), True)
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
     lik = ExactLikelihood(

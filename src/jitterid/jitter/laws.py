@@ -343,6 +343,16 @@ class Uniform(JitterLaw):
     ----------
     a : float
         Half-width of the support, ``> 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> law = jid.Uniform(0.05)
+    >>> law.support
+    (-0.05, 0.05)
+    >>> round(float(law.pdf(0.0)), 6)
+    10.0
     """
 
     a: float
@@ -400,6 +410,14 @@ class Gaussian(JitterLaw):
     ----------
     sigma : float
         Standard deviation, ``> 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> law = jid.Gaussian(0.01)
+    >>> round(float(law.std), 6)
+    0.01
     """
 
     sigma: float

@@ -48,6 +48,16 @@ class TransferFunction:
     Frequencies are in Hz throughout: ``frequency_response(f_hz)`` returns G(i 2 pi f). Simulation
     (:meth:`response`) needs a stable model with distinct poles; poles closer than 1e-6
     (relative) are refused, and accuracy degrades like 1e-16 / (pole separation).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> G = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> abs(complex(G.frequency_response(0.0)))
+    1.0
+    >>> G.poles.tolist()
+    [(-2+0j)]
     """
 
     num: FloatArray
