@@ -724,6 +724,22 @@ def load(
     ------
     DataFileError
         For every malformed file, naming the file, the line or index and the column.
+
+    Examples
+    --------
+    Write samples and their input, then load them back for :func:`jitterid.fit`:
+
+    >>> import os, tempfile
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(20.0, rng=1)
+    >>> data = jid.simulate(jid.TransferFunction([2.0], [1.0, 2.0]), u, jid.Uniform(0.05),
+    ...                     T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = jid.save_data(os.path.join(tmp, "y.csv"), data)
+    ...     upath = jid.save_input(os.path.join(tmp, "u.csv"), u)
+    ...     ds = jid.load(path, upath)
+    >>> ds.data.y.shape, ds.data.T, ds.data.u is not None
+    ((100,), 0.1, True)
     """
     tab = _read(path, "data")
     _require_columns(tab, _DATA_COLUMNS, "data", "'k' or 't', 'y' and optionally 'u'")
@@ -968,6 +984,20 @@ def save_data(
     -------
     Path
         The file written. The input is saved separately with :func:`save_input`.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(20.0, rng=1)
+    >>> data = jid.simulate(jid.TransferFunction([2.0], [1.0, 2.0]), u, jid.Uniform(0.05),
+    ...                     T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = jid.save_data(os.path.join(tmp, "run.csv"), data)
+    ...     back = jid.load(path, require_input=False)
+    >>> path.name, bool(np.allclose(back.data.y, data.y))
+    ('run.csv', True)
     """
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")

@@ -186,6 +186,14 @@ def dtft(y: ArrayLike, T: float, f: ArrayLike) -> ComplexArray:
     ndarray of complex, shape ``y.shape[:-1] + f.shape``
         ``Y_d(f)``.  Work is chunked over ``f`` so that no temporary exceeds a few tens of
         MiB.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> Y = jid.dtft([1.0, 1.0, 1.0, 1.0], T=0.5, f=[0.0, 0.5])
+    >>> np.abs(Y).round(6).tolist()
+    [4.0, 0.0]
     """
     y_arr = _finite_array(y, "y")
     if y_arr.ndim < 1 or y_arr.shape[-1] < 1:
@@ -240,6 +248,16 @@ def dirichlet(f: ArrayLike, N: int, T: float) -> ComplexArray:
     is ``N``, which equals ``N exp(-i pi f (N-1) T) (-1)^{n (N-1)}`` with ``n = f T``, i.e. the
     explicit sum.  Near those points the ratio of two small sines keeps full relative
     accuracy.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> d = jid.dirichlet([0.0, 0.5, 0.25], N=4, T=0.5)
+    >>> np.abs(d).round(6).tolist()
+    [4.0, 0.0, 2.613126]
+    >>> bool(np.allclose(d, jid.dtft(np.ones(4), 0.5, [0.0, 0.5, 0.25])))
+    True
     """
     N = count(N, "N", minimum=1)
     T = positive(T, "T")
