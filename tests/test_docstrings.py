@@ -27,7 +27,36 @@ ALLOW: dict[str, str] = {}
 # Classes whose public methods must document every parameter. Other classes' methods may
 # keep a one-line docstring (numpydoc-lite: ``pdf(tau)``, "Density at tau."), but once a
 # method has a Parameters section it must be complete, ordered and current.
-STRICT_METHODS = {"FitResult", "TransferFunction"}
+STRICT_METHODS = {
+    "FitResult",
+    "TransferFunction",
+    "Input",
+    "Multisine",
+    "PiecewiseConstant",
+    "Signal",
+    "Model",
+    "SignalModel",
+    "SineWave",
+    "MultiTone",
+    "NoiseModel",
+    "JitteredAutocovariance",
+    "JitterLaw",
+    "NoJitter",
+    "Uniform",
+    "Gaussian",
+    "SumOfUniforms",
+    "Shifted",
+    "CustomJitter",
+    "DualDirac",
+    "DualDiracFamily",
+    "GaussianFamily",
+    "GeneralizedNormal",
+    "GeneralizedNormalFamily",
+    "JitterDetection",
+    "ResidualTest",
+    "JitterMeasurement",
+    "OrderSelection",
+}
 
 # The hooks fit's machinery calls (estimator criteria and gradients, model structures'
 # starts/system/coefficient Jacobians, the banded covariance operator): internal

@@ -42,11 +42,25 @@ class Input:
         raise NotImplementedError
 
     def fourier(self, psi: ArrayLike) -> NDArray[np.complex128]:  # pragma: no cover
-        """Continuous-time Fourier transform U(psi) = int u(t) exp(-i 2 pi psi t) dt."""
+        """Continuous-time Fourier transform U(psi) = int u(t) exp(-i 2 pi psi t) dt.
+
+        Parameters
+        ----------
+        psi : array_like
+            Frequencies in Hz.
+        """
         raise NotImplementedError
 
     def check_covers(self, t_max: float, what: str = "the sampled interval") -> None:
-        """Raise ValueError if the input ends before ``t_max``."""
+        """Raise ValueError if the input ends before ``t_max``.
+
+        Parameters
+        ----------
+        t_max : float
+            The last instant (s) that must be covered.
+        what : str, optional
+            What ``t_max`` is, for the error message.
+        """
         if t_max >= self.end:
             raise ValueError(
                 f"the input ends at t = {self.end:g} but {what} reaches t = {t_max:g}; "
@@ -106,7 +120,13 @@ class PiecewiseConstant(Input):
         return np.where(inside, self.levels[np.clip(j, 0, self.levels.size - 1)], 0.0)
 
     def fourier(self, psi: ArrayLike) -> NDArray[np.complex128]:
-        """U(psi) = sum_j u_j int_{t_j}^{t_{j+1}} exp(-i 2 pi psi t) dt, exact."""
+        """U(psi) = sum_j u_j int_{t_j}^{t_{j+1}} exp(-i 2 pi psi t) dt, exact.
+
+        Parameters
+        ----------
+        psi : array_like
+            Frequencies in Hz.
+        """
         psi = np.asarray(psi, dtype=float)
         flat = psi.ravel()
         out = np.empty(flat.size, complex)

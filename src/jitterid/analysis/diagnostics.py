@@ -158,7 +158,13 @@ class JitterDetection:
     slopes: FloatArray
 
     def detected(self, alpha: float = 0.05) -> bool:
-        """True if the test rejects "no jitter" at significance ``alpha``."""
+        """True if the test rejects "no jitter" at significance ``alpha``.
+
+        Parameters
+        ----------
+        alpha : float, optional
+            Significance level of the test, in (0, 1).
+        """
         return bool(self.pvalue < _level(alpha))
 
     def summary(self) -> str:
@@ -455,7 +461,13 @@ class ResidualTest:
     values: FloatArray
 
     def passed(self, alpha: float = 0.05) -> bool:
-        """True if H0 (white / independent) is not rejected at significance ``alpha``."""
+        """True if H0 (white / independent) is not rejected at significance ``alpha``.
+
+        Parameters
+        ----------
+        alpha : float, optional
+            Significance level of the test, in (0, 1).
+        """
         return bool(self.pvalue >= _level(alpha))
 
     def summary(self) -> str:

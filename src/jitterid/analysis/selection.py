@@ -294,7 +294,13 @@ class OrderSelection:
         return tuple(r.label for r in self.rows)
 
     def row(self, label: str) -> OrderRow:
-        """The row of ``label``."""
+        """The row of ``label``.
+
+        Parameters
+        ----------
+        label : str
+            The candidate's label, as in the table.
+        """
         for r in self.rows:
             if r.label == label:
                 return r

@@ -183,7 +183,13 @@ class JitterMeasurement:
     T: float
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
-        """Normal-approximation interval of the jitter std, cut at 0."""
+        """Normal-approximation interval of the jitter std, cut at 0.
+
+        Parameters
+        ----------
+        level : float, optional
+            Coverage, in (0, 1).
+        """
         if not 0 < level < 1:
             raise ValueError(f"level must lie in (0, 1); got {level!r}")
         from scipy.stats import norm

@@ -167,7 +167,13 @@ class JitteredAutocovariance:
         return np.asarray(np.where(m < self.start, near, np.real(geo)), dtype=float)
 
     def sequence(self, n: int) -> FloatArray:
-        """gamma(0), ..., gamma(n - 1)."""
+        """gamma(0), ..., gamma(n - 1).
+
+        Parameters
+        ----------
+        n : int
+            Number of lags.
+        """
         return self(np.arange(count(n, "n", minimum=0)))
 
     def spectrum(self, f: ArrayLike) -> FloatArray:
@@ -175,6 +181,11 @@ class JitteredAutocovariance:
 
         The geometric tail is summed in closed form: sum_{m >= M0} z^(m - M0) e^{-i w m} =
         e^{-i w M0} / (1 - z e^{-i w}), w = 2 pi f T.
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies in Hz.
         """
         ff = real_array(f, "f")
         e = np.exp(-2j * np.pi * ff * self.T)[..., None]

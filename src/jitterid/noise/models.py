@@ -115,13 +115,25 @@ class NoiseModel:
         return float(np.sum(c).real)
 
     def autocovariance(self, t: ArrayLike) -> FloatArray:
-        """r_v(t) = E[v(s) v(s + t)], eq. (N1), at lags ``t`` (seconds, any shape)."""
+        """r_v(t) = E[v(s) v(s + t)], eq. (N1), at lags ``t`` (seconds, any shape).
+
+        Parameters
+        ----------
+        t : array_like
+            Lags in s, any shape.
+        """
         c, p = self.modes
         tt = np.abs(real_array(t, "t"))[..., None]
         return np.asarray((np.exp(p * tt) @ c).real, dtype=float)
 
     def spectrum(self, f: ArrayLike) -> FloatArray:
-        """Two-sided power spectral density S_v(f) = lambda |H(i 2 pi f)|^2 per Hz, eq. (N2)."""
+        """Two-sided power spectral density S_v(f) = lambda |H(i 2 pi f)|^2 per Hz, eq. (N2).
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies in Hz, any shape.
+        """
         return self.intensity * np.abs(self.tf.frequency_response(real_array(f, "f"))) ** 2
 
     def sample(self, instants: ArrayLike, rng: np.random.Generator | int) -> FloatArray:

@@ -317,7 +317,15 @@ class Response(Signal):
         object.__setattr__(self, "rate", rate)
 
     def check_covers(self, t_max: float, what: str) -> None:
-        """Refuse instants past the input's end (:meth:`jitterid.inputs.Input.check_covers`)."""
+        """Refuse instants past the input's end (:meth:`jitterid.inputs.Input.check_covers`).
+
+        Parameters
+        ----------
+        t_max : float
+            The last instant (s) that must be covered.
+        what : str
+            What ``t_max`` is, for the error message.
+        """
         self.u.check_covers(t_max, what)
 
     @property

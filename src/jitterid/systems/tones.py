@@ -409,13 +409,27 @@ class SineWave(Model):
         return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, dw, d2a)
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
-        """s(t; params); ``u`` is ignored (the model has no input)."""
+        """s(t; params); ``u`` is ignored (the model has no input).
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        u : Input, optional
+            Unused: a signal model has no input.
+        """
         return ToneSignal(self.tones(params))
 
     # ---------------------------------------------------------------- starts
     def start_frequencies(self, data: SampledData) -> list[float]:
         """The starting frequencies in Hz: the known one, or the four-parameter fit's at the
-        periodogram's peak, with every alias inside ``band_hz``."""
+        periodogram's peak, with every alias inside ``band_hz``.
+
+        Parameters
+        ----------
+        data : SampledData
+            The data to be fitted.
+        """
         if self.frequency_hz is not None:
             return [float(self.frequency_hz)]
         from ..metrology.sinefit import periodogram_peak, sine_fit_4
@@ -540,7 +554,15 @@ class MultiTone(Model):
         return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, np.zeros((P, J)), d2a)
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
-        """s(t; params); ``u`` is ignored (the model has no input)."""
+        """s(t; params); ``u`` is ignored (the model has no input).
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        u : Input, optional
+            Unused: a signal model has no input.
+        """
         return ToneSignal(self.tones(params))
 
     def initial_points(self, data: SampledData) -> list[FloatArray]:
