@@ -24,40 +24,6 @@ import jitterid
 # Genuine exceptions, each with its reason. Keys are test ids ("name" or "Class.method").
 ALLOW: dict[str, str] = {}
 
-# Classes whose public methods must document every parameter. Other classes' methods may
-# keep a one-line docstring (numpydoc-lite: ``pdf(tau)``, "Density at tau."), but once a
-# method has a Parameters section it must be complete, ordered and current.
-STRICT_METHODS = {
-    "FitResult",
-    "TransferFunction",
-    "Input",
-    "Multisine",
-    "PiecewiseConstant",
-    "Signal",
-    "Model",
-    "SignalModel",
-    "SineWave",
-    "MultiTone",
-    "NoiseModel",
-    "JitteredAutocovariance",
-    "JitterLaw",
-    "NoJitter",
-    "Uniform",
-    "Gaussian",
-    "SumOfUniforms",
-    "Shifted",
-    "CustomJitter",
-    "DualDirac",
-    "DualDiracFamily",
-    "GaussianFamily",
-    "GeneralizedNormal",
-    "GeneralizedNormalFamily",
-    "JitterDetection",
-    "ResidualTest",
-    "JitterMeasurement",
-    "OrderSelection",
-}
-
 # The hooks fit's machinery calls (estimator criteria and gradients, model structures'
 # starts/system/coefficient Jacobians, the banded covariance operator): internal
 # protocols that happen to be public methods, not user API. Their classes' constructors
@@ -201,9 +167,6 @@ def test_docstring(obj: object, kind: str, request: pytest.FixtureRequest) -> No
     if expected is None:
         return
     documented = _documented(doc["Parameters"])
-    owner = test_id.split(".")[0]
-    if kind == "method" and owner not in STRICT_METHODS and not documented:
-        return  # a one-line method docstring (see STRICT_METHODS)
     if kind == "class" and dataclasses.is_dataclass(obj) and not documented:
         documented = _documented(doc["Attributes"])
         # Attributes may also list properties and init=False fields: those are not stale.

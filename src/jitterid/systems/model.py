@@ -148,7 +148,25 @@ class Signal(abc.ABC):
         :func:`jitterid.moments.sample.moment_pass` defines them, or None: no closed form
         (the default; the moments are then quadratures over the jitter at nodes). A signal
         that has one (a sum of tones, through the jitter's characteristic function:
-        :class:`jitterid.systems.tones.ToneSignal`) overrides this."""
+        :class:`jitterid.systems.tones.ToneSignal`) overrides this.
+
+        Parameters
+        ----------
+        jitter : JitterLaw
+            The sampling jitter's law.
+        T : float
+            Nominal sampling interval (s).
+        N : int
+            Number of samples.
+        variance : bool, optional
+            Also the variances.
+        gradient : bool, optional
+            Also the derivatives.
+        scale : float, optional
+            The jitter scale, for the derivative with respect to it.
+        higher : bool, optional
+            Also the third and fourth central moments.
+        """
         return None
 
     def check_covers(self, t_max: float, what: str) -> None:
