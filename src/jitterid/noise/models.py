@@ -203,10 +203,28 @@ class NoiseStructure(abc.ABC):
     bounds: Bounds
 
     @abc.abstractmethod
-    def model(self, params: ArrayLike) -> NoiseModel: ...
+    def model(self, params: ArrayLike) -> NoiseModel:
+        """H_eta at ``params``.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        """
+        ...
 
     @abc.abstractmethod
-    def starts(self, T: float, scale: float) -> list[FloatArray]: ...
+    def starts(self, T: float, scale: float) -> list[FloatArray]:
+        """A few starting parameter vectors for data sampled every ``T``.
+
+        Parameters
+        ----------
+        T : float
+            Nominal sampling interval (s).
+        scale : float
+            The noise level to start from (the std of the residuals to be explained).
+        """
+        ...
 
     @property
     def gain_params(self) -> tuple[int, ...]:
@@ -286,6 +304,13 @@ class RationalNoise(NoiseStructure):
         and c_j = B(p_j) B(-p_j) / (A'(p_j) A(-p_j)) =: f(p_j) (unit intensity) gives
         dc_j = df + f'(p_j) dp_j, where d acts on the coefficients at fixed p. ``model``:
         ``model(params)`` if already built.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        model : NoiseModel, optional
+            ``model(params)`` if already built.
         """
         model = self.model(params) if model is None else model
         num, den = model.tf.num, model.tf.den
