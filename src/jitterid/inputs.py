@@ -42,11 +42,25 @@ class Input:
         raise NotImplementedError
 
     def fourier(self, psi: ArrayLike) -> NDArray[np.complex128]:  # pragma: no cover
-        """Continuous-time Fourier transform U(psi) = int u(t) exp(-i 2 pi psi t) dt."""
+        """Continuous-time Fourier transform U(psi) = int u(t) exp(-i 2 pi psi t) dt.
+
+        Parameters
+        ----------
+        psi : array_like
+            Frequencies in Hz.
+        """
         raise NotImplementedError
 
     def check_covers(self, t_max: float, what: str = "the sampled interval") -> None:
-        """Raise ValueError if the input ends before ``t_max``."""
+        """Raise ValueError if the input ends before ``t_max``.
+
+        Parameters
+        ----------
+        t_max : float
+            The last instant (s) that must be covered.
+        what : str, optional
+            What ``t_max`` is, for the error message.
+        """
         if t_max >= self.end:
             raise ValueError(
                 f"the input ends at t = {self.end:g} but {what} reaches t = {t_max:g}; "
@@ -106,7 +120,13 @@ class PiecewiseConstant(Input):
         return np.where(inside, self.levels[np.clip(j, 0, self.levels.size - 1)], 0.0)
 
     def fourier(self, psi: ArrayLike) -> NDArray[np.complex128]:
-        """U(psi) = sum_j u_j int_{t_j}^{t_{j+1}} exp(-i 2 pi psi t) dt, exact."""
+        """U(psi) = sum_j u_j int_{t_j}^{t_{j+1}} exp(-i 2 pi psi t) dt, exact.
+
+        Parameters
+        ----------
+        psi : array_like
+            Frequencies in Hz.
+        """
         psi = np.asarray(psi, dtype=float)
         flat = psi.ravel()
         out = np.empty(flat.size, complex)
@@ -129,12 +149,14 @@ class Multisine(Input):
 
     Parameters
     ----------
-    freqs, amplitudes, phases : array_like
-        Frequencies in Hz (>= 0), amplitudes and phases in radians (default 0).
+    freqs, amplitudes : array_like
+        Frequencies in Hz (>= 0) and amplitudes, of equal length.
     end : float
-        End of the input; sampling at or past it is an error.
+        End of the input (s); sampling at or past it is an error.
+    phases : array_like, optional
+        Phases in radians (default 0).
     start : float
-        Switch-on time (default 0). Ignored when ``steady_state`` is True.
+        Switch-on time in s (default 0). Ignored when ``steady_state`` is True.
     steady_state : bool
         If True the sinusoids have been on forever (no start transient): the input is
         defined for every t < end and a system's response is its periodic steady state.
@@ -212,6 +234,17 @@ def telegraph_input(
         The two levels (default +-0.5 as in the paper).
     mean_hold : float
         Mean holding time in seconds (default 1 s as in the paper).
+
+    Returns
+    -------
+    PiecewiseConstant
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(10.0, rng=0)
+    >>> sorted(set(u.levels.tolist()))
+    [-0.5, 0.5]
     """
     duration = positive(duration, "duration")
     mean_hold = positive(mean_hold, "mean_hold")
@@ -244,6 +277,26 @@ def zoh_input(samples: ArrayLike, T: float, start: float = 0.0) -> PiecewiseCons
     """Zero-order hold of ``samples`` on the grid ``start + k T`` (a DAC's output).
 
     The last sample is held for one interval, so the input ends at ``start + len(samples) T``.
+
+    Parameters
+    ----------
+    samples : array_like, shape (n,)
+        The held values, at least one.
+    T : float
+        Hold interval (s).
+    start : float, optional
+        Time of the first sample (s).
+
+    Returns
+    -------
+    PiecewiseConstant
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> u = jid.zoh_input([0.0, 1.0, -1.0], T=0.5)
+    >>> u.times.tolist(), u.levels.tolist()
+    ([0.0, 0.5, 1.0, 1.5], [0.0, 1.0, -1.0])
     """
     T = positive(T, "T")
     u = real_array(samples, "samples", ndim=1)

@@ -110,7 +110,17 @@ class DataFileError(ValueError):
 
 @dataclass(frozen=True)
 class Source:
-    """A file that went into a data set: its role, path and SHA-256 checksum."""
+    """A file that went into a data set: its role, path and SHA-256 checksum.
+
+    Parameters
+    ----------
+    role : str
+        What the file holds (e.g. data, input, sidecar).
+    path : str
+        The file's path, as read.
+    sha256 : str
+        Hex SHA-256 checksum of its bytes.
+    """
 
     role: str
     path: str
@@ -714,6 +724,22 @@ def load(
     ------
     DataFileError
         For every malformed file, naming the file, the line or index and the column.
+
+    Examples
+    --------
+    Write samples and their input, then load them back for :func:`jitterid.fit`:
+
+    >>> import os, tempfile
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(20.0, rng=1)
+    >>> data = jid.simulate(jid.TransferFunction([2.0], [1.0, 2.0]), u, jid.Uniform(0.05),
+    ...                     T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = jid.save_data(os.path.join(tmp, "y.csv"), data)
+    ...     upath = jid.save_input(os.path.join(tmp, "u.csv"), u)
+    ...     ds = jid.load(path, upath)
+    >>> ds.data.y.shape, ds.data.T, ds.data.u is not None
+    ((100,), 0.1, True)
     """
     tab = _read(path, "data")
     _require_columns(tab, _DATA_COLUMNS, "data", "'k' or 't', 'y' and optionally 'u'")
@@ -958,6 +984,20 @@ def save_data(
     -------
     Path
         The file written. The input is saved separately with :func:`save_input`.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(20.0, rng=1)
+    >>> data = jid.simulate(jid.TransferFunction([2.0], [1.0, 2.0]), u, jid.Uniform(0.05),
+    ...                     T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = jid.save_data(os.path.join(tmp, "run.csv"), data)
+    ...     back = jid.load(path, require_input=False)
+    >>> path.name, bool(np.allclose(back.data.y, data.y))
+    ('run.csv', True)
     """
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData; got {type(data).__name__}")
@@ -1002,9 +1042,9 @@ def save_input(
     t0 : float
         File time of the library's t = 0 (s).
     T : float, optional
-        If given, the input must be a zero-order hold on the grid k T (as from
-        :func:`jitterid.zoh_input`) and is written as columns ``t,u``; otherwise as switch
-        times ``time,level`` with metadata ``end``.
+        Hold interval (s). If given, the input must be a zero-order hold on the grid k T
+        (as from :func:`jitterid.zoh_input`) and is written as columns ``t,u``; otherwise
+        as switch times ``time,level`` with metadata ``end``.
     metadata : mapping, optional
         Extra metadata such as ``u_unit``; ``time_unit`` (default ``s``) is the unit the
         times are written in (they are converted).

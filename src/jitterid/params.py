@@ -86,6 +86,19 @@ class ParamLayout:
         ``jitter``, ``structure`` and ``noise`` contribute their ``param_names`` and
         ``bounds`` when they have them (a jitter family, a model structure, a noise-model
         structure); a known law, a known system or ``None`` contribute nothing.
+
+        Parameters
+        ----------
+        jitter : JitterLaw, JitterFamily or None
+            The jitter part.
+        structure : Model, TransferFunction or None
+            The system or signal part.
+        noise : NoiseStructure, NoiseModel or None
+            The coloured-noise part.
+        noise_std : bool, optional
+            Whether the white-noise std is a last, estimated parameter.
+        noise_floor : float, optional
+            Lower bound of an estimated noise std; default 1e-12.
         """
 
         def part(obj: Any) -> tuple[tuple[str, ...], Bounds]:
@@ -109,7 +122,13 @@ class ParamLayout:
         return len(self.names)
 
     def slice(self, block: str) -> slice:
-        """The positions of ``block`` (one of :data:`BLOCKS`) in the vector."""
+        """The positions of ``block`` (one of :data:`BLOCKS`) in the vector.
+
+        Parameters
+        ----------
+        block : str
+            One of :data:`BLOCKS`.
+        """
         sizes = {
             "jitter": len(self.jitter),
             "system": len(self.system),
@@ -126,7 +145,15 @@ class ParamLayout:
         raise AssertionError  # pragma: no cover
 
     def block(self, x: Any, block: str) -> FloatArray:
-        """The entries of ``x`` (a vector in layout order) that belong to ``block``."""
+        """The entries of ``x`` (a vector in layout order) that belong to ``block``.
+
+        Parameters
+        ----------
+        x : array_like
+            A vector in layout order.
+        block : str
+            One of :data:`BLOCKS`.
+        """
         return np.asarray(x, float)[self.slice(block)]
 
     def lower_upper(self) -> tuple[FloatArray, FloatArray]:
@@ -136,7 +163,13 @@ class ParamLayout:
 
     # ------------------------------------------------------------------ conversions
     def to_dict(self, x: Any) -> dict[str, float]:
-        """``{name: value}`` of a vector in layout order."""
+        """``{name: value}`` of a vector in layout order.
+
+        Parameters
+        ----------
+        x : array_like
+            A vector in layout order.
+        """
         v = np.asarray(x, float).reshape(-1)
         if v.size != self.size:
             raise ValueError(f"expected {self.size} values {self.names}; got {v.size}")

@@ -47,7 +47,7 @@ def simulate(
     jitter : JitterLaw
         Law of the sampling-time jitter tau_k.
     T : float
-        Nominal sampling interval (> 0).
+        Nominal sampling interval (s) (> 0).
     N : int
         Number of samples (>= 4).
     noise_std : float
@@ -64,6 +64,16 @@ def simulate(
     -------
     SampledData
         With ``instants`` holding the true sampling instants (for diagnostics).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = jid.telegraph_input(20.0, rng=1)
+    >>> data = jid.simulate(sys, u, jid.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> data.y.shape, data.T
+    ((100,), 0.1)
     """
     T = positive(T, "T")
     N = count(N, "N", minimum=4)

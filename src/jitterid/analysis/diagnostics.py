@@ -158,7 +158,13 @@ class JitterDetection:
     slopes: FloatArray
 
     def detected(self, alpha: float = 0.05) -> bool:
-        """True if the test rejects "no jitter" at significance ``alpha``."""
+        """True if the test rejects "no jitter" at significance ``alpha``.
+
+        Parameters
+        ----------
+        alpha : float, optional
+            Significance level of the test, in (0, 1).
+        """
         return bool(self.pvalue < _level(alpha))
 
     def summary(self) -> str:
@@ -211,6 +217,18 @@ def detect_jitter(
     U(-0.5, 0.5)). Fit a jitter family for an accurate std with a calibrated interval. The
     model must be right: an under-modelled system leaves slope-correlated residuals that
     also raise the statistic.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> data = jid.simulate(sys, u, jid.Uniform(0.05), T=0.1, N=2000, noise_std=0.01, rng=2)
+    >>> res = jid.fit(data, jid.RationalModel(0, 1), jid.Uniform(0.05))
+    >>> det = jid.detect_jitter(data, res)
+    >>> det.detected()
+    True
     """
     level = _level(level)
     s, slope = model_output(data, model)
@@ -443,7 +461,13 @@ class ResidualTest:
     values: FloatArray
 
     def passed(self, alpha: float = 0.05) -> bool:
-        """True if H0 (white / independent) is not rejected at significance ``alpha``."""
+        """True if H0 (white / independent) is not rejected at significance ``alpha``.
+
+        Parameters
+        ----------
+        alpha : float, optional
+            Significance level of the test, in (0, 1).
+        """
         return bool(self.pvalue >= _level(alpha))
 
     def summary(self) -> str:

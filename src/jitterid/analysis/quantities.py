@@ -126,6 +126,15 @@ class PhysicalQuantities:
     Index by name (``pq["zeta"]``, a :class:`Quantity`), iterate over the rows, ``len``,
     ``in``; :meth:`summary` is a text table, :meth:`to_dict` JSON-ready values (NaN kept as
     float NaN).
+
+    Parameters
+    ----------
+    quantities : tuple of Quantity
+        The rows.
+    level : float
+        Coverage of the intervals, in (0, 1).
+    method : str
+        How the intervals were computed: ``"delta"`` or ``"sampling"``.
     """
 
     quantities: tuple[Quantity, ...]
@@ -462,6 +471,20 @@ def physical_quantities(
         For a signal-model fit (no transfer function); a bad ``level`` or ``method``; for
         ``"sampling"``, if fewer than 90 % of the draws give a valid system inside the
         structure's bounds (the normal approximation is then too poor).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> data = jid.simulate(sys, u, jid.Uniform(0.05), T=0.1, N=2000, noise_std=0.01, rng=2)
+    >>> res = jid.fit(data, jid.RationalModel(0, 1), jid.Uniform(0.05))
+    >>> pq = jid.physical_quantities(res)
+    >>> pq.names
+    ('pole_re_per_s', 'dc_gain', 'bandwidth_hz', 'tau_s')
+    >>> round(pq["tau_s"].value, 1)
+    0.5
     """
     level = _level(level)
     if method not in _METHODS:

@@ -223,6 +223,20 @@ def step_response(
     ValueError
         For a signal-model fit, negative times, a bad ``level`` or ``method``; for
         ``"sampling"``, if fewer than 90 % of the draws give a valid model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> data = jid.simulate(sys, u, jid.Uniform(0.05), T=0.1, N=2000, noise_std=0.01, rng=2)
+    >>> res = jid.fit(data, jid.RationalModel(0, 1), jid.Uniform(0.05))
+    >>> band = jid.step_response(res, [0.0, 1.0, 3.0])
+    >>> band.response.round(2).tolist()
+    [0.0, 0.86, 1.0]
+    >>> bool(np.all(band.lo <= band.hi))
+    True
     """
     return _band(result, t_s, "step", level, method, draws, rng)
 
@@ -238,5 +252,26 @@ def impulse_response(
 ) -> TimeResponseBand:
     """The impulse response g(t) of an LTI fit at times ``t_s`` (s) with a pointwise band;
     the options as :func:`step_response`. A biproper model's Dirac term D delta(t) is not in
-    the response (``note`` gives D)."""
+    the response (``note`` gives D).
+
+    Parameters
+    ----------
+    result : FitResult
+        A fit of an LTI structure (``result.system`` a TransferFunction).
+    t_s : array_like
+        Times (s) after the impulse, >= 0.
+    level : float
+        Confidence level in (0, 1).
+    method : {"delta", "sampling"}
+        As in :func:`step_response`.
+    draws : int
+        Number of parameter draws for ``"sampling"`` (at least 100).
+    rng : numpy.random.Generator or int
+        Source of randomness, required for ``"sampling"``.
+
+    Returns
+    -------
+    TimeResponseBand
+        ``kind="impulse"``.
+    """
     return _band(result, t_s, "impulse", level, method, draws, rng)

@@ -294,7 +294,13 @@ class OrderSelection:
         return tuple(r.label for r in self.rows)
 
     def row(self, label: str) -> OrderRow:
-        """The row of ``label``."""
+        """The row of ``label``.
+
+        Parameters
+        ----------
+        label : str
+            The candidate's label, as in the table.
+        """
         for r in self.rows:
             if r.label == label:
                 return r
@@ -830,6 +836,17 @@ def select_order(
         structures with signal models; ``criterion`` unknown or ``"validation"`` without
         ``validation``; a ``method`` or fit option that :func:`jitterid.fit` would refuse
         for every candidate. A single candidate's failure is its row, never an error.
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> data = jid.simulate(sys, u, jid.Uniform(0.05), T=0.1, N=2000, noise_std=0.01, rng=2)
+    >>> candidates = [jid.RationalModel(0, 1), jid.RationalModel(1, 2)]
+    >>> sel = jid.select_order(data, candidates, jid.Uniform(0.05))
+    >>> sel.best.label
+    'tf:0,1'
     """
     if not isinstance(data, SampledData):
         raise TypeError(f"data must be a SampledData (see jitterid.simulate, jitterid.load); got {type(data).__name__}")

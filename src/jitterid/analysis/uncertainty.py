@@ -176,6 +176,18 @@ def bode_band(
     ValueError
         For ``"sampling"``, if fewer than 90 % of the draws lie inside the structure's
         bounds: the normal approximation is then too poor for a band.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> data = jid.simulate(sys, u, jid.Uniform(0.05), T=0.1, N=2000, noise_std=0.01, rng=2)
+    >>> res = jid.fit(data, jid.RationalModel(0, 1), jid.Uniform(0.05))
+    >>> band = jid.bode_band(res, [0.1, 1.0])
+    >>> band.magnitude.shape
+    (2,)
     """
     level = _level(level)
     if not _is_fit(result):

@@ -88,7 +88,7 @@ def crb(
     input : Input or None
         The known input (None for a signal model).
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     N : int
         Number of samples.
     noise_std : float
@@ -117,6 +117,15 @@ def crb(
     ndarray, shape (p, p)
         Lower bound on the covariance of any unbiased estimator, rows and columns in the
         order of ``true_params`` (plus ``noise_std`` last if ``estimate_noise``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> u = jid.telegraph_input(200.0, rng=1)
+    >>> C = jid.crb(jid.RationalModel(0, 1), jid.Uniform(0.05), u, 0.1, 2000, 0.01, [2.0, 2.0])
+    >>> C.shape, bool(np.all(np.diag(C) > 0))
+    ((2, 2), True)
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
     lik = ExactLikelihood(
@@ -177,6 +186,26 @@ def gaussian_bound(
     criterion attains when the samples really are Gaussian with those moments. Arguments as
     in :func:`crb`; the derivatives dm, dw from the moments' derivative pass (analytic where
     the model declares them; :mod:`jitterid.estimation.jacobians`).
+
+    Parameters
+    ----------
+    system_structure, jitter, input
+        As in :func:`crb`.
+    T : float
+        Nominal sampling interval (s).
+    N : int
+        Number of samples.
+    noise_std : float
+        The measurement-noise std (> 0).
+    true_params : dict, array_like or FitResult
+        The point of evaluation, as in :func:`crb`.
+    estimate_noise : bool, optional
+        Whether the noise std is a last, estimated parameter (as in :func:`crb`).
+
+    Returns
+    -------
+    ndarray, shape (P, P)
+        The bound's covariance matrix.
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
     if estimate_noise:

@@ -595,7 +595,7 @@ class ExactLikelihood:
     u : Input or None
         The known input (None for a signal model with no input).
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     N : int
         Number of samples.
     noise_std : float or None
@@ -683,7 +683,13 @@ class ExactLikelihood:
         return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
 
     def split(self, x: ArrayLike) -> tuple[JitterLaw, Signal, float]:
-        """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``."""
+        """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``.
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        """
         x = np.atleast_1d(real_array(x, "x"))
         if x.shape != (len(self.names),):
             raise ValueError(f"x must hold {len(self.names)} values {self.names}; got {x.shape}")
@@ -702,7 +708,13 @@ class ExactLikelihood:
         return law, sig, sigma
 
     def design(self, x: ArrayLike) -> None:
-        """(Re-)design the quadrature rule for the signal and noise level at ``x``."""
+        """(Re-)design the quadrature rule for the signal and noise level at ``x``.
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        """
         law, sig, sigma = self.split(x)
         lo, hi = law.support
         width = hi - lo
@@ -902,7 +914,15 @@ class ExactLikelihood:
 
     # -------------------------------------------------------------- values and derivatives
     def logpdf(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
-        """ln p(y_k | x) for every sample, eq. (L1); shape (N,)."""
+        """ln p(y_k | x) for every sample, eq. (L1); shape (N,).
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        y : array_like, shape (N,)
+            The samples.
+        """
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
         out = np.empty(self.N)
         for ev in self._evals(x, y):
@@ -910,11 +930,27 @@ class ExactLikelihood:
         return out
 
     def loglik(self, x: ArrayLike, y: ArrayLike) -> float:
-        """sum_k ln p(y_k | x)."""
+        """sum_k ln p(y_k | x).
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        y : array_like, shape (N,)
+            The samples.
+        """
         return float(np.sum(self.logpdf(x, y)))
 
     def dlogpdf_dy(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
-        """d ln p(y_k | x) / d y_k for every sample, eq. (L2); shape (N,)."""
+        """d ln p(y_k | x) / d y_k for every sample, eq. (L2); shape (N,).
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        y : array_like, shape (N,)
+            The samples.
+        """
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
         _, _, sigma = self.split(x)
         out = np.empty(self.N)
@@ -929,6 +965,13 @@ class ExactLikelihood:
         System parameters by (L2) with ds/dtheta from the modal form (forward differences of
         s, relative step 1e-7, for inputs that are not piecewise constant), noise std
         analytic, jitter-family parameters by forward differences of ln p (step 1e-7).
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        y : array_like, shape (N,)
+            The samples.
         """
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
         logp, G, _ = self._terms(x, y, information=False)
@@ -937,7 +980,13 @@ class ExactLikelihood:
     def analytic_scores(self, x: ArrayLike) -> bool:
         """Whether every parameter's score at ``x`` is analytic ((L2) with ds/dtheta from
         the modal form or the model's gradient, the jitter scale from the slope, the noise
-        std in closed form): no forward difference inside the score."""
+        std in closed form): no forward difference inside the score.
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        """
         x = np.atleast_1d(real_array(x, "x"))
         _, sig, _ = self.split(x)
         analytic = _NodeSignal(sig, np.zeros(0)).analytic
@@ -950,7 +999,13 @@ class ExactLikelihood:
     def exact_information(self, x: ArrayLike) -> bool:
         """Whether :meth:`_terms`' information at ``x`` is the exact observed information
         (L5): every score analytic, the signal's second derivatives in closed form, and no
-        jitter parameter but a scale (a shape's block is BHHH)."""
+        jitter parameter but a scale (a shape's block is BHHH).
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        """
         if not self.analytic_scores(x):
             return False
         x = np.atleast_1d(real_array(x, "x"))
@@ -964,7 +1019,15 @@ class ExactLikelihood:
 
     def information(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
         """The observed information -d^2 ln L at ``x`` as :meth:`_terms` computes it (exact
-        where :meth:`exact_information` says so)."""
+        where :meth:`exact_information` says so).
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        y : array_like, shape (N,)
+            The samples.
+        """
         x, y = np.atleast_1d(real_array(x, "x")), self._data(y)
         return self._terms(x, y, information=True)[2]
 
@@ -1153,6 +1216,17 @@ class ExactLikelihood:
         and a step in the shape predicted to gain little loses instead is reported as
         converged, with a message saying so.
 
+        Parameters
+        ----------
+        y : array_like, shape (N,)
+            The samples.
+        x0 : array_like
+            Starting parameter vector, in :attr:`names` order, inside the bounds.
+        max_evaluations : int, optional
+            Most evaluations of the likelihood.
+        tol : float, optional
+            Tolerance on the Newton decrement (twice the remaining gain in ln L).
+
         Returns
         -------
         x, loglik, converged, message, evaluations
@@ -1196,7 +1270,15 @@ class ExactLikelihood:
         The scores are central differences of ln p_k, step 1e-4 max(|x_i|, 1e-2), or at most
         ``FISHER_SCALE_STEP`` of ``scale[i]`` (each parameter's natural scale, e.g. from the
         Gaussian bound (L4), :func:`jitterid.estimation.bounds.crb`): a frequency over a long
-        record is far more sensitive than its magnitude says."""
+        record is far more sensitive than its magnitude says.
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        scale : array_like, optional
+            Each parameter's natural scale, bounding its difference step.
+        """
         x = np.atleast_1d(real_array(x, "x"))
         sigma = self.split(x)[2]
         p = x.size
@@ -1277,7 +1359,7 @@ def log_density(
     jitter : JitterLaw
         The jitter law.
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     y : array_like, shape (N,)
         Samples requested at kT, k = 0..N-1.
     noise_std : float

@@ -45,7 +45,26 @@ METHODS = method_names()  # the registered estimators (jitterid.estimation.estim
 
 
 def default_frequencies(N: int, T: float) -> FloatArray:
-    """The paper's frequency set (24): f_k = k / (N T), k = 0..floor(N/2) - 1."""
+    """The paper's frequency set (24): f_k = k / (N T), k = 0..floor(N/2) - 1.
+
+    Parameters
+    ----------
+    N : int
+        Number of samples.
+    T : float
+        Nominal sampling interval (s).
+
+    Returns
+    -------
+    ndarray, shape (N // 2,)
+        Frequencies in Hz.
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> jid.default_frequencies(8, 0.5).tolist()
+    [0.0, 0.25, 0.5, 0.75]
+    """
     return np.arange(N // 2) / (N * T)
 
 

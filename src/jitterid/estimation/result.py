@@ -313,7 +313,10 @@ class FitResult:
             worse where it is biased (``asml-diag``'s ``noise_std`` there: 0.22 against
             0.41), hence not the default.
 
-        NaN where :attr:`stderr` is NaN (see :attr:`stderr_notes`).
+        Returns
+        -------
+        dict of str to (float, float)
+            NaN where :attr:`stderr` is NaN (see :attr:`stderr_notes`).
         """
         if not 0 < level < 1:
             raise ValueError(f"level must be in (0, 1); got {level}")
@@ -347,7 +350,13 @@ class FitResult:
 
     def conf_int_notes(self, level: float = 0.95) -> dict[str, str]:
         """``{name: note}`` for the parameters whose :meth:`conf_int` at ``level`` is cut at
-        a bound (e.g. a standard deviation whose symmetric interval would reach below 0)."""
+        a bound (e.g. a standard deviation whose symmetric interval would reach below 0).
+
+        Parameters
+        ----------
+        level : float
+            Coverage, in (0, 1).
+        """
         if not 0 < level < 1:
             raise ValueError(f"level must be in (0, 1); got {level}")
         if not self.x.size:
@@ -375,7 +384,13 @@ class FitResult:
 
     def signal(self, u: Input | None = None) -> Signal:
         """The fitted signal s(t; theta) (:class:`jitterid.systems.model.Signal`): the fitted
-        system's response to the input ``u``, or the fitted signal model (``u`` unused)."""
+        system's response to the input ``u``, or the fitted signal model (``u`` unused).
+
+        Parameters
+        ----------
+        u : Input, optional
+            The input; not needed for a signal model.
+        """
         if self.system is not None:
             if u is None:
                 raise ValueError("u: the fitted system is driven by an input; give the input")
@@ -384,25 +399,57 @@ class FitResult:
 
     def predict(self, data: SampledData) -> FloatArray:
         """E y_k = E s(kT + tau) under the fitted model and jitter law, for ``data``'s input
-        and grid (Lemma 1 in the time domain)."""
+        and grid (Lemma 1 in the time domain).
+
+        Parameters
+        ----------
+        data : SampledData
+            The data whose input and sampling grid to use.
+        """
         self._check_data(data)
         mom = sample_moments(self.signal(data.u), self.jitter_law, data.T, data.N)
         return np.asarray(mom.mean, dtype=float)
 
     def residuals(self, data: SampledData) -> FloatArray:
-        """y_k - E y_k for ``data`` (see :meth:`predict`)."""
+        """y_k - E y_k for ``data`` (see :meth:`predict`).
+
+        Parameters
+        ----------
+        data : SampledData
+            The measured data.
+        """
         return np.asarray(data.y - self.predict(data), dtype=float)
 
     def bode_band(self, f_hz: Any, level: float = 0.95, **kwargs: Any) -> Any:
         """Bode magnitude and phase with pointwise confidence bands at ``f_hz`` (Hz); see
-        :func:`jitterid.bode_band` for the options."""
+        :func:`jitterid.bode_band` for the options.
+
+        Parameters
+        ----------
+        f_hz : array_like
+            Frequencies in Hz.
+        level : float, optional
+            Coverage of the band, in (0, 1).
+        **kwargs
+            Further options of :func:`jitterid.bode_band`.
+        """
         from ..analysis.uncertainty import bode_band
 
         return bode_band(self, f_hz, level, **kwargs)
 
     def jitter_pdf_band(self, tau_s: Any, rng: Any, **kwargs: Any) -> Any:
         """The fitted jitter density at ``tau_s`` (s) with a pointwise band; see
-        :func:`jitterid.jitter_pdf_band`."""
+        :func:`jitterid.jitter_pdf_band`.
+
+        Parameters
+        ----------
+        tau_s : array_like
+            Jitter values in s.
+        rng : numpy.random.Generator or int
+            Source of randomness for the parameter draws.
+        **kwargs
+            Further options of :func:`jitterid.jitter_pdf_band`.
+        """
         from ..analysis.uncertainty import jitter_pdf_band
 
         return jitter_pdf_band(self, tau_s, rng, **kwargs)
@@ -410,21 +457,49 @@ class FitResult:
     def physical_quantities(self, level: float = 0.95, **kwargs: Any) -> Any:
         """Poles, zeros, DC gain, time constants (s), natural frequencies (Hz), damping ratios
         and the -3 dB bandwidth (Hz) with intervals; see :func:`jitterid.physical_quantities`
-        for the options (``method="delta"`` or ``"sampling"``, ``draws``, ``rng``)."""
+        for the options (``method="delta"`` or ``"sampling"``, ``draws``, ``rng``).
+
+        Parameters
+        ----------
+        level : float, optional
+            Coverage of the band, in (0, 1).
+        **kwargs
+            Further options of :func:`jitterid.physical_quantities`.
+        """
         from ..analysis.quantities import physical_quantities
 
         return physical_quantities(self, level, **kwargs)
 
     def step_response(self, t_s: Any, level: float = 0.95, **kwargs: Any) -> Any:
         """The unit-step response at ``t_s`` (s) with a pointwise band; see
-        :func:`jitterid.step_response`."""
+        :func:`jitterid.step_response`.
+
+        Parameters
+        ----------
+        t_s : array_like
+            Times in s.
+        level : float, optional
+            Coverage of the band, in (0, 1).
+        **kwargs
+            Further options of :func:`jitterid.step_response`.
+        """
         from ..analysis.responses import step_response
 
         return step_response(self, t_s, level, **kwargs)
 
     def impulse_response(self, t_s: Any, level: float = 0.95, **kwargs: Any) -> Any:
         """The impulse response at ``t_s`` (s) with a pointwise band; see
-        :func:`jitterid.impulse_response`."""
+        :func:`jitterid.impulse_response`.
+
+        Parameters
+        ----------
+        t_s : array_like
+            Times in s.
+        level : float, optional
+            Coverage of the band, in (0, 1).
+        **kwargs
+            Further options of :func:`jitterid.impulse_response`.
+        """
         from ..analysis.responses import impulse_response
 
         return impulse_response(self, t_s, level, **kwargs)
@@ -545,6 +620,11 @@ class FitResult:
 
         Needs the optional extra: ``pip install 'jitterid[control]'``. A delay needs
         ``pade_order``, as in :meth:`to_scipy`.
+
+        Parameters
+        ----------
+        pade_order : int, optional
+            Order of the Pade approximation of a delay; required when the model has one.
         """
         try:
             import control
@@ -564,7 +644,7 @@ class FitResult:
         Parameters
         ----------
         T : float
-            Sampling interval in s, > 0.
+            Sampling interval (s) in s, > 0.
         method : str
             ``"zoh"`` (default: the input held between samples, exact for a
             piecewise-constant input switching at multiples of T), ``"foh"``,
@@ -615,7 +695,13 @@ class FitResult:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> FitResult:
-        """A FitResult from :meth:`to_dict`'s output."""
+        """A FitResult from :meth:`to_dict`'s output.
+
+        Parameters
+        ----------
+        d : dict
+            The dictionary :meth:`to_dict` returned (e.g. after a JSON round trip).
+        """
         kw = {k: _serial.decode(v) for k, v in d.items()}
         try:
             kw["status"] = FitStatus[d["status"]]
@@ -634,5 +720,11 @@ class FitResult:
 
     @classmethod
     def from_json(cls, text: str) -> FitResult:
-        """A FitResult from :meth:`to_json`'s output."""
+        """A FitResult from :meth:`to_json`'s output.
+
+        Parameters
+        ----------
+        text : str
+            The JSON text :meth:`to_json` returned.
+        """
         return cls.from_dict(json.loads(text))

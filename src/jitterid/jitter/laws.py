@@ -156,7 +156,13 @@ class JitterLaw(abc.ABC):
 
     @abc.abstractmethod
     def pdf(self, tau: ArrayLike) -> NDArray[np.float64]:
-        """Density ``p(tau)``, zero outside :attr:`support`; same shape as ``tau``."""
+        """Density ``p(tau)``, zero outside :attr:`support`; same shape as ``tau``.
+
+        Parameters
+        ----------
+        tau : array_like
+            Jitter values in s.
+        """
 
     @abc.abstractmethod
     def sample(
@@ -327,7 +333,13 @@ class NoJitter(JitterLaw):
     def quadrature(
         self, nodes_per_panel: int = _GL_NODES
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The point mass: node ``[0.0]`` with weight ``[1.0]`` (``nodes_per_panel`` ignored)."""
+        """The point mass: node ``[0.0]`` with weight ``[1.0]`` (``nodes_per_panel`` ignored).
+
+        Parameters
+        ----------
+        nodes_per_panel : int, optional
+            Ignored (a point mass needs one node).
+        """
         _checks.count(nodes_per_panel, "nodes_per_panel", minimum=1)
         return np.array([0.0]), np.array([1.0])
 
@@ -343,6 +355,16 @@ class Uniform(JitterLaw):
     ----------
     a : float
         Half-width of the support, ``> 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> law = jid.Uniform(0.05)
+    >>> law.support
+    (-0.05, 0.05)
+    >>> round(float(law.pdf(0.0)), 6)
+    10.0
     """
 
     a: float
@@ -400,6 +422,14 @@ class Gaussian(JitterLaw):
     ----------
     sigma : float
         Standard deviation, ``> 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> law = jid.Gaussian(0.01)
+    >>> round(float(law.std), 6)
+    0.01
     """
 
     sigma: float
@@ -994,7 +1024,15 @@ class JitterFamily(abc.ABC):
         family whose density is differentiable in every parameter; ``None`` (the default) when
         it gives none. With it, the moments' derivatives (:mod:`jitterid.estimation.jacobians`)
         and the likelihood's score in the parameters other than the scale are
-        ``E[g(tau) dp/dtheta / p]`` at fixed nodes instead of differences of new rules."""
+        ``E[g(tau) dp/dtheta / p]`` at fixed nodes instead of differences of new rules.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        tau : array_like
+            Jitter values in s.
+        """
         return None
 
     def start_for_std(self, std: float) -> tuple[float, ...]:
@@ -1029,7 +1067,7 @@ class JitterFamily(abc.ABC):
         Parameters
         ----------
         T : float
-            Nominal sampling interval; the scale parameters are fractions of ``T/2``, clipped
+            Nominal sampling interval (s); the scale parameters are fractions of ``T/2``, clipped
             into :attr:`bounds`.
 
         Returns

@@ -190,6 +190,11 @@ class GeneralizedNormal(JitterLaw):
         With ``u = |tau/alpha|^beta`` and ``a' = d ln alpha / d beta = (3 psi(3/beta) -
         psi(1/beta)) / (2 beta^2)``: ``d/d std = (beta u - 1) / std`` and ``d/d beta = 1/beta
         + psi(1/beta)/beta^2 - a' - u (ln |tau/alpha| - beta a')`` (``u ln`` is 0 at tau = 0).
+
+        Parameters
+        ----------
+        tau : array_like
+            Jitter values in s.
         """
         t = _checks.real_array(tau, "tau")
         b = self.beta
@@ -204,7 +209,13 @@ class GeneralizedNormal(JitterLaw):
         return np.stack([np.where(inside, d_std, 0.0), np.where(inside, d_beta, 0.0)])
 
     def pdf_gradient(self, tau: ArrayLike) -> NDArray[np.float64]:
-        """``d p(tau) / d (std, beta)``, shape ``(2,) + tau.shape``."""
+        """``d p(tau) / d (std, beta)``, shape ``(2,) + tau.shape``.
+
+        Parameters
+        ----------
+        tau : array_like
+            Jitter values in s.
+        """
         return np.asarray(self.pdf(tau) * self.dlogpdf(tau), dtype=float)
 
     def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
@@ -333,7 +344,13 @@ class DualDirac(JitterLaw):
     def pdf_gradient(self, tau: ArrayLike) -> NDArray[np.float64]:
         """``d p(tau) / d (rj, dj)``, shape ``(2,) + tau.shape`` (zero outside the support):
         ``dp/drj = sum_i phi(x_i) (x_i^2/rj^2 - 1) / (2 rj)`` and
-        ``dp/ddj = (x1 phi(x1) - x2 phi(x2)) / (4 rj^2)``, ``x1,2 = tau -+ dj/2``."""
+        ``dp/ddj = (x1 phi(x1) - x2 phi(x2)) / (4 rj^2)``, ``x1,2 = tau -+ dj/2``.
+
+        Parameters
+        ----------
+        tau : array_like
+            Jitter values in s.
+        """
         t = _checks.real_array(tau, "tau")
         r = self.rj
         x1, x2, g1, g2 = self._parts(t)
@@ -449,7 +466,15 @@ class GeneralizedNormalFamily(JitterFamily):
         return [(s, b) for b in (1.0, 2.0, 8.0) for s in (top / 6.0, top * 0.4)]
 
     def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64]:
-        """``d p(tau) / d (std, beta)`` at ``params``, shape ``(2,) + tau.shape``."""
+        """``d p(tau) / d (std, beta)`` at ``params``, shape ``(2,) + tau.shape``.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        tau : array_like
+            Jitter values in s.
+        """
         law = self.law(params)
         assert isinstance(law, GeneralizedNormal)
         return law.pdf_gradient(tau)
@@ -507,7 +532,13 @@ class DualDiracFamily(JitterFamily):
 
     def start_for_std(self, std: float) -> tuple[float, ...]:
         """Random and deterministic parts sharing the variance: rj = std / sqrt 2, dj =
-        sqrt 2 std (rj^2 + dj^2 / 4 = std^2), clipped into the bounds."""
+        sqrt 2 std (rj^2 + dj^2 / 4 = std^2), clipped into the bounds.
+
+        Parameters
+        ----------
+        std : float
+            The jitter standard deviation to match, in s.
+        """
         std = _checks.positive(std, "std")
         (rlo, rhi), (dlo, dhi) = self.bounds
         return (
@@ -521,7 +552,15 @@ class DualDiracFamily(JitterFamily):
         return [(r, d) for d in (top / 2.0, 2.0 * top) for r in (rj_top / 6.0, rj_top * 0.4)]
 
     def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64]:
-        """``d p(tau) / d (rj, dj)`` at ``params``, shape ``(2,) + tau.shape``."""
+        """``d p(tau) / d (rj, dj)`` at ``params``, shape ``(2,) + tau.shape``.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        tau : array_like
+            Jitter values in s.
+        """
         law = self.law(params)
         assert isinstance(law, DualDirac)
         return law.pdf_gradient(tau)

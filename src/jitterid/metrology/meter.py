@@ -160,7 +160,7 @@ class JitterMeasurement:
     slope_regression_std : float
         The IEEE 1057 slope-regression jitter std the search started from (for comparison).
     T : float
-        The nominal sampling interval.
+        The nominal sampling interval (s).
     """
 
     jitter_std: float
@@ -183,7 +183,13 @@ class JitterMeasurement:
     T: float
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
-        """Normal-approximation interval of the jitter std, cut at 0."""
+        """Normal-approximation interval of the jitter std, cut at 0.
+
+        Parameters
+        ----------
+        level : float, optional
+            Coverage, in (0, 1).
+        """
         if not 0 < level < 1:
             raise ValueError(f"level must lie in (0, 1); got {level!r}")
         from scipy.stats import norm
@@ -355,7 +361,7 @@ def measure_jitter(
     y : array_like, shape (N,)
         The samples, taken at the nominal instants kT (k = 0..N-1) plus the unknown jitter.
     T : float
-        The nominal sampling interval, seconds.
+        The nominal sampling interval (s), seconds.
     frequency : float, optional
         The sine's frequency in Hz, a start the fit refines (it may lie above the Nyquist
         frequency 1/(2T): equivalent-time sampling). Default: the periodogram's peak
@@ -559,7 +565,7 @@ def alias_likelihoods(
     y : array_like, shape (N,)
         The samples at the nominal instants kT.
     T : float
-        Nominal sampling interval, s.
+        Nominal sampling interval (s), s.
     band_hz : (float, float)
         The band holding the candidate aliases, Hz.
     jitter : JitterLaw

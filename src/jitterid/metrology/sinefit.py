@@ -208,7 +208,7 @@ def periodogram_peak(y: ArrayLike, T: float, *, oversample: int = 8) -> float:
     y : array_like, shape (N,)
         The record, N >= 8, finite, not constant.
     T : float
-        Sampling interval in seconds (> 0).
+        Sampling interval (s) in seconds (> 0).
     oversample : int, optional
         Zero-padding factor (>= 1).
 

@@ -177,7 +177,7 @@ def dtft(y: ArrayLike, T: float, f: ArrayLike) -> ComplexArray:
         Samples, real or complex, along the last axis; leading axes are batches (e.g. Monte
         Carlo realisations).
     T : float
-        Nominal sampling interval, > 0.
+        Nominal sampling interval (s), > 0.
     f : array_like
         Frequencies in Hz, any shape.
 
@@ -186,6 +186,14 @@ def dtft(y: ArrayLike, T: float, f: ArrayLike) -> ComplexArray:
     ndarray of complex, shape ``y.shape[:-1] + f.shape``
         ``Y_d(f)``.  Work is chunked over ``f`` so that no temporary exceeds a few tens of
         MiB.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> Y = jid.dtft([1.0, 1.0, 1.0, 1.0], T=0.5, f=[0.0, 0.5])
+    >>> np.abs(Y).round(6).tolist()
+    [4.0, 0.0]
     """
     y_arr = _finite_array(y, "y")
     if y_arr.ndim < 1 or y_arr.shape[-1] < 1:
@@ -226,7 +234,7 @@ def dirichlet(f: ArrayLike, N: int, T: float) -> ComplexArray:
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -240,6 +248,16 @@ def dirichlet(f: ArrayLike, N: int, T: float) -> ComplexArray:
     is ``N``, which equals ``N exp(-i pi f (N-1) T) (-1)^{n (N-1)}`` with ``n = f T``, i.e. the
     explicit sum.  Near those points the ratio of two small sines keeps full relative
     accuracy.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> d = jid.dirichlet([0.0, 0.5, 0.25], N=4, T=0.5)
+    >>> np.abs(d).round(6).tolist()
+    [4.0, 0.0, 2.613126]
+    >>> bool(np.allclose(d, jid.dtft(np.ones(4), 0.5, [0.0, 0.5, 0.25])))
+    True
     """
     N = count(N, "N", minimum=1)
     T = positive(T, "T")
@@ -272,7 +290,7 @@ def stochastic_window(f: ArrayLike, psi: ArrayLike, tau: ArrayLike, T: float) ->
         Jitter realisations ``tau_k`` along the last axis; leading axes are independent
         realisations.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -314,7 +332,7 @@ def mean_window(f: ArrayLike, psi: ArrayLike, jitter: SupportsCF, N: int, T: flo
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -376,7 +394,7 @@ def window_second_moment(
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -428,7 +446,7 @@ def window_covariance(
     N : int
         Number of samples, >= 1.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
 
     Returns
     -------
@@ -482,7 +500,7 @@ def expected_dft_lines(
     jitter : SupportsCF
         Object with a vectorised ``cf``.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     f : array_like
@@ -526,7 +544,7 @@ def dft_covariance_lines(
     jitter : SupportsCF
         Object with a vectorised ``cf``.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     f : array_like, shape (M,)
@@ -591,7 +609,7 @@ def integral_grid_size(psi_max: float, T: float, N: int, support: tuple[float, f
     psi_max : float
         Truncation frequency in Hz, > 0.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     support : (float, float)
@@ -641,7 +659,7 @@ def expected_dft_integral(
     jitter : SupportsCF
         Object with a vectorised ``cf``.
     T : float
-        Sampling interval, > 0.
+        Sampling interval (s), > 0.
     N : int
         Number of samples, >= 1.
     f : array_like

@@ -93,6 +93,35 @@ def sample_moments(
     signal (:class:`jitterid.systems.model.Signal`) is evaluated at the nodes
     (:func:`moment_pass`). Without jitter the samples are s(kT) themselves. Work O(N),
     memory bounded by the chunk size.
+
+    Parameters
+    ----------
+    signal : Signal
+        The noise-free signal s(t), e.g. ``system.response(u)``; it must cover the last
+        jittered sampling instant.
+    jitter : JitterLaw
+        Law of the sampling jitter tau_k.
+    T : float
+        Nominal sampling interval (s).
+    N : int
+        Number of samples.
+    order : int, optional
+        Gauss-Legendre nodes per quadrature panel.
+
+    Returns
+    -------
+    SampleMoments
+        ``mean`` (m_k) and ``var`` (Var[s(kT + tau)]), each of shape (N,).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([1.0], [1.0, 1.0])
+    >>> u = jid.zoh_input(np.ones(8), T=0.5)
+    >>> mom = jid.sample_moments(sys.response(u), jid.Uniform(0.1), T=0.5, N=8)
+    >>> mom.mean.shape, bool(np.all(mom.var >= 0))
+    ((8,), True)
     """
     T = positive(T, "T")
     N = count(N, "N", minimum=1)
@@ -205,7 +234,7 @@ def expected_dft(
     jitter : JitterLaw
         Law of the sampling jitter tau_k.
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     N : int
         Number of samples.
     f : array_like
@@ -214,6 +243,15 @@ def expected_dft(
     Returns
     -------
     ndarray of complex, same length as ``f``
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> sys = jid.TransferFunction([1.0], [1.0, 1.0])
+    >>> u = jid.zoh_input(np.ones(16), T=0.5)
+    >>> mu = jid.expected_dft(sys, u, jid.NoJitter(), T=0.5, N=16, f=[0.0, 0.25])
+    >>> mu.shape, mu.dtype
+    ((2,), dtype('complex128'))
     """
     freqs = _frequencies(f)
     mom = sample_moments(system.response(u), jitter, T, N)
@@ -238,6 +276,29 @@ def dft_covariance(
 
     Returns the matrix with rows over ``f`` and columns over ``psi`` (default ``psi = f``).
     Includes the measurement-noise term sigma_v^2 sum_k exp(-i 2 pi (f - psi) k T).
+
+    Parameters
+    ----------
+    system : TransferFunction
+        Continuous-time system, at rest before the input starts.
+    u : Input
+        Known input.
+    jitter : JitterLaw
+        Law of the sampling jitter tau_k.
+    T : float
+        Nominal sampling interval (s).
+    N : int
+        Number of samples.
+    f : array_like
+        Row frequencies in Hz.
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    psi : array_like, optional
+        Column frequencies in Hz; default ``f``.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(f), len(psi))
     """
     return _second_moment(system, u, jitter, T, N, f, noise_std, psi, sign=1.0)
 
@@ -256,6 +317,29 @@ def dft_pseudo_covariance(
 
     A circular complex Gaussian model, as in the paper's (22), ignores it; the real-valued
     Gaussian criterion (method ``"gaussian"``) accounts for it.
+
+    Parameters
+    ----------
+    system : TransferFunction
+        Continuous-time system, at rest before the input starts.
+    u : Input
+        Known input.
+    jitter : JitterLaw
+        Law of the sampling jitter tau_k.
+    T : float
+        Nominal sampling interval (s).
+    N : int
+        Number of samples.
+    f : array_like
+        Row frequencies in Hz.
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    psi : array_like, optional
+        Column frequencies in Hz; default ``f``.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(f), len(psi))
     """
     return _second_moment(system, u, jitter, T, N, f, noise_std, psi, sign=-1.0)
 

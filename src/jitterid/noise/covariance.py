@@ -139,7 +139,7 @@ class JitteredAutocovariance:
     Attributes
     ----------
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
     near : ndarray, shape (M0,)
         gamma(0..M0-1): r_v(0) and the lags where the jitter can reverse the order of samples.
     weights, ratios : ndarray of complex
@@ -167,7 +167,13 @@ class JitteredAutocovariance:
         return np.asarray(np.where(m < self.start, near, np.real(geo)), dtype=float)
 
     def sequence(self, n: int) -> FloatArray:
-        """gamma(0), ..., gamma(n - 1)."""
+        """gamma(0), ..., gamma(n - 1).
+
+        Parameters
+        ----------
+        n : int
+            Number of lags.
+        """
         return self(np.arange(count(n, "n", minimum=0)))
 
     def spectrum(self, f: ArrayLike) -> FloatArray:
@@ -175,6 +181,11 @@ class JitteredAutocovariance:
 
         The geometric tail is summed in closed form: sum_{m >= M0} z^(m - M0) e^{-i w m} =
         e^{-i w M0} / (1 - z e^{-i w}), w = 2 pi f T.
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies in Hz.
         """
         ff = real_array(f, "f")
         e = np.exp(-2j * np.pi * ff * self.T)[..., None]
@@ -201,7 +212,7 @@ def jittered_autocovariance(noise: NoiseModel, jitter: JitterLaw, T: float) -> J
     jitter : JitterLaw
         Law of the i.i.d. jitter (``NoJitter()`` gives r_v(m T), the uniformly sampled noise).
     T : float
-        Nominal sampling interval.
+        Nominal sampling interval (s).
 
     Returns
     -------
@@ -613,7 +624,7 @@ def sample_covariance(
     Parameters
     ----------
     system, u, jitter, T, N
-        As in :func:`jitterid.dft_covariance`.
+        As in :func:`jitterid.dft_covariance` (T in s).
     noise_std : float
         Std of the white part w_k (>= 0).
     noise_model : NoiseModel, optional
@@ -649,6 +660,21 @@ def coloured_dft_covariance(
 
     :func:`jitterid.dft_covariance` plus the Toeplitz noise term E Gamma E^H; equal to it
     for ``noise_model=None``. Rows over ``f``, columns over ``psi`` (default ``f``).
+
+    Parameters
+    ----------
+    system, u, jitter, T, N, f
+        As in :func:`jitterid.dft_covariance` (T in s, f in Hz).
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    noise_model : NoiseModel, optional
+        The coloured noise v(t); None for white noise only.
+    psi : array_like, optional
+        Column frequencies in Hz; default ``f``.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(f), len(psi))
     """
     cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
     return cov.dft(T, f, psi, sign=1.0)
@@ -665,6 +691,22 @@ def coloured_dft_pseudo_covariance(
     noise_model: NoiseModel | None = None,
     psi: ArrayLike | None = None,
 ) -> ComplexArray:
-    """C_Y(f, psi) = E[(Y(f) - mu(f))(Y(psi) - mu(psi))] with coloured noise, (C2)."""
+    """C_Y(f, psi) = E[(Y(f) - mu(f))(Y(psi) - mu(psi))] with coloured noise, (C2).
+
+    Parameters
+    ----------
+    system, u, jitter, T, N, f
+        As in :func:`jitterid.dft_covariance` (T in s, f in Hz).
+    noise_std : float
+        Standard deviation of the white measurement noise (>= 0).
+    noise_model : NoiseModel, optional
+        The coloured noise v(t); None for white noise only.
+    psi : array_like, optional
+        Column frequencies in Hz; default ``f``.
+
+    Returns
+    -------
+    ndarray of complex, shape (len(f), len(psi))
+    """
     cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
     return cov.dft(T, f, psi, sign=-1.0)

@@ -115,13 +115,25 @@ class NoiseModel:
         return float(np.sum(c).real)
 
     def autocovariance(self, t: ArrayLike) -> FloatArray:
-        """r_v(t) = E[v(s) v(s + t)], eq. (N1), at lags ``t`` (seconds, any shape)."""
+        """r_v(t) = E[v(s) v(s + t)], eq. (N1), at lags ``t`` (seconds, any shape).
+
+        Parameters
+        ----------
+        t : array_like
+            Lags in s, any shape.
+        """
         c, p = self.modes
         tt = np.abs(real_array(t, "t"))[..., None]
         return np.asarray((np.exp(p * tt) @ c).real, dtype=float)
 
     def spectrum(self, f: ArrayLike) -> FloatArray:
-        """Two-sided power spectral density S_v(f) = lambda |H(i 2 pi f)|^2 per Hz, eq. (N2)."""
+        """Two-sided power spectral density S_v(f) = lambda |H(i 2 pi f)|^2 per Hz, eq. (N2).
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies in Hz, any shape.
+        """
         return self.intensity * np.abs(self.tf.frequency_response(real_array(f, "f"))) ** 2
 
     def sample(self, instants: ArrayLike, rng: np.random.Generator | int) -> FloatArray:
@@ -191,10 +203,28 @@ class NoiseStructure(abc.ABC):
     bounds: Bounds
 
     @abc.abstractmethod
-    def model(self, params: ArrayLike) -> NoiseModel: ...
+    def model(self, params: ArrayLike) -> NoiseModel:
+        """H_eta at ``params``.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        """
+        ...
 
     @abc.abstractmethod
-    def starts(self, T: float, scale: float) -> list[FloatArray]: ...
+    def starts(self, T: float, scale: float) -> list[FloatArray]:
+        """A few starting parameter vectors for data sampled every ``T``.
+
+        Parameters
+        ----------
+        T : float
+            Nominal sampling interval (s).
+        scale : float
+            The noise level to start from (the std of the residuals to be explained).
+        """
+        ...
 
     @property
     def gain_params(self) -> tuple[int, ...]:
@@ -221,6 +251,13 @@ class RationalNoise(NoiseStructure):
     unstable candidate is refused when evaluated), ``hb0`` >= 0 (H and -H give the same
     noise, so the sign is fixed). Only the spectrum |H|^2 is identifiable: zeros are
     determined up to reflection in the imaginary axis.
+
+    Parameters
+    ----------
+    num_order : int, optional
+        Numerator order m (>= 0), below ``den_order``.
+    den_order : int, optional
+        Denominator order n (>= 1).
     """
 
     num_order: int = 0
@@ -267,6 +304,13 @@ class RationalNoise(NoiseStructure):
         and c_j = B(p_j) B(-p_j) / (A'(p_j) A(-p_j)) =: f(p_j) (unit intensity) gives
         dc_j = df + f'(p_j) dp_j, where d acts on the coefficients at fixed p. ``model``:
         ``model(params)`` if already built.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        model : NoiseModel, optional
+            ``model(params)`` if already built.
         """
         model = self.model(params) if model is None else model
         num, den = model.tf.num, model.tf.den
@@ -310,7 +354,13 @@ class RationalNoise(NoiseStructure):
 
 @dataclass(frozen=True, eq=False)
 class KnownNoise(NoiseStructure):
-    """A fixed, known noise model (no free parameters): BJ with known H."""
+    """A fixed, known noise model (no free parameters): BJ with known H.
+
+    Parameters
+    ----------
+    noise_model : NoiseModel
+        The known noise model.
+    """
 
     noise_model: NoiseModel
 

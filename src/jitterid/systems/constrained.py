@@ -217,7 +217,13 @@ class Constrained(ModelStructure):
 
     def full(self, params: ArrayLike) -> FloatArray:
         """The inner structure's parameter vector: ``params`` (the free ones, a vector in
-        :attr:`param_names` order or a dict by name) with the fixed values put in."""
+        :attr:`param_names` order or a dict by name) with the fixed values put in.
+
+        Parameters
+        ----------
+        params : array_like or dict
+            The free parameters: a vector in :attr:`param_names` order or a dict by name.
+        """
         x = self._check(params)
         out = np.empty(len(self.structure.param_names))
         out[self._free] = x  # type: ignore[attr-defined]
@@ -229,7 +235,15 @@ class Constrained(ModelStructure):
 
     def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
         """The inner closed form's rows of the free parameters (None where the inner
-        structure declares none: the moments then difference :meth:`system`)."""
+        structure declares none: the moments then difference :meth:`system`).
+
+        Parameters
+        ----------
+        params : array_like
+            The free parameters, in :attr:`param_names` order.
+        n : int
+            Length of the denominator's coefficient vector (order + 1).
+        """
         inner = self.structure
         if not closed_form_applies(inner):
             return None
@@ -242,7 +256,13 @@ class Constrained(ModelStructure):
     def starts(self, T: float) -> list[FloatArray]:
         """The inner default starts with the user's values put in, fixed parameters removed,
         clipped into :attr:`bounds` and without repeats; the first is the user's start
-        completed from the first default start."""
+        completed from the first default start.
+
+        Parameters
+        ----------
+        T : float
+            Nominal sampling interval (s).
+        """
         lo, hi = np.array(self.bounds, float).reshape(-1, 2).T
         user = [(i, self.start[n]) for i, n in enumerate(self.param_names) if n in self.start]
         out: list[FloatArray] = []

@@ -101,18 +101,36 @@ class Signal(abc.ABC):
 
     def gradient(self, t: FloatArray) -> FloatArray | None:
         """ds/dtheta at the instants ``t`` (1-D), shape (P, t.size), or None: no closed form
-        (the declared finite-difference route of the moments and the likelihood)."""
+        (the declared finite-difference route of the moments and the likelihood).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+        """
         return None
 
     def slope(self, t: FloatArray) -> FloatArray | None:
         """ds/dt at the instants ``t`` (1-D), or None: no closed form (a jitter family's
-        scale is then differenced like its other parameters)."""
+        scale is then differenced like its other parameters).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+        """
         return None
 
     def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
         """(d^2 s / dtheta^2 shape (P, P, n), d s' / dtheta shape (P, n), s'' shape (n,)) at
         the instants ``t``, or None: not in closed form (the likelihood's Newton matrix then
-        drops the second-derivative term, (L5) of :mod:`jitterid.estimation.likelihood`)."""
+        drops the second-derivative term, (L5) of :mod:`jitterid.estimation.likelihood`).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+        """
         return None
 
     def jitter_moments(
@@ -130,11 +148,37 @@ class Signal(abc.ABC):
         :func:`jitterid.moments.sample.moment_pass` defines them, or None: no closed form
         (the default; the moments are then quadratures over the jitter at nodes). A signal
         that has one (a sum of tones, through the jitter's characteristic function:
-        :class:`jitterid.systems.tones.ToneSignal`) overrides this."""
+        :class:`jitterid.systems.tones.ToneSignal`) overrides this.
+
+        Parameters
+        ----------
+        jitter : JitterLaw
+            The sampling jitter's law.
+        T : float
+            Nominal sampling interval (s).
+        N : int
+            Number of samples.
+        variance : bool, optional
+            Also the variances.
+        gradient : bool, optional
+            Also the derivatives.
+        scale : float, optional
+            The jitter scale, for the derivative with respect to it.
+        higher : bool, optional
+            Also the third and fourth central moments.
+        """
         return None
 
     def check_covers(self, t_max: float, what: str) -> None:
-        """Refuse instants at or past :attr:`end` with a ValueError naming ``what``."""
+        """Refuse instants at or past :attr:`end` with a ValueError naming ``what``.
+
+        Parameters
+        ----------
+        t_max : float
+            The last instant (s) that must be covered.
+        what : str
+            What ``t_max`` is, for the error message.
+        """
         if t_max >= self.end:
             raise ValueError(f"{what} (t = {t_max:g}) is at or past the signal's end {self.end:g}")
 
@@ -142,7 +186,13 @@ class Signal(abc.ABC):
         """A (law, signal) pair whose jittered samples s(kT + tau) have the same law as this
         signal's under ``jitter``: the pair itself, except for a pure time shift
         (:class:`DelayedSignal`: the delay moves into the jitter's mean, so the moments and
-        the likelihood keep the fast modal path of the undelayed response)."""
+        the likelihood keep the fast modal path of the undelayed response).
+
+        Parameters
+        ----------
+        jitter : JitterLaw
+            The sampling jitter's law.
+        """
         return jitter, self
 
 
@@ -207,11 +257,25 @@ class Model(abc.ABC):
 
     @abc.abstractmethod
     def signal(self, params: ArrayLike, u: Input | None = None) -> Signal:
-        """s(t; params), driven by the known input ``u`` where the model has one."""
+        """s(t; params), driven by the known input ``u`` where the model has one.
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        u : Input, optional
+            The known input, for a model that has one.
+        """
 
     @abc.abstractmethod
     def initial_points(self, data: SampledData) -> Sequence[FloatArray]:
-        """A few starting points for the ordinary fit that ignores the jitter (Section 4.5)."""
+        """A few starting points for the ordinary fit that ignores the jitter (Section 4.5).
+
+        Parameters
+        ----------
+        data : SampledData
+            The data to be fitted.
+        """
 
     def _check(self, params: ArrayLike) -> FloatArray:
         return parameter_vector(params, self.param_names, self.bounds)

@@ -139,7 +139,15 @@ class SignalModel(Model):
         return self.gradient is not None
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> FunctionSignal:
-        """s(t; params); ``u`` is ignored (the model has no input)."""
+        """s(t; params); ``u`` is ignored (the model has no input).
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        u : Input, optional
+            Unused: a signal model has no input.
+        """
         return FunctionSignal(self, self._check(params))
 
     def initial_points(self, data: SampledData) -> list[FloatArray]:

@@ -49,13 +49,37 @@ class ModelStructure(Model):
         return None
 
     @abc.abstractmethod
-    def system(self, params: ArrayLike) -> TransferFunction: ...
+    def system(self, params: ArrayLike) -> TransferFunction:
+        """G_theta at ``params``.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        """
+        ...
 
     @abc.abstractmethod
-    def starts(self, T: float) -> list[FloatArray]: ...
+    def starts(self, T: float) -> list[FloatArray]:
+        """A few starting parameter vectors for data sampled every ``T``.
+
+        Parameters
+        ----------
+        T : float
+            Nominal sampling interval (s).
+        """
+        ...
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> Signal:
-        """s(t) = (G_theta u)(t), the exact response to the known input ``u``."""
+        """s(t) = (G_theta u)(t), the exact response to the known input ``u``.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        u : Input
+            The known input (required).
+        """
         if u is None:
             raise ValueError(
                 f"{type(self).__name__} is driven by a known input: data.u must be given "
@@ -70,7 +94,15 @@ class ModelStructure(Model):
         """d(num, den)/dtheta in closed form, shape (P, n) each (num padded to the length n
         of the denominator), or None: this structure declares no analytic derivative, and
         :meth:`coefficient_derivatives` then takes central differences of :meth:`system`.
-        A subclass that maps its parameters otherwise must override it."""
+        A subclass that maps its parameters otherwise must override it.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        n : int
+            Length of the denominator's coefficient vector (order + 1).
+        """
         return None
 
     def coefficient_derivatives(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray]:
@@ -78,7 +110,15 @@ class ModelStructure(Model):
         closed form of :meth:`coefficient_jacobian` where it belongs to this structure's
         map (:func:`closed_form_applies`), else central differences of :meth:`system`
         through :mod:`jitterid.finite_diff` (the one home of this rule: the moments' modal
-        sensitivities and the order selection's root gradients use it)."""
+        sensitivities and the order selection's root gradients use it).
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        n : int
+            Length of the denominator's coefficient vector (order + 1).
+        """
         theta = self._check(params)
         closed = self.coefficient_jacobian(theta, n) if closed_form_applies(self) else None
         if closed is not None:
@@ -113,6 +153,22 @@ class PolePairGain(ModelStructure):
     """The paper's (27): G(s) = k0 / ((s - pr - i pi)(s - pr + i pi)), theta = (k0, pr, pi).
 
     Bounds keep the system stable (pr <= -pr_min) with a true complex pair (pi >= pi_min).
+
+    Parameters
+    ----------
+    pr_min : float, optional
+        Smallest decay rate -pr allowed, in rad/s.
+    pi_min : float, optional
+        Smallest imaginary part pi allowed, in rad/s.
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> model = jid.PolePairGain()
+    >>> model.param_names
+    ('k0', 'pr', 'pi')
+    >>> model.system([5.0, -1.0, 2.0]).den.tolist()
+    [1.0, 2.0, 5.0]
     """
 
     pr_min: float = 1e-6
@@ -159,6 +215,22 @@ class RationalModel(ModelStructure):
 
     Parameters are named ``b{m}..b0`` then ``a{n-1}..a0`` (as MATLAB's tfest). Requires
     ``num_order <= den_order`` (a proper model) and ``den_order >= 1``.
+
+    Parameters
+    ----------
+    num_order : int
+        Numerator order m (>= 0).
+    den_order : int
+        Denominator order n (>= 1).
+
+    Examples
+    --------
+    >>> import jitterid as jid
+    >>> model = jid.RationalModel(0, 2)
+    >>> model.param_names
+    ('b0', 'a1', 'a0')
+    >>> model.system([2.0, 3.0, 2.0]).den.tolist()
+    [1.0, 3.0, 2.0]
     """
 
     num_order: int
@@ -216,7 +288,13 @@ class RationalModel(ModelStructure):
 
 @dataclass(frozen=True, eq=False)
 class KnownSystem(ModelStructure):
-    """A fixed, known system (no free parameters), e.g. Table 1's G = 1/(s+2)."""
+    """A fixed, known system (no free parameters), e.g. Table 1's G = 1/(s+2).
+
+    Parameters
+    ----------
+    tf : TransferFunction
+        The known system.
+    """
 
     tf: TransferFunction
 

@@ -48,6 +48,16 @@ class TransferFunction:
     Frequencies are in Hz throughout: ``frequency_response(f_hz)`` returns G(i 2 pi f). Simulation
     (:meth:`response`) needs a stable model with distinct poles; poles closer than 1e-6
     (relative) are refused, and accuracy degrades like 1e-16 / (pole separation).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as jid
+    >>> G = jid.TransferFunction([2.0], [1.0, 2.0])
+    >>> abs(complex(G.frequency_response(0.0)))
+    1.0
+    >>> G.poles.tolist()
+    [(-2+0j)]
     """
 
     num: FloatArray
@@ -108,6 +118,11 @@ class TransferFunction:
     def frequency_response(self, f_hz: ArrayLike) -> ComplexArray:
         """G(i 2 pi f) at frequencies ``f_hz`` in Hz.
 
+        Parameters
+        ----------
+        f_hz : array_like
+            Frequencies in Hz.
+
         Examples
         --------
         >>> complex(TransferFunction([2.0], [1.0, 2.0]).frequency_response(0.0))
@@ -119,7 +134,13 @@ class TransferFunction:
 
     def freqresp(self, f: ArrayLike) -> ComplexArray:
         """Deprecated: :meth:`frequency_response` (which names its unit, Hz; scipy's
-        ``freqresp`` takes rad/s)."""
+        ``freqresp`` takes rad/s).
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies in Hz.
+        """
         warnings.warn(
             "TransferFunction.freqresp is deprecated; use frequency_response(f_hz) (Hz)",
             DeprecationWarning,
@@ -160,7 +181,13 @@ class TransferFunction:
     def response(self, u: Input) -> Signal:
         """The exact output s(t) = (g * u)(t) to input ``u`` from rest: a :class:`Response`,
         or with a delay the undelayed system's :class:`Response` delayed
-        (:class:`jitterid.systems.model.DelayedSignal`)."""
+        (:class:`jitterid.systems.model.DelayedSignal`).
+
+        Parameters
+        ----------
+        u : Input
+            The input, zero before it starts.
+        """
         if self.delay_s:
             return DelayedSignal(Response(self.undelayed, u), self.delay_s)
         return Response(self, u)
@@ -184,7 +211,13 @@ class TransferFunction:
         return rec, states
 
     def kept_switch_states(self, u: PiecewiseConstant) -> ComplexArray:
-        """:meth:`switch_states` over the poles with Im p >= 0 only, shape (J+1, n_kept)."""
+        """:meth:`switch_states` over the poles with Im p >= 0 only, shape (J+1, n_kept).
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
+        """
         return self._recursion(u)[1]
 
     def switch_states(self, u: PiecewiseConstant) -> ComplexArray:
@@ -192,6 +225,11 @@ class TransferFunction:
 
         x_{j+1} = e^{p dt_j} x_j + u_j expm1(p dt_j) / p from rest. A real input's state for
         a pole's conjugate is the conjugate, so only the poles with Im p >= 0 are solved for.
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
         """
         memo = self.__dict__.get("_states_memo")
         if memo is None or memo[0] is not u:
@@ -211,11 +249,22 @@ class TransferFunction:
 
         the same linear recursion with another forcing, solved with the same exponentials
         (a fraction of one recursion, against three for a difference in p).
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
         """
         return _conjugate_fill(self._modal[2], self.kept_switch_state_sensitivity(u))
 
     def kept_switch_state_sensitivity(self, u: PiecewiseConstant) -> ComplexArray:
-        """:meth:`switch_state_sensitivity` over the poles with Im p >= 0, (J+1, n_kept)."""
+        """:meth:`switch_state_sensitivity` over the poles with Im p >= 0, (J+1, n_kept).
+
+        Parameters
+        ----------
+        u : PiecewiseConstant
+            The input, with boundaries t_j.
+        """
         rec, X = self._recursion(u)
         q, dt, a = rec.p, rec.dt, rec.step
         forcing = dt * a * X[:-1] + u.levels[:, None] * (dt * a / q - rec.expm1 / q**2)
@@ -268,7 +317,15 @@ class Response(Signal):
         object.__setattr__(self, "rate", rate)
 
     def check_covers(self, t_max: float, what: str) -> None:
-        """Refuse instants past the input's end (:meth:`jitterid.inputs.Input.check_covers`)."""
+        """Refuse instants past the input's end (:meth:`jitterid.inputs.Input.check_covers`).
+
+        Parameters
+        ----------
+        t_max : float
+            The last instant (s) that must be covered.
+        what : str
+            What ``t_max`` is, for the error message.
+        """
         self.u.check_covers(t_max, what)
 
     @property

@@ -375,6 +375,14 @@ class SineWave(Model):
         return (*amps, len(self.param_names) - 1)
 
     def tones(self, params: ArrayLike) -> _ToneMap:
+        """theta -> (offset c, complex amplitudes a_h, angular frequencies w_h in rad/s),
+        with their derivatives with respect to the parameters.
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        """
         x = self._check(params)
         H, P = self.harmonics, x.size
         f = self.frequency_hz if self.frequency_hz is not None else float(x[2 * H])
@@ -401,13 +409,27 @@ class SineWave(Model):
         return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, dw, d2a)
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
-        """s(t; params); ``u`` is ignored (the model has no input)."""
+        """s(t; params); ``u`` is ignored (the model has no input).
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        u : Input, optional
+            Unused: a signal model has no input.
+        """
         return ToneSignal(self.tones(params))
 
     # ---------------------------------------------------------------- starts
     def start_frequencies(self, data: SampledData) -> list[float]:
         """The starting frequencies in Hz: the known one, or the four-parameter fit's at the
-        periodogram's peak, with every alias inside ``band_hz``."""
+        periodogram's peak, with every alias inside ``band_hz``.
+
+        Parameters
+        ----------
+        data : SampledData
+            The data to be fitted.
+        """
         if self.frequency_hz is not None:
             return [float(self.frequency_hz)]
         from ..metrology.sinefit import periodogram_peak, sine_fit_4
@@ -504,6 +526,14 @@ class MultiTone(Model):
         return (*amps, 2 * J)
 
     def tones(self, params: ArrayLike) -> _ToneMap:
+        """theta -> (offset c, complex amplitudes a_h, angular frequencies w_h in rad/s),
+        with their derivatives with respect to the parameters.
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        """
         x = self._check(params)
         J, P = len(self.frequencies_hz), x.size
         j = np.arange(J)
@@ -524,7 +554,15 @@ class MultiTone(Model):
         return _ToneMap(float(x[-1]), a.astype(complex), w, dc, da, np.zeros((P, J)), d2a)
 
     def signal(self, params: ArrayLike, u: Input | None = None) -> ToneSignal:
-        """s(t; params); ``u`` is ignored (the model has no input)."""
+        """s(t; params); ``u`` is ignored (the model has no input).
+
+        Parameters
+        ----------
+        params : array_like
+            The model's parameters, in :attr:`param_names` order.
+        u : Input, optional
+            Unused: a signal model has no input.
+        """
         return ToneSignal(self.tones(params))
 
     def initial_points(self, data: SampledData) -> list[FloatArray]:

@@ -105,8 +105,8 @@ __all__ = [
 class Estimator:
     """Base class: the properties every estimator states.
 
-    Class attributes
-    ----------------
+    Attributes
+    ----------
     name : str
         The registered name (``fit(..., method=name)``).
     equation : str
@@ -140,6 +140,8 @@ class Estimator:
         (BCLS (14)): its Box-Jenkins estimate of the system is its white-noise one, and the
         noise model enters only the error bars.
 
+    Notes
+    -----
     A least-squares estimator implements :meth:`residuals` and :meth:`jacobian`; any other
     :meth:`objective_gradient`; every one :meth:`objective` and :meth:`grad_y` (dV/dy, for
     the delta-method covariance). The coloured-noise form (``coloured_noise = True``) is

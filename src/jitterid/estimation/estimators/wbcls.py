@@ -27,7 +27,13 @@ __all__ = ["WBCLS"]
 @dataclass(frozen=True)
 class WBCLS(Estimator):
     """Weighted BCLS (20), with R_Y frozen at the BCLS estimate and re-frozen ``refreeze``
-    times at the new estimate (iterated feasible GLS; module docstring)."""
+    times at the new estimate (iterated feasible GLS; module docstring).
+
+    Parameters
+    ----------
+    refreeze : int, optional
+        Number of times the weighting is re-frozen at the new estimate (>= 0).
+    """
 
     name = "wbcls"
     rank = 2
