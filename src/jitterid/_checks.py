@@ -91,7 +91,6 @@ def parameter_vector(
     return x
 
 
-
 class TooLargeError(ValueError):
     """A request whose memory would exceed the budget; the message gives the figure and the fix."""
 

@@ -1,4 +1,5 @@
-"""The data: samples requested on the grid kT, with the known input and what is known of the noise."""
+"""The data: samples requested on the grid kT, with the known input and what is known of the
+noise."""
 
 from __future__ import annotations
 

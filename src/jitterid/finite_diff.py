@@ -36,7 +36,10 @@ def step(x: FloatArray, i: int | np.integer, rel: float = REL_STEP, floor: float
 
 
 def forward(
-    x: FloatArray, i: int | np.integer, bounds: tuple[float, float], rel: float,
+    x: FloatArray,
+    i: int | np.integer,
+    bounds: tuple[float, float],
+    rel: float,
     floor: float = 1e-2,
 ) -> tuple[FloatArray, float]:
     """x with x_i moved by a forward step :func:`step` (backward where the upper bound
@@ -52,7 +55,10 @@ def forward(
 
 
 def central_pair(
-    x: FloatArray, i: int | np.integer, bounds: tuple[float, float], rel: float,
+    x: FloatArray,
+    i: int | np.integer,
+    bounds: tuple[float, float],
+    rel: float,
     h: float | None = None,
 ) -> tuple[FloatArray, FloatArray, float]:
     """(x + h e_i, x - h e_i, 2 h) with the pair's centre moved inside ``bounds`` where x_i is
@@ -109,6 +115,9 @@ def hessian(fun: Callable[[FloatArray], float], x: FloatArray, h: FloatArray) ->
         H[i, i] = (fun(x + 2 * e[i]) - 2 * f0 + fun(x - 2 * e[i])) / (4 * h[i] ** 2)
         for j in range(i):
             H[i, j] = H[j, i] = (
-                fun(x + e[i] + e[j]) - fun(x + e[i] - e[j]) - fun(x - e[i] + e[j]) + fun(x - e[i] - e[j])
+                fun(x + e[i] + e[j])
+                - fun(x + e[i] - e[j])
+                - fun(x - e[i] + e[j])
+                + fun(x - e[i] - e[j])
             ) / (4 * h[i] * h[j])
     return H

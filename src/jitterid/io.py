@@ -82,8 +82,13 @@ PathLike = str | Path
 
 #: Seconds per supported time unit.
 TIME_UNITS: dict[str, float] = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0}
-_SCALE_DEC = {"s": Decimal(1), "ms": Decimal("1e-3"), "us": Decimal("1e-6"),
-              "ns": Decimal("1e-9"), "min": Decimal(60)}
+_SCALE_DEC = {
+    "s": Decimal(1),
+    "ms": Decimal("1e-3"),
+    "us": Decimal("1e-6"),
+    "ns": Decimal("1e-9"),
+    "min": Decimal(60),
+}
 #: Largest deviation of a nominal time from the regular grid, as a fraction of T.
 GRID_TOL = 1e-3
 _NUMERIC_KEYS = ("T", "noise_std", "end")
@@ -286,7 +291,9 @@ def _json_object(path: Path, raw: bytes | str, what: str) -> Any:
     except UnicodeDecodeError:
         raise DataFileError(f"{path}: {what} is not UTF-8 text; save it as UTF-8 JSON") from None
     except json.JSONDecodeError as exc:
-        raise DataFileError(f"{path}: {what} must hold a JSON object but is not valid JSON ({exc}); fix the syntax") from None
+        raise DataFileError(
+            f"{path}: {what} must hold a JSON object but is not valid JSON ({exc}); fix the syntax"
+        ) from None
     except RecursionError:
         raise DataFileError(
             f"{path}: {what} is nested too deeply to be metadata; write a flat JSON object "
@@ -391,7 +398,8 @@ def _number(path: Path, cell: str, lineno: int, column: str) -> float:
             ) from None
     if not math.isfinite(val):
         raise DataFileError(
-            f"{path}: line {lineno}, column {column!r}: {cell!r} is not finite (NaN/inf are treated "
+            f"{path}: line {lineno}, column {column!r}: {cell!r} is not finite (NaN/inf are "
+            "treated "
             "as missing values); every sample needs a finite number"
         )
     return val
@@ -421,7 +429,8 @@ def _check_npz_members(path: Path) -> None:
                     continue
                 if not name.endswith(".npy"):
                     raise DataFileError(
-                        f"{path}: member {name!r} is not a NumPy array (.npy); a data archive holds "
+                        f"{path}: member {name!r} is not a NumPy array (.npy); a data archive "
+                        "holds "
                         "only arrays: write it with numpy.savez(path, t=..., y=...)"
                     )
                 with zf.open(info) as fh:
@@ -455,7 +464,13 @@ def _check_npz_members(path: Path) -> None:
                     f"{path}: the arrays hold {total} values, more than jitterid reads into "
                     f"memory ({MAX_CELLS}); thin the data to fewer samples"
                 )
-    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError) as exc:
+    except (
+        OSError,
+        EOFError,
+        zipfile.BadZipFile,
+        zipfile.LargeZipFile,
+        NotImplementedError,
+    ) as exc:
         raise DataFileError(
             f"{path}: cannot read it as a NumPy .npz archive ({type(exc).__name__}: {exc}); "
             "write it with numpy.savez(path, t=..., y=...)"
@@ -668,7 +683,8 @@ def _input(path: PathLike, t0: float, T: float, n: int, unit: str) -> tuple[Inpu
         for c in _SWITCH_COLUMNS:
             if c not in cols:
                 raise tab.fail(
-                    f"a switch-time input file needs the columns 'time' and 'level'; {c!r} is missing"
+                    f"a switch-time input file needs the columns 'time' and 'level'; {c!r} is "
+                    "missing"
                 )
         return _switches_from_table(tab, t0, t0 + n * T, unit), tab
     _require_columns(
@@ -679,7 +695,8 @@ def _input(path: PathLike, t0: float, T: float, n: int, unit: str) -> tuple[Inpu
     )
     if "u" not in cols:
         raise tab.fail(
-            f"no input column: give 'u' (with 'k' or 't') or switch times 'time','level'; found {list(cols)}"
+            "no input column: give 'u' (with 'k' or 't') or switch times 'time','level'; found "
+            f"{list(cols)}"
         )
     if "time_unit" not in tab.meta:
         tab.meta["time_unit"] = unit
@@ -846,7 +863,10 @@ def parse_time(text: str | float, default_unit: str = "s", name: str = "time") -
         body, unit = text.strip(), default_unit
         for suffix in ("min", "ms", "us", "µs", "μs", "ns", "s"):
             if body.endswith(suffix) and not body.endswith("e" + suffix):
-                body, unit = body[: -len(suffix)].strip(), suffix.replace("µ", "u").replace("μ", "u")
+                body, unit = (
+                    body[: -len(suffix)].strip(),
+                    suffix.replace("µ", "u").replace("μ", "u"),
+                )
                 break
         try:
             val = _decimal(body)
@@ -912,7 +932,9 @@ def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
         except DataFileError as exc:
             raise ValueError(str(exc).removeprefix("metadata: ")) from None
         if isinstance(value, (dict, list, tuple)) or value is None:
-            raise ValueError(f"metadata {key!r} must be a number or one line of text; got {value!r}")
+            raise ValueError(
+                f"metadata {key!r} must be a number or one line of text; got {value!r}"
+            )
         text = str(value)
         if "\n" in text or "\r" in text:
             raise ValueError(f"metadata {key!r} must fit on one line")

@@ -141,9 +141,9 @@ def plot_bode(
         style = {"color": f"C{i + 1}", "ls": styles[i % len(styles)], "lw": 1.5, "label": name}
         curves.append(_db(np.abs(g)))
         out[f"{name} magnitude"] = ax_mag.semilogx(band.f, curves[-1], **style)[0]
-        out[f"{name} phase"] = ax_ph.semilogx(
-            band.f, np.degrees(np.unwrap(np.angle(g))), **style
-        )[0]
+        out[f"{name} phase"] = ax_ph.semilogx(band.f, np.degrees(np.unwrap(np.angle(g))), **style)[
+            0
+        ]
     _db_limits(ax_mag, curves, lo_db, hi_db)
     ax_mag.yaxis.set_major_locator(MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]))
     ax_ph.yaxis.set_major_locator(MaxNLocator(nbins=7, steps=[1, 1.5, 3, 4.5, 9, 10]))
@@ -217,12 +217,16 @@ def plot_jitter_pdf(
         m = band
         std = float(m.law.std)
         if not (math.isfinite(std) and std > 0):
-            raise ValueError(f"the measured jitter law has no spread (std {std!r}); nothing to draw")
+            raise ValueError(
+                f"the measured jitter law has no spread (std {std!r}); nothing to draw"
+            )
         lo, hi = m.law.support
         tau = np.linspace(max(lo, -4.5 * std), min(hi, 4.5 * std), 401)
         band = m.fit.jitter_pdf_band(tau, 0 if rng is None else rng)
         if label == "estimated pdf":
-            label = f"fitted {m.family} law, std {std / _time_unit(std)[1]:.3g} {_time_unit(std)[0]}"
+            label = (
+                f"fitted {m.family} law, std {std / _time_unit(std)[1]:.3g} {_time_unit(std)[0]}"
+            )
         unit, scale = _time_unit(std)
     if not isinstance(band, PdfBand):
         raise TypeError(f"band must be a PdfBand or a JitterMeasurement; got {type(band).__name__}")
@@ -301,13 +305,20 @@ def plot_jitter_phase(
             label="residuals: mean of (y - E y)² per bin ± 1 s.e.",
         ),
         "model": ax.plot(
-            c, prof.model_var, "-", color="C3", lw=2,
+            c,
+            prof.model_var,
+            "-",
+            color="C3",
+            lw=2,
             label=f"fitted noise + jitter ({measurement.family}, std "
             f"{measurement.jitter_std / _time_unit(measurement.jitter_std)[1]:.3g} "
             f"{_time_unit(measurement.jitter_std)[0]})",
         )[0],
         "noise": ax.axhline(
-            prof.noise_var, color="k", ls="--", lw=1.5,
+            prof.noise_var,
+            color="k",
+            ls="--",
+            lw=1.5,
             label=f"fitted noise only, σ_v² = {prof.noise_var:.3g}",
         ),
     }
@@ -448,14 +459,24 @@ def plot_step_response(
     if finite.any() and np.any(band.hi[finite] > band.lo[finite]):
         how = {"delta": "delta method", "sampling": "parameter draws"}.get(band.method, band.method)
         out["band"] = ax.fill_between(
-            band.t_s, band.lo, band.hi, where=finite, color="C0", alpha=0.25, lw=0,
+            band.t_s,
+            band.lo,
+            band.hi,
+            where=finite,
+            color="C0",
+            alpha=0.25,
+            lw=0,
             label=f"{100 * band.level:g}% pointwise band ({how})",
         )
     styles = ["--", ":", "-."]
     for i, (name, tf) in enumerate((references or {}).items()):
         out[name] = ax.plot(
-            band.t_s, lti_response(tf, band.t_s, band.kind), color=f"C{i + 1}",
-            ls=styles[i % len(styles)], lw=1.5, label=name,
+            band.t_s,
+            lti_response(tf, band.t_s, band.kind),
+            color=f"C{i + 1}",
+            ls=styles[i % len(styles)],
+            lw=1.5,
+            label=name,
         )[0]
     ax.axhline(0.0, color="k", lw=0.6, alpha=0.5)
     ax.set_ylabel(

@@ -15,7 +15,8 @@
   characteristic function (paper, Lemma 1 and (13)); :func:`bias_frequency` is where that
   gain bias reaches a tolerance.
 * Confidence bands for the plots (:func:`jitterid.analysis.uncertainty.bode_band`,
-  :func:`jitterid.analysis.uncertainty.jitter_pdf_band`) live in :mod:`jitterid.analysis.uncertainty`.
+  :func:`jitterid.analysis.uncertainty.jitter_pdf_band`) live in
+  :mod:`jitterid.analysis.uncertainty`.
 
 Frequencies are in Hz; phases in degrees.
 """
@@ -104,7 +105,8 @@ def model_output(
     """
     if isinstance(model, SampledData) and not isinstance(data, SampledData):
         warnings.warn(
-            "model_output(model, data) is deprecated: pass the data first, model_output(data, model)",
+            "model_output(model, data) is deprecated: pass the data first, model_output(data, "
+            "model)",
             DeprecationWarning,
             stacklevel=2,
         )
@@ -399,10 +401,7 @@ def cross_check_jitter(result: FitResult, detection: JitterDetection) -> JitterC
                 "raises the test)"
             )
         message = head + fix
-    elif (
-        p >= CROSS_NOT_DETECTED_P
-        and std - 2 * se_ok > max(CROSS_FACTOR * hi, CROSS_COLLAPSE * T)
-    ):
+    elif p >= CROSS_NOT_DETECTED_P and std - 2 * se_ok > max(CROSS_FACTOR * hi, CROSS_COLLAPSE * T):
         verdict = "too large"
         head = (
             f"the {what} jitter std is {std:.3g} s"
@@ -577,9 +576,9 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
     """(y_k - E y_k) / sqrt(Var y_k) under the fitted system, jitter law and noise.
 
     E y_k = E s(kT + tau) and Var y_k = Var s(kT + tau) + sigma_v^2 with tau from
-    ``result.jitter_law``. If the fit has no noise std (``result.noise_std`` None or 0), sigma_v^2 is its maximum-likelihood value given the residuals r_k and the
-    jitter variances (a 1-D search), so that samples where the output is flat and the jitter
-    variance vanishes are not divided by ~0.
+    ``result.jitter_law``. If the fit has no noise std (``result.noise_std`` None or 0), sigma_v^2
+    is its maximum-likelihood value given the residuals r_k and the jitter variances (a 1-D search),
+    so that samples where the output is flat and the jitter variance vanishes are not divided by ~0.
 
     Parameters
     ----------

@@ -168,7 +168,8 @@ class PhysicalQuantities:
         pct = f"{100 * self.level:g}%"
         logs = [q.name for q in self.quantities if q.scale == "log"]
         how = {
-            "delta": "delta method" + (f"; log-scale intervals for {', '.join(logs)}" if logs else ""),
+            "delta": "delta method"
+            + (f"; log-scale intervals for {', '.join(logs)}" if logs else ""),
             "sampling": "quantiles of parameter draws",
         }[self.method]
         lines = [
@@ -355,9 +356,7 @@ class _SystemBlock:
             out.append(min(h, se / 20) if se > 0 else h)
         return out
 
-    def jacobian(
-        self, fun: Callable[[FloatArray], FloatArray], f0: FloatArray
-    ) -> FloatArray:
+    def jacobian(self, fun: Callable[[FloatArray], FloatArray], f0: FloatArray) -> FloatArray:
         """d fun / d theta (rows: fun's entries), NaN columns where a step is invalid."""
         jac = np.full((f0.size, self.theta.size), np.nan)
         for i, h in enumerate(self.steps()):
@@ -407,7 +406,9 @@ class _SystemBlock:
 def _system_block(result: _Fit, what: str) -> _SystemBlock:
     """The fit's system block, or a ValueError for a fit with no transfer function."""
     if not _is_fit(result):
-        raise TypeError(f"result must be a FitResult from jitterid.fit; got {type(result).__name__}")
+        raise TypeError(
+            f"result must be a FitResult from jitterid.fit; got {type(result).__name__}"
+        )
     structure = result.structure
     if result.system is None or not isinstance(structure, ModelStructure):
         raise ValueError(
@@ -426,7 +427,8 @@ def _system_block(result: _Fit, what: str) -> _SystemBlock:
         notes = {} if cov_type == "none" else dict(getattr(result, "stderr_notes", {}) or {})
         for n in bad:
             missing[n] = notes.get(n) or (
-                "the fit has no covariance (cov_type='none')" if cov_type == "none"
+                "the fit has no covariance (cov_type='none')"
+                if cov_type == "none"
                 else "NaN in the covariance"
             )
     bounds = tuple((float(a), float(b)) for a, b in structure.bounds)
@@ -495,8 +497,16 @@ def physical_quantities(
         values, notes = layout.values(block.system)
         if not block.theta.size:
             rows = [
-                Quantity(r.name, float(v), 0.0 if np.isfinite(v) else math.nan, float(v), float(v),
-                         r.unit, "known", notes.get(r.name, "the system is known, not estimated"))
+                Quantity(
+                    r.name,
+                    float(v),
+                    0.0 if np.isfinite(v) else math.nan,
+                    float(v),
+                    float(v),
+                    r.unit,
+                    "known",
+                    notes.get(r.name, "the system is known, not estimated"),
+                )
                 for r, v in zip(layout.rows, values, strict=True)
             ]
             return PhysicalQuantities(tuple(rows), level, method)
@@ -527,14 +537,18 @@ def _delta_rows(
     for r, v, g, w in zip(layout.rows, values, jac, why, strict=True):
         note = notes.get(r.name, "") or w
         if not np.isfinite(v) or w:
-            rows.append(Quantity(r.name, float(v), math.nan, math.nan, math.nan, r.unit, "linear", note))
+            rows.append(
+                Quantity(r.name, float(v), math.nan, math.nan, math.nan, r.unit, "linear", note)
+            )
             continue
         se = math.sqrt(max(float(g @ cov @ g), 0.0))
         if r.positive and v > 0:
             f = math.exp(min(z * se / v, 700.0))
             rows.append(Quantity(r.name, float(v), se, v / f, v * f, r.unit, "log", note))
         else:
-            rows.append(Quantity(r.name, float(v), se, v - z * se, v + z * se, r.unit, "linear", note))
+            rows.append(
+                Quantity(r.name, float(v), se, v - z * se, v + z * se, r.unit, "linear", note)
+            )
     return rows
 
 
@@ -557,11 +571,15 @@ def _sampling_rows(
         col = Q[:, j]
         ok = np.isfinite(col)
         if not np.isfinite(v) or w:
-            rows.append(Quantity(r.name, float(v), math.nan, math.nan, math.nan, r.unit, "quantiles", note))
+            rows.append(
+                Quantity(r.name, float(v), math.nan, math.nan, math.nan, r.unit, "quantiles", note)
+            )
             continue
         if ok.mean() < 0.99:
             note = f"not defined in {100 * (1 - ok.mean()):.3g}% of the parameter draws"
-            rows.append(Quantity(r.name, float(v), math.nan, math.nan, math.nan, r.unit, "quantiles", note))
+            rows.append(
+                Quantity(r.name, float(v), math.nan, math.nan, math.nan, r.unit, "quantiles", note)
+            )
             continue
         col = col[ok]
         lo, hi = np.quantile(col, q)

@@ -161,7 +161,9 @@ def _band(
             note = f"the impulse response also has the term {d:.6g} delta(t) at t = 0, not drawn"
 
     def make(lo: FloatArray, hi: FloatArray, how: str, why: str = "") -> TimeResponseBand:
-        return TimeResponseBand(t, y, lo, hi, level, kind, how, "; ".join(s for s in (why, note) if s))
+        return TimeResponseBand(
+            t, y, lo, hi, level, kind, how, "; ".join(s for s in (why, note) if s)
+        )
 
     if not block.theta.size:
         return make(y.copy(), y.copy(), "known")
@@ -180,7 +182,9 @@ def _band(
     jac = block.jacobian(at, y)
     if not np.all(np.isfinite(jac)):
         nan = np.full_like(y, np.nan)
-        return make(nan, nan.copy(), "delta", "no band: a perturbed parameter gives no valid system")
+        return make(
+            nan, nan.copy(), "delta", "no band: a perturbed parameter gives no valid system"
+        )
     z = float(stats.norm.ppf(0.5 + level / 2))
     se = np.sqrt(np.maximum(np.einsum("ti,ij,tj->t", jac, block.cov, jac), 0.0))
     return make(y - z * se, y + z * se, "delta")

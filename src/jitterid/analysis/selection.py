@@ -62,7 +62,15 @@ from ..systems.structures import Delayed, KnownSystem, ModelStructure, PolePairG
 from ..systems.tf import TransferFunction
 from .diagnostics import input_correlation_test, ljung_box, standardized_residuals
 
-__all__ = ["CANCEL_REL", "CANCEL_SE", "FAST_POLE", "NestedTest", "OrderRow", "OrderSelection", "select_order"]
+__all__ = [
+    "CANCEL_REL",
+    "CANCEL_SE",
+    "FAST_POLE",
+    "NestedTest",
+    "OrderRow",
+    "OrderSelection",
+    "select_order",
+]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -155,7 +163,9 @@ class OrderRow:
         if self.over_order:
             return f"over-order model: {self.over_order}"
         if not math.isfinite(self.loglik):
-            return "the log-likelihood could not be computed" + (f" ({self.notes[-1]})" if self.notes else "")
+            return "the log-likelihood could not be computed" + (
+                f" ({self.notes[-1]})" if self.notes else ""
+            )
         return ""
 
     @property
@@ -435,7 +445,10 @@ def _check_candidates(candidates: object) -> list[Model]:
             )
         for j, prev in enumerate(out):
             if c is prev or (type(c) is type(prev) and _equal(c, prev)):
-                raise ValueError(f"candidates[{i}] repeats candidates[{j}] ({label(c)}); give each structure once")
+                raise ValueError(
+                    f"candidates[{i}] repeats candidates[{j}] ({label(c)}); give each structure "
+                    "once"
+                )
         out.append(c)
     kinds = {bool(c.uses_input) for c in out}
     if len(kinds) > 1:
@@ -458,7 +471,9 @@ def _equal(a: object, b: object) -> bool:
 
 #: jitterid.fit's keyword arguments that select_order passes through
 _FIT_OPTIONS = tuple(
-    n for n in inspect.signature(fit).parameters if n not in ("data", "system", "jitter", "method", "start")
+    n
+    for n in inspect.signature(fit).parameters
+    if n not in ("data", "system", "jitter", "method", "start")
 )
 
 
@@ -570,10 +585,13 @@ def over_order(res: FitResult, T: float) -> str:
             limit = max(CANCEL_REL * abs(p), CANCEL_SE * se if math.isfinite(se) else 0.0)
             if abs(d) <= limit:
                 why = (
-                    f"{abs(d) / se:.2g} standard errors" if math.isfinite(se) and se > 0 else "no standard error"
+                    f"{abs(d) / se:.2g} standard errors"
+                    if math.isfinite(se) and se > 0
+                    else "no standard error"
                 )
                 if abs(d) <= CANCEL_REL * abs(p):
-                    how = f"cancel (|p - z| = {abs(d):.3g} rad/s, {abs(d) / max(abs(p), 1e-300):.2g} |p|)"
+                    rel = abs(d) / max(abs(p), 1e-300)
+                    how = f"cancel (|p - z| = {abs(d):.3g} rad/s, {rel:.2g} |p|)"
                 else:  # far apart, but not told apart by the data
                     how = f"are not told apart (|p - z| = {abs(d):.3g} rad/s is {why})"
                 text = f"pole {_c(p)} and zero {_c(z)} rad/s {how}"
@@ -629,7 +647,8 @@ def _tests(rows: Sequence[OrderRow]) -> tuple[NestedTest, ...]:
     for pos, b in enumerate(order):
         big = rows[b]
         smaller = [
-            a for a in order[:pos]
+            a
+            for a in order[:pos]
             if rows[a].n_params < big.n_params and _nested(rows[a].structure, big.structure)
         ]
         if not smaller:
@@ -644,9 +663,16 @@ def _tests(rows: Sequence[OrderRow]) -> tuple[NestedTest, ...]:
             notes.append("negative: the larger fit ended below the smaller one's likelihood")
         if not (small.success and big.success):
             notes.append("a fit did not converge")
-        out.append(NestedTest(
-            small.label, big.label, lr, dof, float(stats.chi2.sf(max(lr, 0.0), dof)), "; ".join(notes)
-        ))
+        out.append(
+            NestedTest(
+                small.label,
+                big.label,
+                lr,
+                dof,
+                float(stats.chi2.sf(max(lr, 0.0), dof)),
+                "; ".join(notes),
+            )
+        )
     return tuple(out)
 
 
@@ -711,9 +737,20 @@ def _fit_row(
     bic = -2 * loglik + n_params * math.log(data.N)
     return (
         OrderRow(
-            lab, structure, n_params, res.status, cost=float(res.cost), loglik=loglik, aic=aic,
-            bic=bic, validation_fit_pct=fit_pct, whiteness_pvalue=white, input_pvalue=indep,
-            over_order=over, notes=tuple(notes), result=res,
+            lab,
+            structure,
+            n_params,
+            res.status,
+            cost=float(res.cost),
+            loglik=loglik,
+            aic=aic,
+            bic=bic,
+            validation_fit_pct=fit_pct,
+            whiteness_pvalue=white,
+            input_pvalue=indep,
+            over_order=over,
+            notes=tuple(notes),
+            result=res,
         ),
         counted,
     )
@@ -722,7 +759,9 @@ def _fit_row(
 def _warned(notes: list[str], where: str, caught: list[warnings.WarningMessage]) -> None:
     if caught:
         first = " ".join(str(caught[0].message).split())
-        notes.append(f"{len(caught)} warning(s) in {where}, e.g. {caught[0].category.__name__}: {first}")
+        notes.append(
+            f"{len(caught)} warning(s) in {where}, e.g. {caught[0].category.__name__}: {first}"
+        )
 
 
 def validation_fit(validation: SampledData, result: FitResult) -> float:
@@ -763,7 +802,8 @@ def _choose(rows: Sequence[OrderRow], criterion: str) -> tuple[int | None, str]:
     if others:
         nxt = rows[pool[1]]
         gap = abs(nxt.value(criterion) - r.value(criterion))
-        text += f"; next {nxt.label}, {gap:.3g}{unit} {'lower' if criterion == 'validation' else 'higher'}"
+        side = "lower" if criterion == "validation" else "higher"
+        text += f"; next {nxt.label}, {gap:.3g}{unit} {side}"
         if criterion == "bic":
             text += " (a BIC gap above 6 is strong evidence, above 10 very strong)"
     aside = [rows[i] for i in range(len(rows)) if i not in pool]
@@ -849,7 +889,10 @@ def select_order(
     'tf:0,1'
     """
     if not isinstance(data, SampledData):
-        raise TypeError(f"data must be a SampledData (see jitterid.simulate, jitterid.load); got {type(data).__name__}")
+        raise TypeError(
+            "data must be a SampledData (see jitterid.simulate, jitterid.load); got "
+            f"{type(data).__name__}"
+        )
     structures = _check_candidates(candidates)
     if not isinstance(jitter, (JitterLaw, JitterFamily)):
         raise TypeError(
@@ -862,11 +905,17 @@ def select_order(
         raise ValueError(f"criterion must be one of {list(CRITERIA)}; got {criterion!r}")
     criterion = criterion.lower()
     if validation is not None and not isinstance(validation, SampledData):
-        raise TypeError(f"validation must be a SampledData (a second data set); got {type(validation).__name__}")
+        raise TypeError(
+            f"validation must be a SampledData (a second data set); got {type(validation).__name__}"
+        )
     if criterion == "validation" and validation is None:
-        raise ValueError("criterion 'validation' needs validation data: pass validation=SampledData(...)")
+        raise ValueError(
+            "criterion 'validation' needs validation data: pass validation=SampledData(...)"
+        )
     if validation is not None and structures[0].uses_input and validation.u is None:
-        raise ValueError("validation has no input: the candidates are driven by one; give validation.u")
+        raise ValueError(
+            "validation has no input: the candidates are driven by one; give validation.u"
+        )
     _check_options(fit_kwargs)
     check_arguments(fit_kwargs.get("noise_std"), fit_kwargs.get("max_nfev", 2000))
     noise_known = fit_kwargs.get("noise_std")
@@ -887,8 +936,14 @@ def select_order(
     chosen, reason = _choose(rows, criterion)
     tests = _tests(rows) if est.name in ("ml", "gaussian") else ()
     return OrderSelection(
-        rows=tuple(rows), chosen=chosen, reason=reason, criterion=criterion, method=est.name,
-        loglik_kind="exact" if exact else "gaussian", N=data.N, noise_counted=noise_counted,
+        rows=tuple(rows),
+        chosen=chosen,
+        reason=reason,
+        criterion=criterion,
+        method=est.name,
+        loglik_kind="exact" if exact else "gaussian",
+        N=data.N,
+        noise_counted=noise_counted,
         tests=tests,
     )
 
@@ -899,4 +954,6 @@ def _with_noise_counted(row: OrderRow, N: int) -> OrderRow:
     if res is None:
         return replace(row, n_params=row.n_params + 1)
     k = len(res.names) + (0 if "noise_std" in res.names else 1)
-    return replace(row, n_params=k, aic=-2 * row.loglik + 2 * k, bic=-2 * row.loglik + k * math.log(N))
+    return replace(
+        row, n_params=k, aic=-2 * row.loglik + 2 * k, bic=-2 * row.loglik + k * math.log(N)
+    )

@@ -1,7 +1,8 @@
 """Confidence bands from a fit's covariance: the Bode response and the jitter density.
 
 Both are as honest as the covariance C (``FitResult.cov``): for ``ml`` the inverse observed
-information, for the moment estimators the sandwich covariance (:mod:`jitterid.estimation.covariance`).
+information, for the moment estimators the sandwich covariance
+(:mod:`jitterid.estimation.covariance`).
 
 :func:`bode_band` offers two routes from the estimate x and the system parameters' block of C:
 

@@ -73,6 +73,7 @@ def _try(make: Callable[[], Any]) -> tuple[Any, str | None]:
     except _ERRORS as exc:
         return None, " ".join(str(exc).split()) or type(exc).__name__
 
+
 def _clean(x: Any) -> Any:
     """JSON-safe: NaN/inf -> None, numpy -> Python."""
     if isinstance(x, dict):
@@ -125,7 +126,11 @@ def _noise_line(rep: FitReport) -> str:
             f" (not used by `{res.method}`: the residuals' plug-in, used for the standard errors)"
         ),
     }[noise_source(rep)]
-    return "- noise std: not used" if res.noise_std is None else f"- noise std: {res.noise_std:.4g}{how}"
+    return (
+        "- noise std: not used"
+        if res.noise_std is None
+        else f"- noise std: {res.noise_std:.4g}{how}"
+    )
 
 
 def _constraints(structure: ModelStructure) -> dict[str, Any]:
@@ -301,7 +306,9 @@ def _order_lines(rep: FitReport) -> list[str]:
         return []
     has_val = any(r.validation_fit_pct is not None for r in order.rows)
     rank = (
-        "highest validation fit %" if order.criterion == "validation" else f"lowest {order.criterion.upper()}"
+        "highest validation fit %"
+        if order.criterion == "validation"
+        else f"lowest {order.criterion.upper()}"
     )
     lines = [
         "## Order selection",
@@ -323,7 +330,8 @@ def _order_lines(rep: FitReport) -> list[str]:
     for i, r in enumerate(order.rows):
         lines.append(
             f"| {'**chosen**' if i == order.chosen else ''} | {md_text(r.label)} | {r.n_params} "
-            f"| {md_text(r.flag)} | {num(r.loglik, '.6g')} | {num(r.aic, '.6g')} | {num(r.bic, '.6g')} |"
+            f"| {md_text(r.flag)} | {num(r.loglik, '.6g')} | {num(r.aic, '.6g')} | "
+            f"{num(r.bic, '.6g')} |"
             + (f" {num(r.validation_fit_pct, '.2f')} |" if has_val else "")
             + f" {num(r.whiteness_pvalue, '.3g')} | {num(r.input_pvalue, '.3g')} |"
         )
@@ -419,7 +427,9 @@ def _pdf_fig(rep: FitReport, out: Path) -> dict[str, str]:
         tau = np.linspace(-hi, hi, 601)
         label = "estimated" if family else "assumed (known)"
         try:
-            pband = jitter_pdf_band(res, tau, rep.seed, level=rep.level, n_draws=2000, family=family)
+            pband = jitter_pdf_band(
+                res, tau, rep.seed, level=rep.level, n_draws=2000, family=family
+            )
         except ValueError as exc:  # too uncertain for a band: show the estimate alone
             pband = jitter_pdf_band(res, tau, rep.seed, level=rep.level, family=None)
             label = "estimated (no band: too uncertain)"
@@ -472,8 +482,14 @@ def _table(rep: FitReport) -> list[str]:
     if why or why_ci:
         lines += ["", f"No standard errors: {md_text(why or why_ci)}."]
     notes = [
-        *(f"- {md_text(n)}: {md_text(w)}" for n, w in (_try(lambda: res.stderr_notes)[0] or {}).items()),
-        *(f"- {md_text(n)}: {md_text(w)}" for n, w in (_try(lambda: res.conf_int_notes(rep.level))[0] or {}).items()),
+        *(
+            f"- {md_text(n)}: {md_text(w)}"
+            for n, w in (_try(lambda: res.stderr_notes)[0] or {}).items()
+        ),
+        *(
+            f"- {md_text(n)}: {md_text(w)}"
+            for n, w in (_try(lambda: res.conf_int_notes(rep.level))[0] or {}).items()
+        ),
     ]
     if notes:
         lines += ["", *notes]
@@ -485,7 +501,11 @@ def _jitter_std_line(rep: FitReport) -> str:
     if not isinstance(rep.jitter, JitterFamily):
         return f"- jitter std: {res.jitter_std:.4g} s (known)"
     se, _ = _try(lambda: res.jitter_std_stderr)
-    tail = f" ± {se:.2g} s (delta method)" if se is not None and math.isfinite(se) else " (no standard error)"
+    tail = (
+        f" ± {se:.2g} s (delta method)"
+        if se is not None and math.isfinite(se)
+        else " (no standard error)"
+    )
     return f"- jitter std: {res.jitter_std:.4g} s{tail}"
 
 
@@ -614,8 +634,14 @@ def report_markdown(rep: FitReport, figs: dict[str, str]) -> str:
             lines += [f"No band is drawn: {md_text(figs['jitter_pdf_note'])}.", ""]
     lines += ["## 5. Residual checks (after fitting)", ""]
     lines += [f"- {md_text(c.summary())}" for c in rep.checks]
-    skipped = [*rep.skipped, *((k[: -len("_skipped")] + " figure", v) for k, v in figs.items()
-                               if k.endswith("_skipped"))]
+    skipped = [
+        *rep.skipped,
+        *(
+            (k[: -len("_skipped")] + " figure", v)
+            for k, v in figs.items()
+            if k.endswith("_skipped")
+        ),
+    ]
     lines += [f"- skipped {md_text(name)}: {md_text(why)}" for name, why in skipped]
     lines += [
         "",

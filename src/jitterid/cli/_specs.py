@@ -9,9 +9,9 @@ is estimated with the other parameters (``tf:0,2+delay``).
 Jitter: ``none``; a known law ``known:uniform:a=0.5``, ``known:gaussian:sigma=0.1``,
 ``known:sum-of-uniforms:n=2,a=0.5``, ``known:generalized-normal:std=0.1,beta=3``,
 ``known:dual-dirac:rj=0.05,dj=0.2``; or a family to estimate, ``uniform``, ``gaussian``,
-``sum-of-uniforms``, ``generalized-normal``, ``dual-dirac``, optionally bounded (``uniform:a_max=0.5``,
-``sum-of-uniforms:n_max=10,a_max=0.5``, ``gaussian:sigma_max=0.3``). Where only a law makes
-sense (``simulate``, ``bias``) the ``known:`` prefix may be left out.
+``sum-of-uniforms``, ``generalized-normal``, ``dual-dirac``, optionally bounded
+(``uniform:a_max=0.5``, ``sum-of-uniforms:n_max=10,a_max=0.5``, ``gaussian:sigma_max=0.3``). Where
+only a law makes sense (``simulate``, ``bias``) the ``known:`` prefix may be left out.
 
 Search constraints on the model's parameters (repeatable options of ``fit``):
 ``--start NAME=VALUE``, ``--bounds NAME=LO:HI`` (either end may be empty: ``a0=0:``) and
@@ -55,7 +55,9 @@ __all__ = [
 _LAWS: dict[str, tuple[type[JitterLaw], tuple[str, ...]]] = registry.table(
     registry.LAWS, "-", exclude=("none",)
 )
-_FAMILIES: dict[str, tuple[type[JitterFamily], tuple[str, ...]]] = registry.table(registry.FAMILIES, "-")
+_FAMILIES: dict[str, tuple[type[JitterFamily], tuple[str, ...]]] = registry.table(
+    registry.FAMILIES, "-"
+)
 #: Parameters without a time unit (all others are times).
 _UNITLESS = registry.UNITLESS
 #: Largest time accepted in a jitter specification (s): far beyond any sampling problem.
@@ -63,7 +65,8 @@ MAX_TIME_S = 1e9
 JITTER_HELP = (
     "none | known:uniform:a=A | known:gaussian:sigma=S | known:sum-of-uniforms:n=N,a=A | "
     "known:generalized-normal:std=S,beta=B | known:dual-dirac:rj=R,dj=D "
-    "(a known law; add ,mean=M for jitter late on average by M) | uniform | gaussian | sum-of-uniforms | generalized-normal | dual-dirac "
+    "(a known law; add ,mean=M for jitter late on average by M) | uniform | gaussian | "
+    "sum-of-uniforms | generalized-normal | dual-dirac "
     "(a family to estimate, optionally "
     "bounded, e.g. uniform:a_max=0.5). Times take a unit (sigma=80ms); a bare number is in "
     "the data file's time_unit (seconds by default)"
@@ -170,7 +173,9 @@ def _kwargs(
                     f"jitter {spec!r}: {key}={value.strip()!r} is not a number"
                 ) from None
             if not math.isfinite(val) or abs(val) > 1e6:
-                raise ValueError(f"jitter {spec!r}: {key}={value.strip()!r} must be a number <= 1e6")
+                raise ValueError(
+                    f"jitter {spec!r}: {key}={value.strip()!r} must be a number <= 1e6"
+                )
         else:
             try:
                 val = parse_time(value, unit, f"jitter {spec!r}: {key}")
@@ -237,7 +242,9 @@ def parse_jitter(
             f"jitter {spec!r}: to fix the law write known:{s}; to estimate it write {name} "
             f"(optionally bounded: {name}:{keys[0]}=VALUE)"
         )
-    family: Any = _build(cls, _kwargs(body.strip(), keys, f"the {name} family", spec, time_unit), spec)
+    family: Any = _build(
+        cls, _kwargs(body.strip(), keys, f"the {name} family", spec, time_unit), spec
+    )
     return family
 
 
@@ -326,7 +333,8 @@ def _bound_pair(item: str, text: str, option: str) -> tuple[float | None, float 
         )
     hint = " (leave an end empty for no bound: a0=0:)"
     ends = [
-        None if not t.strip() else _number(item, t.strip(), option, hint) for t in (lo_text, hi_text)
+        None if not t.strip() else _number(item, t.strip(), option, hint)
+        for t in (lo_text, hi_text)
     ]
     lo, hi = ends
     if lo is None and hi is None:
@@ -351,18 +359,18 @@ def _not_a_parameter(
         )
     kinds = [k for k in registry.LAWS.values() if name in k.names]
     if kinds:
-        fam = next(
-            (k for k in registry.FAMILIES.values() if isinstance(jitter, k.cls)), None
+        fam = next((k for k in registry.FAMILIES.values() if isinstance(jitter, k.cls)), None)
+        kind = (
+            fam.name if fam is not None and name in registry.LAWS[fam.name].names else kinds[0].name
         )
-        kind = fam.name if fam is not None and name in registry.LAWS[fam.name].names else kinds[0].name
         law = ",".join(f"{k}=VALUE" for k in registry.LAWS[kind].names)
         opts = [o for o in registry.FAMILIES[kind].names if o.startswith(f"{name}_")]
         bound = f"{kind}:{opts[0]}=VALUE" if opts else kind
         return (
-            f"{name} is a parameter of the jitter law, not of the model ({', '.join(names) or 'none'}): "
+            f"{name} is a parameter of the jitter law, not of the model "
+            f"({', '.join(names) or 'none'}): "
             f"to fix the law write --jitter known:{kind}:{law}; to bound it estimate the family "
-            f"with --jitter {bound}"
-            + (f" (options {', '.join(opts)})" if opts else "")
+            f"with --jitter {bound}" + (f" (options {', '.join(opts)})" if opts else "")
         )
     return (
         f"{name!r} is not a parameter of the model{did_you_mean(name, names)}; its parameters "

@@ -107,7 +107,9 @@ class _Time(click.ParamType):
     def __init__(self, seconds: bool) -> None:
         self.seconds = seconds
 
-    def convert(self, value: object, param: click.Parameter | None, ctx: click.Context | None) -> object:
+    def convert(
+        self, value: object, param: click.Parameter | None, ctx: click.Context | None
+    ) -> object:
         if isinstance(value, float) and self.seconds:
             return value
         try:
@@ -371,7 +373,9 @@ def simulate(
             "param_names": list(structure.param_names),
             "params": dict(zip(structure.param_names, theta, strict=True)),
             "system": {
-                "num": system.num.tolist(), "den": system.den.tolist(), "delay_s": system.delay_s
+                "num": system.num.tolist(),
+                "den": system.den.tolist(),
+                "delay_s": system.delay_s,
             },
             "jitter": {
                 "spec": jitter_spec,
@@ -497,15 +501,24 @@ def _params_line(res: object) -> str:
     "that runs longer than 2 s; it never reaches the result files or stdout.)",
 )
 @click.option(
-    "--start", "start_items", multiple=True, metavar="NAME=VALUE",
+    "--start",
+    "start_items",
+    multiple=True,
+    metavar="NAME=VALUE",
     help="Start the search with this model parameter at VALUE (repeatable).",
 )
 @click.option(
-    "--bounds", "bound_items", multiple=True, metavar="NAME=LO:HI",
+    "--bounds",
+    "bound_items",
+    multiple=True,
+    metavar="NAME=LO:HI",
     help="Keep a model parameter in [LO, HI]; either end may be empty, e.g. a0=0: (repeatable).",
 )
 @click.option(
-    "--fix", "fix_items", multiple=True, metavar="NAME=VALUE",
+    "--fix",
+    "fix_items",
+    multiple=True,
+    metavar="NAME=VALUE",
     help="Hold a model parameter at VALUE: it is not estimated (repeatable).",
 )
 @click.option(
@@ -577,7 +590,9 @@ def fit(
                 raise ValueError(f"model {model_specs[i]!r} is given twice; give each model once")
     structure, model_spec = structures[0], model_specs[0]
     if len(structures) == 1 and (validation_path or criterion != "bic"):
-        raise click.UsageError("--validation and --criterion choose between several --model; give two or more")
+        raise click.UsageError(
+            "--validation and --criterion choose between several --model; give two or more"
+        )
     if len(structures) > 1 and (start_items or bound_items or fix_items):
         raise click.UsageError(
             "--start, --bounds and --fix name one model's parameters; with several --model, "
@@ -610,10 +625,25 @@ def fit(
         jitter = parse_jitter(jitter_spec, time_unit=_file_unit(ds))
     order, chosen = None, None
     if len(structures) > 1:
-        order = _select(ds, structures, model_specs, jitter, method, criterion, T, quiet, out_dir,
-                        validation_path, validation_input)
+        order = _select(
+            ds,
+            structures,
+            model_specs,
+            jitter,
+            method,
+            criterion,
+            T,
+            quiet,
+            out_dir,
+            validation_path,
+            validation_input,
+        )
         assert order.chosen is not None  # _select exits otherwise
-        structure, model_spec, chosen = structures[order.chosen], model_specs[order.chosen], order.result
+        structure, model_spec, chosen = (
+            structures[order.chosen],
+            model_specs[order.chosen],
+            order.result,
+        )
     stages = ["ordinary LS fit", *([] if method == "ls" else [f"{method} fit"])]
     stages += ["diagnostics", "writing results" + (" and figures" if plots else "")]
 
@@ -621,18 +651,24 @@ def fit(
         with _clean_errors("the fit failed"):
             # (every parameter fixed: 'ls' refuses a known system; bcls without jitter is its
             # criterion, evaluated at the fixed system)
-            ls = fit_model(ds.data, structure, NoJitter(), "ls" if structure.param_names else "bcls")
+            ls = fit_model(
+                ds.data, structure, NoJitter(), "ls" if structure.param_names else "bcls"
+            )
             if method == "ls":
                 res = ls
             else:
                 bar.stage(f"{method} fit")
                 # the selection's fit of the chosen model is this very fit (same data and options)
-                res = chosen if chosen is not None else fit_model(ds.data, structure, jitter, method)
+                res = (
+                    chosen if chosen is not None else fit_model(ds.data, structure, jitter, method)
+                )
         bar.stage("diagnostics")
         # The fit is done: from here on nothing may throw it away. A diagnostic that cannot
         # run is reported as skipped, with its reason, and the results are written regardless.
         skipped: list[tuple[str, str]] = []
-        det = _diagnostic(skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level))
+        det = _diagnostic(
+            skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level)
+        )
         xc = None
         if det is not None and method != "ls":
             xc = _diagnostic(skipped, "jitter cross-check", lambda: cross_check_jitter(res, det))
@@ -675,7 +711,13 @@ def fit(
 
     with _progress(stages, quiet) as bar:
         written, rep, failed = run(bar)
-    res, det, xc, checks, skipped = rep.result, rep.detection, rep.cross_check, rep.checks, rep.skipped
+    res, det, xc, checks, skipped = (
+        rep.result,
+        rep.detection,
+        rep.cross_check,
+        rep.checks,
+        rep.skipped,
+    )
     # The bar is gone: stdout gets the summary alone.
     if failed is not None:
         click.echo(_safe_summary(res))
@@ -692,7 +734,10 @@ def fit(
         click.echo(c.summary())
     for name, why in skipped:
         click.echo(f"skipped {name}: {why}")
-    click.echo("wrote " + ", ".join(str(p) for p in [*written, *([out_dir / "order.json"] if order else [])]))
+    click.echo(
+        "wrote "
+        + ", ".join(str(p) for p in [*written, *([out_dir / "order.json"] if order else [])])
+    )
     if not res.success:
         click.echo(f"error: the fit did not converge: {res.status.value}", err=True)
         raise click.exceptions.Exit(3)
@@ -718,7 +763,11 @@ def _select(
     val = _load(validation_path, validation_input, T, None) if validation_path else None
     with _progress(["order selection"], quiet), _clean_errors("the order selection failed"):
         order = select_order(
-            ds.data, structures, jitter, method, criterion=criterion,
+            ds.data,
+            structures,
+            jitter,
+            method,
+            criterion=criterion,
             validation=None if val is None else val.data,
         )
     click.echo(order.summary())
@@ -734,7 +783,9 @@ def _select(
     with _clean_errors("cannot write order.json"):
         atomic_write(out_dir / "order.json", lambda fh: fh.write(text))
     if order.chosen is None:
-        raise click.ClickException(f"no model could be fitted: {order.reason}; see {out_dir / 'order.json'}")
+        raise click.ClickException(
+            f"no model could be fitted: {order.reason}; see {out_dir / 'order.json'}"
+        )
     return order
 
 
@@ -796,8 +847,9 @@ def bias(
     law = _law(jitter_spec)
     top = fmax if fmax is not None else 0.5 / T
     f = np.linspace(0.0, top, points)
-    with _clean_errors(f"cannot evaluate the gain factor of {law}"), np.errstate(
-        all="raise", under="ignore"
+    with (
+        _clean_errors(f"cannot evaluate the gain factor of {law}"),
+        np.errstate(all="raise", under="ignore"),
     ):
         g = ls_gain_factor(law, f)
         fb = bias_frequency(law, tol)

@@ -237,7 +237,8 @@ def jitter(
     y = ds.data.y
     if ds.data.u is not None:
         click.echo(
-            f"note: {data_path} has an input column 'u'; it is ignored (a sine record needs y only)",
+            f"note: {data_path} has an input column 'u'; it is ignored (a sine record needs y "
+            "only)",
             err=True,
         )
     try:

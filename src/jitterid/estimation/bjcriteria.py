@@ -31,11 +31,11 @@ estimate, :func:`jitterid.estimation.boxjenkins.fit_bj`): the literal (20) with 
 inside the search, having no ln det R, is minimised partly by inflating R and is biased.
 ``weights_at=None`` keeps the literal form, for comparison.
 
-Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance, because
-the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
-d theta dy^T (closed form for ``gaussian``, else central differences of dV/dy), H the Hessian of V (central differences of the
-analytic gradient; Gauss-Newton 2 J^T J for the least-squares criteria); G Sigma_y G^T is an
-FFT Toeplitz product. Every difference quotient goes through
+Error bars: the delta method of :mod:`jitterid.estimation.covariance` with the full covariance,
+because the samples are now correlated: Cov(theta) = H^{-1} G Sigma_y G^T H^{-1}, G = d^2 V /
+d theta dy^T (closed form for ``gaussian``, else central differences of dV/dy), H the Hessian of V
+(central differences of the analytic gradient; Gauss-Newton 2 J^T J for the least-squares criteria);
+G Sigma_y G^T is an FFT Toeplitz product. Every difference quotient goes through
 :func:`jitterid.finite_diff.derivative`.
 """
 
@@ -106,7 +106,9 @@ class BJProblem:
     # the OE problem whose moments (and their derivatives, jacobians.moment_derivatives) are
     # the system/jitter block; the autocovariance's parameter derivatives; probe vectors
     _oe: Problem = field(init=False)
-    _dgamma: tuple[bytes, dict[int, tuple[FloatArray, FloatArray]]] | None = field(init=False, default=None)
+    _dgamma: tuple[bytes, dict[int, tuple[FloatArray, FloatArray]]] | None = field(
+        init=False, default=None
+    )
     _probes: FloatArray | None = field(init=False, default=None)
     _nm: tuple[bytes, NoiseModel] | None = field(init=False, default=None)
     _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
@@ -116,20 +118,26 @@ class BJProblem:
         if not self.estimator.coloured_noise:
             self.estimator.refuse_coloured_noise()
         own = set(self.noise.param_names) | ({"noise_std"} if self.white_std is None else set())
-        clash = own & (set(getattr(self.jitter, "param_names", ())) | set(self.structure.param_names))
+        clash = own & (
+            set(getattr(self.jitter, "param_names", ())) | set(self.structure.param_names)
+        )
         if clash:
             raise ValueError(
                 f"noise: its parameter names {sorted(clash)} clash with the system's or jitter's; "
                 "rename them in the noise structure"
             )
-        lay = ParamLayout.build(self.jitter, self.structure, self.noise, noise_std=self.white_std is None)
+        lay = ParamLayout.build(
+            self.jitter, self.structure, self.noise, noise_std=self.white_std is None
+        )
         k = len(lay.jitter) + len(lay.system)  # the noise block and noise_std follow
         if self.pinned is not None:
             nn = lay.names[k:]
             if self.pinned.size != len(nn):
                 raise ValueError(f"pinned must hold {len(nn)} values {nn}; got {self.pinned.size}")
             pinned = tuple((float(v), float(v)) for v in self.pinned)
-            lay = ParamLayout(lay.jitter, lay.system, lay.noise, lay.noise_std, lay.bounds[:k] + pinned)
+            lay = ParamLayout(
+                lay.jitter, lay.system, lay.noise, lay.noise_std, lay.bounds[:k] + pinned
+            )
         self.layout = lay
         self.names = lay.names
         self.bounds = lay.bounds
@@ -185,7 +193,9 @@ class BJProblem:
         key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()
         if key not in self._autocov:
             self._autocov.clear()
-            self._autocov[key] = jittered_autocovariance(self._noise_model(x), self._law(x), self.data.T)
+            self._autocov[key] = jittered_autocovariance(
+                self._noise_model(x), self._law(x), self.data.T
+            )
         return self._autocov[key]
 
     def covariance(self, x: FloatArray) -> SampleCovariance:
@@ -194,7 +204,9 @@ class BJProblem:
         if key not in self._cov:
             white = self._white(x)
             self._cov.clear()
-            self._cov[key] = SampleCovariance(self.moments(x).var + white**2, self.autocovariance(x))
+            self._cov[key] = SampleCovariance(
+                self.moments(x).var + white**2, self.autocovariance(x)
+            )
         return self._cov[key]
 
     def autocovariance_derivatives(self, x: FloatArray) -> dict[int, tuple[FloatArray, FloatArray]]:
@@ -216,7 +228,9 @@ class BJProblem:
         base = np.r_[g0.sequence(N), g0.ar]
 
         def flat(xx: FloatArray) -> FloatArray:
-            g = jittered_autocovariance(self.noise.model(xx[nj + ns : nj + ns + nn]), self._law(xx), T)
+            g = jittered_autocovariance(
+                self.noise.model(xx[nj + ns : nj + ns + nn]), self._law(xx), T
+            )
             return np.r_[g.sequence(N), g.ar]
 
         out: dict[int, tuple[FloatArray, FloatArray]] = {}
@@ -290,18 +304,26 @@ class BJProblem:
         diag(dd_p) + Toeplitz(dgamma_p) (:meth:`derivatives`)."""
         T, f = self.data.T, self.freqs
         return np.array(
-            [toeplitz_dft(dd[p], dg[p][0] if p in dg else None, T, f, f) for p in range(dd.shape[0])]
+            [
+                toeplitz_dft(dd[p], dg[p][0] if p in dg else None, T, f, f)
+                for p in range(dd.shape[0])
+            ]
         )
 
     def R_diagonal(self, x: FloatArray) -> FloatArray:
         """R(f, f) over the frequency set (what (23) weights by)."""
         return self.covariance(x).dft_diagonal(self.data.T, self.freqs)
 
-    def dR_diagonal(self, dd: FloatArray, dg: dict[int, tuple[FloatArray, FloatArray]]) -> FloatArray:
+    def dR_diagonal(
+        self, dd: FloatArray, dg: dict[int, tuple[FloatArray, FloatArray]]
+    ) -> FloatArray:
         """d R(f, f) / dx, (P, F) (:meth:`dR` on the diagonal only, O(N log N) each)."""
         T, f = self.data.T, self.freqs
         return np.array(
-            [toeplitz_dft_diagonal(dd[p], dg[p][0] if p in dg else None, T, f) for p in range(dd.shape[0])]
+            [
+                toeplitz_dft_diagonal(dd[p], dg[p][0] if p in dg else None, T, f)
+                for p in range(dd.shape[0])
+            ]
         )
 
     def adjoint(self, z: ComplexArray) -> FloatArray:
@@ -392,10 +414,17 @@ def _bj_covariance(problem: BJProblem, x: FloatArray, fixed: tuple[int, ...] = (
             if problem.has_jacobian:
                 J = problem.jacobian(x)[:, idx]
             else:
-                J = np.array([finite_diff.derivative(problem.residuals, x, i, bounds[i]) for i in idx]).T
+                J = np.array(
+                    [finite_diff.derivative(problem.residuals, x, i, bounds[i]) for i in idx]
+                ).T
             H = 2 * J.T @ J
         else:
-            H = np.array([finite_diff.derivative(lambda z: problem.gradient(z)[idx], x, i, bounds[i]) for i in idx])
+            H = np.array(
+                [
+                    finite_diff.derivative(lambda z: problem.gradient(z)[idx], x, i, bounds[i])
+                    for i in idx
+                ]
+            )
             H = 0.5 * (H + H.T)
     # A parameter the criterion does not depend on (the pole of a noise model whose gain is
     # 0) has a vanishing row of H: no error bar for it, and none of its noise in the others.

@@ -141,7 +141,9 @@ def crb(
     if estimate_noise:
         x = np.r_[x, float(noise_std)]
     if draws is not None:
-        return _inverse(_sampled_information(lik, x, count(draws, "draws", minimum=1), rng), lik.names)
+        return _inverse(
+            _sampled_information(lik, x, count(draws, "draws", minimum=1), rng), lik.names
+        )
     # each parameter's natural scale from (L4), whose derivatives are analytic: the steps of
     # the likelihood's differenced scores stay a small fraction of it
     info_g = _gaussian_information(structure, jitter, input, T, N, noise_std, x, estimate_noise)
@@ -233,7 +235,11 @@ def _gaussian_information(
         raise ValueError(f"N must be at least 4 for a bound; got {N}")
     data = SampledData(np.zeros(N), T, input)
     problem = Problem(
-        data, structure, jitter, "gaussian", default_frequencies(N, T),
+        data,
+        structure,
+        jitter,
+        "gaussian",
+        default_frequencies(N, T),
         None if estimate_noise else noise_std,
     )
     _, w, dm, dw = problem.derivatives(x)

@@ -87,7 +87,9 @@ class _Coordinates:
     - anything else: z = x.
     """
 
-    def __init__(self, names: NDArray[np.str_], lo: FloatArray, hi: FloatArray, x0: FloatArray) -> None:
+    def __init__(
+        self, names: NDArray[np.str_], lo: FloatArray, hi: FloatArray, x0: FloatArray
+    ) -> None:
         unbounded = np.isinf(hi)
         self.square = unbounded & (names == "noise_std")
         self.log = unbounded & (lo > 0) & ~self.square
@@ -96,7 +98,9 @@ class _Coordinates:
         # A rate may move by a factor _RATE_SPAN from its start at most: where it is not
         # identified (a noise gain at 0 leaves its pole free) the Newton steps in ln x are
         # ratios of vanishing numbers and would carry it to 1e100 and beyond.
-        span = np.log(np.maximum(np.where(self.log, x0, 1.0), np.where(self.log, lo, 1.0))) + np.log(_RATE_SPAN)
+        span = np.log(
+            np.maximum(np.where(self.log, x0, 1.0), np.where(self.log, lo, 1.0))
+        ) + np.log(_RATE_SPAN)
         self.hi = np.where(self.log, span, hi)
 
     def forward(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -113,7 +117,10 @@ class _Coordinates:
 
 
 def _search(
-    problem: BJProblem, x0: FloatArray, max_nfev: int, free: NDArray[np.bool_] | None = None,
+    problem: BJProblem,
+    x0: FloatArray,
+    max_nfev: int,
+    free: NDArray[np.bool_] | None = None,
     tol: float | None = None,
 ) -> tuple[FloatArray, float, FitStatus, str, int]:
     """Minimise the criterion over the free parameters from ``x0``."""
@@ -157,7 +164,9 @@ def _search(
                 except ValueError:  # only where resid failed too; such a step is never taken
                     return np.zeros((2 * problem.freqs.size, idx.size))
 
-        sol = least_squares(resid, x0[idx], jac=jac, bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev)
+        sol = least_squares(
+            resid, x0[idx], jac=jac, bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev
+        )
         status = FitStatus.CONVERGED if sol.status > 0 else FitStatus.MAX_EVALUATIONS
         if sol.status < 0:
             status = FitStatus.OPTIMISER_FAILED
@@ -178,7 +187,10 @@ def _search(
 
         def fun(z: FloatArray) -> tuple[float, FloatArray, FloatArray]:
             n_eval[0] += 1
-            if len(record) > STALL_WINDOW and record[-STALL_WINDOW - 1][0] - record[-1][0] < stall_gain:
+            if (
+                len(record) > STALL_WINDOW
+                and record[-STALL_WINDOW - 1][0] - record[-1][0] < stall_gain
+            ):
                 raise _Stalled  # the last STALL_WINDOW accepted steps gained < stall_gain
             xs, jac = cz.forward(z)
             with np.errstate(all="ignore"):
@@ -195,7 +207,9 @@ def _search(
 
         z0, lz, hz = cz.inverse(x0[idx]), cz.lo, cz.hi
         try:
-            z, ok, msg, nfev = newton_search(evaluator(fun), z0, lz, hz, max_nfev, tol=NEWTON_TOL if tol is None else tol)
+            z, ok, msg, nfev = newton_search(
+                evaluator(fun), z0, lz, hz, max_nfev, tol=NEWTON_TOL if tol is None else tol
+            )
         except _Stalled:
             # A criterion whose infimum lies at the edge of the model (a white record: the
             # noise pole runs off to infinity, where H is white) decreases without end by
@@ -234,8 +248,13 @@ def _noise_stage(
     start converged to the same point in the tests while each search costs ~15 evaluations."""
     nfixed = problem.n_jitter + problem.n_system
     stage = BJProblem(
-        problem.data, problem.structure, problem.jitter, problem.noise, GaussianCriterion(),
-        problem.freqs, problem.white_std,
+        problem.data,
+        problem.structure,
+        problem.jitter,
+        problem.noise,
+        GaussianCriterion(),
+        problem.freqs,
+        problem.white_std,
     )
     free = np.arange(len(stage.names)) >= nfixed
     if start is not None:
@@ -328,8 +347,14 @@ def _whitened_stage(
     results: list[tuple[FloatArray, float]] = []
     for theta0 in starts:
         sol = least_squares(
-            resid, theta0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=min(max_nfev, 200),
-            ftol=STAGE_FTOL, xtol=STAGE_FTOL,
+            resid,
+            theta0,
+            jac=jac,
+            bounds=(lo, hi),
+            x_scale="jac",
+            max_nfev=min(max_nfev, 200),
+            ftol=STAGE_FTOL,
+            xtol=STAGE_FTOL,
         )
         nfev += int(sol.nfev)
         results.append((sol.x, float(sol.cost)))
@@ -479,8 +504,14 @@ def fit_bj(
         )
     nstruct = as_noise_structure(noise)
     if not isinstance(data, SampledData):
-        raise TypeError(f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}")
-    f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
+        raise TypeError(
+            f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}"
+        )
+    f = (
+        default_frequencies(data.N, data.T)
+        if freqs is None
+        else np.atleast_1d(real_array(freqs, "freqs"))
+    )
     white = data.noise_std if noise_std is None else noise_std
     free_noise = len(nstruct.param_names) > 0 or white is None
     # a criterion without a ln det term holds the noise parameters at plug-in values
@@ -506,7 +537,16 @@ def fit_bj(
             # BCLS criterion does not use the noise std, so it is not passed
             white_data = replace(data, noise_std=None)
             prefits.append(
-                fit(white_data, structure, jitter, BCLS(), given, freqs=f, max_nfev=max_nfev, cov_type="none")
+                fit(
+                    white_data,
+                    structure,
+                    jitter,
+                    BCLS(),
+                    given,
+                    freqs=f,
+                    max_nfev=max_nfev,
+                    cov_type="none",
+                )
             )
         return prefits[0]
 
@@ -517,7 +557,9 @@ def fit_bj(
     if start is not None and not isinstance(start, FitResult):
         x0 = np.atleast_1d(real_array(start, "start"))
         if x0.size != len(problem.names):
-            raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
+            raise ValueError(
+                f"start must have {len(problem.names)} values {problem.names}; got {x0.size}"
+            )
         x0 = scaling.to_scaled(x0)
         if plug_in:
             problem = make(method=est, pinned=x0[k:])
@@ -560,7 +602,15 @@ def fit_bj(
             # The noise model does not enter the criterion (BCLS (14)): its BJ estimate is
             # its white-noise one (the pre-fit itself for BCLS), the noise only its error bars.
             if est != BCLS():
-                pre = fit(replace(data, noise_std=None), structure, jitter, est, pre, freqs=f, max_nfev=max_nfev)
+                pre = fit(
+                    replace(data, noise_std=None),
+                    structure,
+                    jitter,
+                    est,
+                    pre,
+                    freqs=f,
+                    max_nfev=max_nfev,
+                )
                 nfev += pre.nfev
                 x0 = np.r_[scaling.to_scaled(pre.x)[:k], eta]
             best = (x0, problem.objective(x0), pre.status, pre.message, 0)
@@ -596,22 +646,38 @@ def fit_bj(
         )
     status, msg = post_checks(
         PostContext(
-            data=sdata, structure=structure, jitter=jitter, names=problem.names,
-            bounds=problem.bounds, x=x, cost=float(cost), cov=cov,
-            objective=problem.objective, model_mean=lambda v: problem.moments(v).mean,
+            data=sdata,
+            structure=structure,
+            jitter=jitter,
+            names=problem.names,
+            bounds=problem.bounds,
+            x=x,
+            cost=float(cost),
+            cov=cov,
+            objective=problem.objective,
+            model_mean=lambda v: problem.moments(v).mean,
             oe_system=lambda: scaling.to_scaled(prefit().x)[nj:],
-            starts=partial(_other_starts, problem, others), cov_error=cov_error,
+            starts=partial(_other_starts, problem, others),
+            cov_error=cov_error,
             exempt=white_limit,
         ),
         status,
         msg,
     )
-    if not scaling.identity:  # back to the data's units, exactly; the criterion is re-evaluated there
+    if (
+        not scaling.identity
+    ):  # back to the data's units, exactly; the criterion is re-evaluated there
         x = scaling.to_original(x)
         cov = scaling.cov_to_original(cov)
         w = problem.weights_at
         problem = BJProblem(
-            data, structure, jitter, nstruct, est, f, white,
+            data,
+            structure,
+            jitter,
+            nstruct,
+            est,
+            f,
+            white,
             pinned=x[k:] if problem.pinned is not None else None,
             weights_at=None if w is None else scaling.to_original(w),
         )

@@ -176,7 +176,11 @@ def _scaled_input(u: Input, c: float) -> Input | None:
         return PiecewiseConstant(u.times, u.levels * c)
     if isinstance(u, Multisine):
         return Multisine(
-            u.freqs, u.amplitudes * c, u.end, u.phases, 0.0 if u.steady_state else u.start,
+            u.freqs,
+            u.amplitudes * c,
+            u.end,
+            u.phases,
+            0.0 if u.steady_state else u.start,
             u.steady_state,
         )
     return None
@@ -314,7 +318,9 @@ def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     # A (nearly) undamped resonance whose decay outlasts the record: the criterion cannot
     # tell it from an unstable one, and the covariance's steps cross the boundary.
     record = ctx.data.N * ctx.data.T
-    edge = poles[(poles.imag != 0) & (-poles.real < 1e-3 * np.abs(poles)) & (-poles.real * record < 1)]
+    edge = poles[
+        (poles.imag != 0) & (-poles.real < 1e-3 * np.abs(poles)) & (-poles.real * record < 1)
+    ]
     if edge.size:
         return FitStatus.UNSTABLE_MODEL, (
             f"the fitted system is on the edge of instability: poles {np.round(edge, 6).tolist()} "
@@ -351,7 +357,9 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
         lo, hi = ctx.structure.bounds[i]
         if _near(v, lo) or _near(v, hi):
             b = lo if _near(v, lo) else hi
-            if isinstance(ctx.structure, Constrained) and b in ctx.structure.user_bounds.get(name, ()):
+            if isinstance(ctx.structure, Constrained) and b in ctx.structure.user_bounds.get(
+                name, ()
+            ):
                 return FitStatus.AT_BOUND, (
                     f"the system parameter {name} = {v:.6g} is on the bound {b:g} you set: the "
                     "criterion's optimum lies beyond it, so the estimate and its error bars "
@@ -416,9 +424,10 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
         return None
     d = np.diag(c)
     if not np.all(np.isfinite(c)) or np.any(d <= 0):
+        bad = [n for n, v in zip(names, d, strict=True) if not (np.isfinite(v) and v > 0)]
         return FitStatus.UNIDENTIFIABLE, (
             "the information matrix is singular (no finite covariance for "
-            f"{[n for n, v in zip(names, d, strict=True) if not (np.isfinite(v) and v > 0)] or names}); "
+            f"{bad or names}); "
             "fix some parameters (a known jitter law), use a structure with fewer parameters, "
             "or a richer input"
         )

@@ -129,7 +129,9 @@ def covariance(
         return _covariance(problem, np.asarray(x, float), cov_type, noise_std)
 
 
-def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float | None) -> FloatArray:
+def _covariance(
+    problem: Problem, x: FloatArray, cov_type: str, noise_std: float | None
+) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
     if p == 0 or cov_type == "none":
@@ -175,7 +177,9 @@ def _covariance(problem: Problem, x: FloatArray, cov_type: str, noise_std: float
         if K is not None and np.ndim(K) == 3 and problem.freqs.size > KERNEL_MAX_FREQUENCIES:
             K = None  # a full kernel costs O(P F^3): the first-order form beyond
     if A is not None:
-        B = _per_sample_score_covariance(problem, x, G, np.asarray(A, float)[idx], cov_type == "robust")
+        B = _per_sample_score_covariance(
+            problem, x, G, np.asarray(A, float)[idx], cov_type == "robust"
+        )
     elif K is not None:
         B = _frequency_score_covariance(problem, x, G, np.asarray(K)[idx])
     else:
@@ -273,8 +277,11 @@ def _frequency_score_covariance(
         # A_kk = Re sum_{f,g} K_fg e^{i 2 pi (f - g) k T}: the kernel summed per difference
         uniq, inverse = problem.difference_grid()
         c = np.array(
-            [np.bincount(inverse, Kp.ravel().real, uniq.size)
-             + 1j * np.bincount(inverse, Kp.ravel().imag, uniq.size) for Kp in K]
+            [
+                np.bincount(inverse, Kp.ravel().real, uniq.size)
+                + 1j * np.bincount(inverse, Kp.ravel().imag, uniq.size)
+                for Kp in K
+            ]
         )
         Akk = (c @ np.exp(2j * np.pi * np.outer(uniq, np.arange(d.N) * d.T))).real
     Q = np.asarray(Q, float).reshape(P, P)
@@ -284,7 +291,9 @@ def _frequency_score_covariance(
     return (b * w) @ b.T + Q + (Akk * (mu4 - 3 * w * w)) @ Akk.T + cross + cross.T
 
 
-def _squared_covariance_products(w: FloatArray, T: float, f: FloatArray, k: FloatArray) -> FloatArray:
+def _squared_covariance_products(
+    w: FloatArray, T: float, f: FloatArray, k: FloatArray
+) -> FloatArray:
     """(|S|^2 + |C|^2) k for the columns of ``k`` (F, P), S and C the covariance and
     pseudo-covariance of the DTFT over ``f`` from the variances ``w`` ((17)-(19)).
 

@@ -5,9 +5,9 @@ the system's starting point; for a free jitter law a small grid of starting valu
 tried; the weighted and likelihood criteria start from the BCLS estimate. Least-squares
 criteria are minimised by scipy's trust-region Gauss-Newton/Levenberg-Marquardt
 (``least_squares``), the exact likelihood (``ml``) by the damped Newton iteration of
-:meth:`jitterid.estimation.likelihood.ExactLikelihood.maximise`, the others by a damped Newton (Fisher
-scoring) search, all with analytic derivatives (:mod:`jitterid.estimation.jacobians`); all respect the
-bounds.
+:meth:`jitterid.estimation.likelihood.ExactLikelihood.maximise`, the others by a damped Newton
+(Fisher scoring) search, all with analytic derivatives (:mod:`jitterid.estimation.jacobians`); all
+respect the bounds.
 """
 
 from __future__ import annotations
@@ -95,7 +95,9 @@ def _oe_start(data: SampledData, structure: Model) -> tuple[FloatArray, float]:
     return sol.x, float(np.sqrt(2 * sol.cost / data.N))
 
 
-def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
+def _run(
+    problem: Problem, x0: FloatArray, max_nfev: int
+) -> tuple[FloatArray, float, FitStatus, str, int]:
     lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
     x0 = np.clip(x0, lo, hi)
     if x0.size == 0:
@@ -127,7 +129,9 @@ def _run(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, f
             status = FitStatus.OPTIMISER_FAILED
         x, nfev, msg = sol.x, int(sol.nfev), str(sol.message)
     else:
-        x, ok, msg, nfev = newton_search(evaluator(problem.objective_gradient), x0, lo, hi, max_nfev)
+        x, ok, msg, nfev = newton_search(
+            evaluator(problem.objective_gradient), x0, lo, hi, max_nfev
+        )
         status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
         if not ok and nfev >= max_nfev:
             status = FitStatus.MAX_EVALUATIONS
@@ -247,8 +251,16 @@ def fit(
     # one thread is faster, and parallelism belongs to the Monte Carlo level.
     with threadpool_limits(limits=1, user_api="blas"):
         return _fit(
-            data, system, jitter, method, start, freqs=freqs, noise_std=noise_std, max_nfev=max_nfev,
-            noise_model=noise, cov_type=cov_type,
+            data,
+            system,
+            jitter,
+            method,
+            start,
+            freqs=freqs,
+            noise_std=noise_std,
+            max_nfev=max_nfev,
+            noise_model=noise,
+            cov_type=cov_type,
         )
 
 
@@ -269,25 +281,42 @@ def _fit(
     method = est.name
     cov_type = est.check_cov_type(cov_type)
     noise_std, max_nfev = check_arguments(noise_std, max_nfev)
-    if noise_model is not None and isinstance(system, Model) and not isinstance(system, ModelStructure):
+    if (
+        noise_model is not None
+        and isinstance(system, Model)
+        and not isinstance(system, ModelStructure)
+    ):
         raise ValueError(
             "noise: coloured noise (Box-Jenkins) is implemented for LTI structures driven by a "
             f"known input; {type(system).__name__} is a signal model: fit it with noise=None"
         )
     if noise_model is not None and isinstance(data, SampledData):  # Box-Jenkins: the data checks
         n_sys = len(system.param_names) if isinstance(system, Model) else 0
-        check_data(data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0))
+        check_data(
+            data, n_sys + (len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0)
+        )
     if noise_model is not None:  # Box-Jenkins structures (2b), (2d): coloured noise
         assert isinstance(system, (ModelStructure, TransferFunction))  # refused above otherwise
         return fit_bj(
-            data, system, jitter, est, start, noise=noise_model, freqs=freqs, noise_std=noise_std,
-            max_nfev=max_nfev, oe_fit=fit, cov_type=cov_type,
+            data,
+            system,
+            jitter,
+            est,
+            start,
+            noise=noise_model,
+            freqs=freqs,
+            noise_std=noise_std,
+            max_nfev=max_nfev,
+            oe_fit=fit,
+            cov_type=cov_type,
         )
     prefit = start if isinstance(start, FitResult) else None
     if prefit is not None:
         start = None
     if not isinstance(data, SampledData):
-        raise TypeError(f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}")
+        raise TypeError(
+            f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}"
+        )
     structure = as_structure(system)
     if not isinstance(jitter, (JitterLaw, JitterFamily)):
         raise TypeError(
@@ -304,7 +333,11 @@ def _fit(
     n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
     check_data(data, n_jit + len(structure.param_names), structure.uses_input)
     check_fit_resources(data, structure, jitter, method)  # memory up front (resources.py)
-    f = default_frequencies(data.N, data.T) if freqs is None else np.atleast_1d(real_array(freqs, "freqs"))
+    f = (
+        default_frequencies(data.N, data.T)
+        if freqs is None
+        else np.atleast_1d(real_array(freqs, "freqs"))
+    )
     if f.size < 1:
         raise ValueError("freqs must hold at least one frequency")
     noise = data.noise_std if noise_std is None else noise_std
@@ -335,13 +368,19 @@ def _fit(
         if method == "wbcls" and noise is None:
             theta_oe.append(_oe_start(data, structure))
             theta_sys = theta_oe[-1][0]
-            problem = make(method=method, noise_std=_plugin_noise(make, theta_sys, jstarts, max_nfev))
+            problem = make(
+                method=method, noise_std=_plugin_noise(make, theta_sys, jstarts, max_nfev)
+            )
         x0 = np.atleast_1d(real_array(start, "start"))  # type: ignore[arg-type]  # FitResult handled above
         if x0.size != len(problem.names):
-            raise ValueError(f"start must have {len(problem.names)} values {problem.names}; got {x0.size}")
+            raise ValueError(
+                f"start must have {len(problem.names)} values {problem.names}; got {x0.size}"
+            )
         x0 = scaling.to_scaled(x0)
         if method == "wbcls":
-            problem, best = _run_wbcls(make, est, problem.noise_std, np.clip(x0, *np.array(problem.bounds).T), max_nfev)
+            problem, best = _run_wbcls(
+                make, est, problem.noise_std, np.clip(x0, *np.array(problem.bounds).T), max_nfev
+            )
         else:
             best = _run(problem, x0, max_nfev)
         nfev = best[4]
@@ -350,8 +389,17 @@ def _fit(
         pre = make(method=first, noise_std=None)
         best = None
         if prefit is not None:
-            _check_prefit(prefit, pre if scaling.identity else Problem(orig_data, structure, jitter, first, f, None))
-            best = (scaling.to_scaled(prefit.x), prefit.cost, prefit.status, prefit.message, prefit.nfev)
+            _check_prefit(
+                prefit,
+                pre if scaling.identity else Problem(orig_data, structure, jitter, first, f, None),
+            )
+            best = (
+                scaling.to_scaled(prefit.x),
+                prefit.cost,
+                prefit.status,
+                prefit.message,
+                prefit.nfev,
+            )
             nfev = prefit.nfev
         else:
             theta_sys, rms = _oe_start(data, structure)
@@ -396,7 +444,9 @@ def _fit(
             noise_rec = problem.split(x)[2]
         elif noise is not None:
             noise_rec = float(noise)
-        elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value given the residuals
+        elif (
+            cov_type == "sandwich"
+        ):  # the covariance needs sigma_v: its ML value given the residuals
             mom = problem.moments(x)
             noise_rec = float(np.sqrt(noise_variance_ml(data.y - mom.mean, mom.var)))
         cov = covariance(problem, x, cov_type, noise_rec)
@@ -412,7 +462,11 @@ def _fit(
         # A search that already ran from every default start (the first stage) has nothing to
         # compare; after a given start or a second stage, the criterion at the default starts
         # must not be lower than at the estimate.
-        if (start is None and method in ("ls", "bcls")) or prefit is not None or not structure.param_names:
+        if (
+            (start is None and method in ("ls", "bcls"))
+            or prefit is not None
+            or not structure.param_names
+        ):
             return []
         th = oe_system()
         assert th is not None
@@ -436,22 +490,38 @@ def _fit(
 
     status, msg = post_checks(
         PostContext(
-            data=data, structure=structure, jitter=jitter, names=problem.names,
-            bounds=problem.bounds, x=x, cost=float(cost), cov=cov, objective=problem.objective,
-            model_mean=lambda v: problem.moments(v).mean, oe_system=oe_system, starts=default_starts,
-            cov_error=cov_error, known_variance=known_variance,
+            data=data,
+            structure=structure,
+            jitter=jitter,
+            names=problem.names,
+            bounds=problem.bounds,
+            x=x,
+            cost=float(cost),
+            cov=cov,
+            objective=problem.objective,
+            model_mean=lambda v: problem.moments(v).mean,
+            oe_system=oe_system,
+            starts=default_starts,
+            cov_error=cov_error,
+            known_variance=known_variance,
         ),
         status,
         msg,
     )
-    if not scaling.identity:  # back to the data's units, exactly; the criterion is re-evaluated there
+    if (
+        not scaling.identity
+    ):  # back to the data's units, exactly; the criterion is re-evaluated there
         x = scaling.to_original(x)
         cov = scaling.cov_to_original(cov)
         noise_rec = None if noise_rec is None else noise_rec * scaling.sy
         w = problem.weights_at
         problem.release()
         problem = Problem(
-            orig_data, structure, jitter, method, f,
+            orig_data,
+            structure,
+            jitter,
+            method,
+            f,
             None if problem.noise_std is None else problem.noise_std * scaling.sy,
             weights_at=None if w is None else scaling.to_original(w),
         )
@@ -534,14 +604,20 @@ def _check_prefit(prefit: FitResult, pre: Problem) -> None:
     # A search that ended (converged, then flagged by the checks after it: a jitter scale
     # collapsed onto its bound, an unidentified shape, ...) is a valid start: the next stage
     # is what repairs it. A search that did not end is not.
-    if prefit.status in (FitStatus.MAX_EVALUATIONS, FitStatus.NOT_FINITE, FitStatus.OPTIMISER_FAILED):
+    if prefit.status in (
+        FitStatus.MAX_EVALUATIONS,
+        FitStatus.NOT_FINITE,
+        FitStatus.OPTIMISER_FAILED,
+    ):
         raise ValueError(
             f"start: the {pre.method} fit passed as start did not converge ({prefit.status.name}); "
             "fit without it, or from a parameter vector"
         )
     cost = pre.objective(prefit.x)
-    if prefit.freqs.shape != pre.freqs.shape or not np.allclose(prefit.freqs, pre.freqs) or not np.isclose(
-        cost, prefit.cost, rtol=1e-9, atol=0.0
+    if (
+        prefit.freqs.shape != pre.freqs.shape
+        or not np.allclose(prefit.freqs, pre.freqs)
+        or not np.isclose(cost, prefit.cost, rtol=1e-9, atol=0.0)
     ):
         raise ValueError(
             "start: the FitResult passed as start was fitted to other data, jitter model or "
@@ -557,7 +633,9 @@ def _noise_from_residuals(bcls: Problem, x: FloatArray) -> float:
     return float(np.sqrt(max(power - signal_var, 1e-12 * power) / bcls.data.N))
 
 
-def _plugin_noise(make: partial[Problem], theta_sys: FloatArray, jstarts: Sequence[Sequence[float]], max_nfev: int) -> float:
+def _plugin_noise(
+    make: partial[Problem], theta_sys: FloatArray, jstarts: Sequence[Sequence[float]], max_nfev: int
+) -> float:
     pre = make(method="bcls", noise_std=None)
     out = _run(pre, np.r_[np.asarray(jstarts[0], float), theta_sys], max_nfev)
     return _noise_from_residuals(pre, out[0])

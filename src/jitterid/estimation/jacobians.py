@@ -118,7 +118,9 @@ def moments(problem: Problem, x: FloatArray) -> SampleMoments:
     return SampleMoments(mean, var)
 
 
-def _floored(problem: Problem, x: FloatArray, var: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+def _floored(
+    problem: Problem, x: FloatArray, var: FloatArray
+) -> tuple[FloatArray, NDArray[np.bool_]]:
     """w = Var + sigma_v^2 with :meth:`Problem.variances`'s floor, and where it is active."""
     noise = problem.split(x)[2]
     w = var + noise**2
@@ -168,7 +170,13 @@ class _PdfDerivative(JitterLaw):
 
 
 def _law_derivative(
-    problem: Problem, x: FloatArray, law: JitterLaw, sig: Signal, i: int, mean: FloatArray, need_var: bool
+    problem: Problem,
+    x: FloatArray,
+    law: JitterLaw,
+    sig: Signal,
+    i: int,
+    mean: FloatArray,
+    need_var: bool,
 ) -> tuple[FloatArray, FloatArray | None]:
     """dm_k and dVar_k in jitter parameter i from the family's dp/dtheta_i at the base law's
     nodes (:meth:`JitterFamily.pdf_gradient`): dm = sum w' s, and, with the pass's
@@ -184,7 +192,9 @@ def _law_derivative(
         p = sig.system._modal[2]
         rate = float(np.max(np.abs(p))) if p.size else 0.0
         plan = SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
-        dmean, dvar, _, _ = modal_moments(plan, tables(sig.system, d.u), keep=False, variance=need_var)
+        dmean, dvar, _, _ = modal_moments(
+            plan, tables(sig.system, d.u), keep=False, variance=need_var
+        )
     else:
         mp = moment_pass(sig, dlaw, d.T, d.N, variance=need_var)
         dmean, dvar = mp.mean, mp.var
@@ -231,7 +241,11 @@ def moment_derivatives(
         assert isinstance(problem.structure, ModelStructure)  # a Response is an LTI structure's
         tf = sig.system
         d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
-        dtab = derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf)) if ns else None
+        dtab = (
+            derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf))
+            if ns
+            else None
+        )
         plan, tab = _plan(problem, x, law, tf), tables(tf, d.u)
         mean, var, dms, dvs = modal_moments(plan, tab, dtab, scale=a, variance=need_var)
         assert dms is not None
@@ -261,6 +275,7 @@ def moment_derivatives(
             assert mp.dvar is not None
             dm[nj : nj + ns], dv[nj : nj + ns] = mp.dmean, mp.dvar
         elif ns:  # declared missing: central differences of the moments (finite_diff)
+
             def both(v: FloatArray) -> FloatArray:
                 mv = moments(problem, v)
                 return np.concatenate([mv.mean, mv.var])
@@ -289,7 +304,9 @@ def moment_derivatives(
         dm[i], dvi = _law_derivative(problem, x, law, sig, i, mom.mean, need_var)
         if dvi is not None:
             dv[i] = dvi
-    for i in shape if grad is None else ():  # other jitter parameters move the nodes: a one-sided difference
+    for i in (
+        shape if grad is None else ()
+    ):  # other jitter parameters move the nodes: a one-sided difference
         xi, h = finite_diff.forward(x, i, problem.bounds[i], _FD_REL, floor=1.0)
         mi = moments(problem, xi)
         dm[i] = (mi.mean - mom.mean) / h

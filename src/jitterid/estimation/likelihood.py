@@ -660,7 +660,10 @@ class ExactLikelihood:
         self.order = count(self.order, "order", minimum=1)
         self.panel = positive(self.panel, "panel")
         self.layout = ParamLayout.build(
-            self.jitter, self.structure, noise_std=self.noise_std is None, noise_floor=self.noise_floor
+            self.jitter,
+            self.structure,
+            noise_std=self.noise_std is None,
+            noise_floor=self.noise_floor,
         )
 
     # -------------------------------------------------------------- parameters and rule
@@ -744,7 +747,9 @@ class ExactLikelihood:
         if profile is None or np.asarray(sig.breaks).size:
             return False  # switching inputs keep the full rule (its graded cuts)
         lo, hi = law.support
-        per_sample = profile.cumulative()[-1] / (self.panel * sigma) * (hi - lo) / (span[1] - span[0])
+        per_sample = (
+            profile.cumulative()[-1] / (self.panel * sigma) * (hi - lo) / (span[1] - span[0])
+        )
         return bool(per_sample > _WINDOW_FROM)
 
     def _nodes(
@@ -870,7 +875,15 @@ class ExactLikelihood:
             tk = t[keep]
             logrule = np.log(gw[keep]) if split else None
             yield _Nodes(
-                pc.k0, pc.k1, tk, np.log(w[keep]), owner, starts, _NodeSignal(sig, tk), logrule, pc.probe
+                pc.k0,
+                pc.k1,
+                tk,
+                np.log(w[keep]),
+                owner,
+                starts,
+                _NodeSignal(sig, tk),
+                logrule,
+                pc.probe,
             )
 
     def _make_nodes(self, law: JitterLaw, sig: Signal) -> Iterator[_Nodes]:
@@ -883,7 +896,13 @@ class ExactLikelihood:
         split = bool(self._weight_params()) and hi > lo
         rule = _UnitDensity(law) if split else law
         for ch in jitter_nodes(
-            rule, self.T, self.N, breaks, sig.rate, order=self.order, chunk=_CHUNK,  # type: ignore[arg-type]
+            rule,  # type: ignore[arg-type]
+            self.T,
+            self.N,
+            breaks,
+            sig.rate,
+            order=self.order,
+            chunk=_CHUNK,
             shared_pdf=True,
         ):
             w = ch.w
@@ -900,11 +919,15 @@ class ExactLikelihood:
                 )
             t = ch.t[keep]
             logrule = np.log(ch.w[keep]) if split else None
-            yield _Nodes(ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(sig, t), logrule)
+            yield _Nodes(
+                ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(sig, t), logrule
+            )
 
     def _evals(self, x: FloatArray, y: FloatArray) -> list[_Eval]:
         law, sig, sigma = self.split(x)
-        return [_evaluate(nd, nd.signal(sig), y, sigma) for nd in self._nodes(x, law, sig, y, sigma)]
+        return [
+            _evaluate(nd, nd.signal(sig), y, sigma) for nd in self._nodes(x, law, sig, y, sigma)
+        ]
 
     def _data(self, y: ArrayLike) -> FloatArray:
         y = real_array(y, "y", ndim=1)
@@ -1130,10 +1153,13 @@ class ExactLikelihood:
                         ds = sig.slope(nd.t)
             if delay is not None:  # the nodes t_j = kT + tau0_j - delay move by -d delay
                 if not analytic:
+
                     def later(v: FloatArray, t: FloatArray = nd.t) -> FloatArray:
                         return sig(t + v[0])
 
-                    ds = finite_diff.derivative(later, np.zeros(1), 0, (-np.inf, np.inf), h=1e-6 * self.T)
+                    ds = finite_diff.derivative(
+                        later, np.zeros(1), 0, (-np.inf, np.inf), h=1e-6 * self.T
+                    )
                 D = D.copy()
                 D[delay - nj] = -ds
             if scale is not None:
@@ -1201,9 +1227,9 @@ class ExactLikelihood:
     def maximise(
         self, y: ArrayLike, x0: ArrayLike, *, max_evaluations: int = 200, tol: float = 1e-8
     ) -> tuple[FloatArray, float, bool, str, int]:
-        """Maximise ln L from ``x0`` inside the bounds: :func:`jitterid.estimation.search.newton_search`
-        on V = -ln L (so that its Newton decrement g^T M^{-1} g, twice the remaining gain in
-        ln L, is compared with ``tol``).
+        """Maximise ln L from ``x0`` inside the bounds:
+        :func:`jitterid.estimation.search.newton_search` on V = -ln L (so that its Newton
+        decrement g^T M^{-1} g, twice the remaining gain in ln L, is compared with ``tol``).
 
         The Newton matrix M is the observed information of :meth:`_terms` (Gauss-Newton for
         the system, noise and jitter-scale parameters: within ~1% of the exact Hessian at the

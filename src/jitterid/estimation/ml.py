@@ -113,7 +113,9 @@ def _ml_start(problem: Problem, x0: FloatArray) -> tuple[list[tuple[float, Float
     return [(v, c) for v, _, c in scored], len(cands)
 
 
-def _search(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, bool, str, int]:
+def _search(
+    problem: Problem, x0: FloatArray, max_nfev: int
+) -> tuple[FloatArray, float, bool, str, int]:
     """Maximise the exact likelihood from x0; the quadrature rule, designed at the start, is
     re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6."""
     lik, y = problem.likelihood, problem.data.y
@@ -131,7 +133,9 @@ def _search(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray
     return x, -2 * loglik, ok, msg, nfev
 
 
-def run_ml(problem: Problem, x0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, FitStatus, str, int]:
+def run_ml(
+    problem: Problem, x0: FloatArray, max_nfev: int
+) -> tuple[FloatArray, float, FitStatus, str, int]:
     """Maximise the exact likelihood from the best scored start (:func:`_ml_start`).
 
     A stop that another scored start beats is not the optimum: the search is restarted from

@@ -109,15 +109,15 @@ class Problem:
     # last derivatives, frequency-difference grid (see :mod:`jitterid.estimation.jacobians`)
     _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
     _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
-    _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = field(
-        init=False, default=None
-    )
+    _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = field(init=False, default=None)
     _plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
     _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         self.layout = ParamLayout.build(
-            self.jitter, self.structure, noise_std=self.estimates_noise,
+            self.jitter,
+            self.structure,
+            noise_std=self.estimates_noise,
             noise_floor=self.data.resolution,
         )
         self.Y = dtft(self.data.y, self.data.T, self.freqs)

@@ -46,9 +46,7 @@ class FitStatus(enum.Enum):
         "failed: the evaluation budget ran out before convergence; raise max_nfev or give a "
         "better start"
     )
-    NOT_FINITE = (
-        "failed: the criterion was not finite at the end; check the data, bounds and start"
-    )
+    NOT_FINITE = "failed: the criterion was not finite at the end; check the data, bounds and start"
     OPTIMISER_FAILED = "failed: the optimiser reported an error (see message)"
     # Checks after a converged search (jitterid.estimation.checks): the search met its test,
     # but the answer cannot be trusted. The message says which parameter and the numbers.
@@ -288,7 +286,9 @@ class FitResult:
                 notes[n] = "the information matrix is singular: the parameter is not identified"
         return notes
 
-    def conf_int(self, level: float = 0.95, scale: str = "linear") -> dict[str, tuple[float, float]]:
+    def conf_int(
+        self, level: float = 0.95, scale: str = "linear"
+    ) -> dict[str, tuple[float, float]]:
         """Normal-approximation confidence intervals ``{name: (low, high)}``, never outside
         the parameter's bounds.
 
@@ -536,12 +536,15 @@ class FitResult:
         lines.append(f"  jitter law {self.jitter_law}  ({sd})")
         fixed = getattr(self.structure, "fixed", None)
         if fixed:  # a Constrained structure: values held, not estimated
-            lines.append("  fixed (not estimated): " + ", ".join(f"{k} = {v:.6g}" for k, v in fixed.items()))
+            lines.append(
+                "  fixed (not estimated): " + ", ".join(f"{k} = {v:.6g}" for k, v in fixed.items())
+            )
         if self.system is not None:
             lines.append(f"  system {self.system}")
             if getattr(self.structure, "delay_index", None) is not None:
                 lines.append(
-                    f"  delay_s is estimated with the jitter's mean held at {self.jitter_law.mean:.4g} "
+                    "  delay_s is estimated with the jitter's mean held at "
+                    f"{self.jitter_law.mean:.4g} "
                     "s: the samples identify only delay_s - mean jitter "
                     f"= {self.system.delay_s - self.jitter_law.mean:.4g} s"
                 )
@@ -554,11 +557,7 @@ class FitResult:
         if self.noise_std is None:
             lines.append("  noise std: not used")
         else:
-            how = (
-                "estimated"
-                if "noise_std" in self.names
-                else "given, or the residuals' plug-in"
-            )
+            how = "estimated" if "noise_std" in self.names else "given, or the residuals' plug-in"
             lines.append(f"  noise std {self.noise_std:.4g} ({how})")
         return "\n".join(lines)
 
@@ -606,12 +605,15 @@ class FitResult:
         n = count(pade_order, "pade_order", minimum=1)
         # Pade [n/n] of e^{-x}: q(x) = sum_k c_k x^k, c_k = (2n - k)! n! / ((2n)! k! (n - k)!),
         # e^{-x} ~ q(-x) / q(x), with x = s delay_s (coefficients highest power first).
-        c = np.array([
-            math.factorial(2 * n - k) * math.factorial(n)
-            / (math.factorial(2 * n) * math.factorial(k) * math.factorial(n - k))
-            * tf.delay_s**k
-            for k in range(n, -1, -1)
-        ])
+        c = np.array(
+            [
+                math.factorial(2 * n - k)
+                * math.factorial(n)
+                / (math.factorial(2 * n) * math.factorial(k) * math.factorial(n - k))
+                * tf.delay_s**k
+                for k in range(n, -1, -1)
+            ]
+        )
         sign = (-1.0) ** np.arange(n, -1, -1)
         return np.polymul(tf.num, sign * c), np.polymul(tf.den, c)
 

@@ -36,7 +36,12 @@ def evaluator(
 
 
 def newton_search(
-    evaluate: Callable[[FloatArray], tuple[float, FloatArray, FloatArray] | None], x0: FloatArray, lo: FloatArray, hi: FloatArray, max_nfev: int, tol: float = 1e-8,
+    evaluate: Callable[[FloatArray], tuple[float, FloatArray, FloatArray] | None],
+    x0: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    max_nfev: int,
+    tol: float = 1e-8,
     smooth: NDArray[np.bool_] | None = None,
 ) -> tuple[FloatArray, bool, str, int]:
     """Minimise a criterion V by damped Newton (Fisher scoring) inside box bounds.

@@ -50,7 +50,9 @@ class Section:
     def __init__(self, data: Any, path: str, source: str, keys: Iterable[str]) -> None:
         self.path, self.source = path, source
         if not isinstance(data, dict):
-            raise ExperimentError(f"{source}: {path or 'the file'} must be a table; got {_show(data)}")
+            raise ExperimentError(
+                f"{source}: {path or 'the file'} must be a table; got {_show(data)}"
+            )
         self.data: dict[str, Any] = data
         allowed = list(keys)
         for k in data:

@@ -60,7 +60,9 @@ def uncertainty_section(exp: Experiment, estimates: Sequence[Estimate]) -> list[
             "|---|" + "---:|" * len(names),
         ]
         for m in exp.methods:
-            rows = [e for e in estimates if e.case_name == case.name and e.method == m and e.success]
+            rows = [
+                e for e in estimates if e.case_name == case.name and e.method == m and e.success
+            ]
             cells = []
             for p in names:
                 est = np.array([e.params.get(p, math.nan) for e in rows])
@@ -76,12 +78,16 @@ def uncertainty_section(exp: Experiment, estimates: Sequence[Estimate]) -> list[
     return lines
 
 
-def _fitted(exp: Experiment, method: str, rows: Sequence[Estimate]) -> tuple[list[NoiseModel], list[JitterLaw]]:
+def _fitted(
+    exp: Experiment, method: str, rows: Sequence[Estimate]
+) -> tuple[list[NoiseModel], list[JitterLaw]]:
     """The noise model and jitter law of every fit of a Box-Jenkins estimator."""
     structure, jitter = exp.noise.structure(), exp.estimation_jitter(exp.cases[0], method)  # type: ignore[union-attr]
     models = [structure.model([e.params[p] for p in structure.param_names]) for e in rows]
     laws = [
-        jitter.law([e.params[p] for p in jitter.param_names]) if isinstance(jitter, JitterFamily) else jitter
+        jitter.law([e.params[p] for p in jitter.param_names])
+        if isinstance(jitter, JitterFamily)
+        else jitter
         for e in rows
     ]
     return models, laws
@@ -97,7 +103,9 @@ def spectra_figure(out: str | Path, exp: Experiment, estimates: Sequence[Estimat
     the white floor r_v(0) - int S_v |phi|^2 df it creates).
     """
     if exp.noise is None:
-        raise ValueError(f"experiment {exp.name!r} has no [noise] section: no noise spectra to draw")
+        raise ValueError(
+            f"experiment {exp.name!r} has no [noise] section: no noise spectra to draw"
+        )
     T, case = exp.T, exp.cases[0]
     law = case.law.build()
     f = np.geomspace(2e-3 / T, 0.5 / T, 300)
@@ -120,19 +128,42 @@ def spectra_figure(out: str | Path, exp: Experiment, estimates: Sequence[Estimat
             levels = [e.noise_std for e in rows if np.isfinite(e.noise_std) and e.noise_std > 0]
             if levels and not exp.noise_known:
                 ax.axhline(
-                    float(np.median(levels)) ** 2 * T, color=colour, ls=":", lw=1.2,
+                    float(np.median(levels)) ** 2 * T,
+                    color=colour,
+                    ls=":",
+                    lw=1.2,
                     label=f"{exp.label(m)}: white level σ̂² T (median)",
                 )
             continue
         models, laws = _fitted(exp, m, rows)
         floor = np.array([e.noise_std**2 * T for e in rows])[:, None]
-        fit_after = np.array([jittered_autocovariance(nm, jl, T).spectrum(f) for nm, jl in zip(models, laws, strict=True)]) + floor
-        fit_before = np.array([jittered_autocovariance(nm, NoJitter(), T).spectrum(f) for nm in models]) + floor
+        fit_after = (
+            np.array(
+                [
+                    jittered_autocovariance(nm, jl, T).spectrum(f)
+                    for nm, jl in zip(models, laws, strict=True)
+                ]
+            )
+            + floor
+        )
+        fit_before = (
+            np.array([jittered_autocovariance(nm, NoJitter(), T).spectrum(f) for nm in models])
+            + floor
+        )
         band = np.percentile(fit_after, [10, 50, 90], axis=0)
         ax.fill_between(f, band[0], band[2], color=colour, alpha=0.12, lw=0)
         ax.loglog(f, band[1], color=colour, lw=1.5, label=f"{exp.label(m)}: fitted, after jitter")
-        ax.loglog(f, np.median(fit_before, axis=0), color=colour, ls="--", lw=1.0, label=f"{exp.label(m)}: fitted, before")
-        axr.semilogx(f, np.median(fit_after / fit_before, axis=0), color=colour, lw=1.2, label=exp.label(m))
+        ax.loglog(
+            f,
+            np.median(fit_before, axis=0),
+            color=colour,
+            ls="--",
+            lw=1.0,
+            label=f"{exp.label(m)}: fitted, before",
+        )
+        axr.semilogx(
+            f, np.median(fit_after / fit_before, axis=0), color=colour, lw=1.2, label=exp.label(m)
+        )
     ax.set(xlabel="frequency f (Hz)", ylabel="noise power spectral density (1/Hz)")
     ax.set_title("noise spectra: true and fitted (median, 10-90 % band)", fontsize=9)
     axr.set(xlabel="frequency f (Hz)", ylabel="after / before jitter")

@@ -145,7 +145,8 @@ class NoiseSpec:
 
 
 def split_method(method: str) -> tuple[str, str]:
-    """(prefix, criterion): ``"bj-gaussian"`` -> ``("bj-", "gaussian")``, ``"bcls"`` -> ``("", "bcls")``."""
+    """(prefix, criterion): ``"bj-gaussian"`` -> ``("bj-", "gaussian")``,
+    ``"bcls"`` -> ``("", "bcls")``."""
     for prefix in BJ_PREFIXES:
         if method.startswith(prefix):
             return prefix, method[len(prefix) :]

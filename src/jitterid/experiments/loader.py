@@ -103,7 +103,17 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         data,
         "",
         source,
-        ("experiment", "sampling", "input", "system", "jitter", "cases", "estimators", "paper", "noise"),
+        (
+            "experiment",
+            "sampling",
+            "input",
+            "system",
+            "jitter",
+            "cases",
+            "estimators",
+            "paper",
+            "noise",
+        ),
     )
     ex = top.table("experiment", ("name", "title", "description", "runs", "seed"))
     name = ex.text("name")
@@ -124,7 +134,11 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
     cases = tuple(_case(c) for c in top.tables("cases", ("name", "law", "paper_case")))
     if len({c.name for c in cases}) != len(cases):
         raise top.fail("cases", "must have distinct names")
-    noise = _noise(top.table("noise", ("structure", "num_order", "den_order", "truth"))) if top.has("noise") else None
+    noise = (
+        _noise(top.table("noise", ("structure", "num_order", "den_order", "truth")))
+        if top.has("noise")
+        else None
+    )
     est = top.table("estimators", ("methods", "crb"))
     methods = _methods(est, jitter_model, system, noise is not None)
     _check_bj(est, methods, jitter_model, cases)
@@ -186,8 +200,19 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
     _check_coverage(exp, top)
     if exp.input.kind == "telegraph":
         _fits(
-            top.table("input", ("kind", "margin", "levels", "mean_hold", "freqs", "amplitudes",
-                                "phases", "steady_state")),
+            top.table(
+                "input",
+                (
+                    "kind",
+                    "margin",
+                    "levels",
+                    "mean_hold",
+                    "freqs",
+                    "amplitudes",
+                    "phases",
+                    "steady_state",
+                ),
+            ),
             "mean_hold",
             4 * (exp.duration / exp.input.mean_hold + 10),
             f"a telegraph input of {exp.duration:g} s with mean_hold = {exp.input.mean_hold:g} s",
@@ -269,7 +294,9 @@ def _case(sec: Section) -> Case:
         raise sec.fail("name", f"must be letters, digits, '_', '-' or '.'; got {name!r}")
     raw = sec.raw("law")
     kind = _kind(
-        Section(raw, sec.key("law"), sec.source, ("kind", *{p for _, ps in LAWS.values() for p in ps})),
+        Section(
+            raw, sec.key("law"), sec.source, ("kind", *{p for _, ps in LAWS.values() for p in ps})
+        ),
         "kind",
         LAWS,
     )
@@ -277,7 +304,9 @@ def _case(sec: Section) -> Case:
     spec = LawSpec(kind, tuple((p, law_sec.number(p, at_least=0)) for p in LAWS[kind][1]))
     for p, v in spec.params:
         if v > MAX_TIME_S:
-            raise law_sec.fail(p, f"= {v:g} is beyond any sampling problem (at most {MAX_TIME_S:g})")
+            raise law_sec.fail(
+                p, f"= {v:g} is beyond any sampling problem (at most {MAX_TIME_S:g})"
+            )
     _built(law_sec, "kind", spec.build)
     paper = sec.integer("paper_case", minimum=1) if sec.has("paper_case") else None
     return Case(name, spec, paper)
@@ -328,7 +357,9 @@ def _noise(sec: Section) -> NoiseSpec:
     return spec
 
 
-def _check_bj(sec: Section, methods: tuple[str, ...], jitter_model: str, cases: tuple[Case, ...]) -> None:
+def _check_bj(
+    sec: Section, methods: tuple[str, ...], jitter_model: str, cases: tuple[Case, ...]
+) -> None:
     """A 'jbj-' estimator fits the family of each case's law kind: the jitter must be known
     (else 'bj-' already estimates the family) and every law must have a family."""
     if not any(split_method(m)[0] == "jbj-" for m in methods):

@@ -112,7 +112,13 @@ def realize(
         u = exp.input.build(exp.duration, rng)
         noise = exp.noise.true_model() if exp.noise is not None else None
         data = simulate(
-            exp.system.true_system(), u, case.law.build(), exp.T, exp.N, exp.noise_std, rng,
+            exp.system.true_system(),
+            u,
+            case.law.build(),
+            exp.T,
+            exp.N,
+            exp.noise_std,
+            rng,
             noise_model=noise,
         )
         if not exp.noise_known:
@@ -121,7 +127,13 @@ def realize(
         shared: dict[str, FitResult | Exception] = {}
         rows = [
             _fit_one(
-                data, model, exp.estimation_jitter(case, m), m, case.name, realization, shared,
+                data,
+                model,
+                exp.estimation_jitter(case, m),
+                m,
+                case.name,
+                realization,
+                shared,
                 exp.noise.structure() if exp.noise is not None and split_method(m)[0] else None,
             )
             for m in exp.methods
@@ -168,7 +180,9 @@ def _fit_one(
             res = fit(data, model, jitter, method)
         else:
             # 'jbj-' methods fit a jitter family: their BCLS stage is not the known-law one.
-            pre = _bcls_stage(data, model, jitter, shared, "bcls-jbj" if prefix == "jbj-" else "bcls")
+            pre = _bcls_stage(
+                data, model, jitter, shared, "bcls-jbj" if prefix == "jbj-" else "bcls"
+            )
             t0 = time.perf_counter() if method != "bcls" else t0
             # A failed BCLS search cannot seed the others: they search on their own.
             res = (

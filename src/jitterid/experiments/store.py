@@ -57,8 +57,20 @@ _COLUMNS = {
     "meta": ["key", "value"],
     "realizations": ["case_name", "realization", "elapsed_s"],
     "estimates": [
-        "experiment", "case_name", "realization", "method", "params", "stderr", "jitter_std",
-        "noise_std", "cost", "success", "status", "message", "nfev", "elapsed_s",
+        "experiment",
+        "case_name",
+        "realization",
+        "method",
+        "params",
+        "stderr",
+        "jitter_std",
+        "noise_std",
+        "cost",
+        "success",
+        "status",
+        "message",
+        "nfev",
+        "elapsed_s",
     ],
 }
 
@@ -203,8 +215,7 @@ class Store:
         with db:
             for k, v in (("experiment", experiment.name), ("fingerprint", fp)):
                 db.execute("INSERT OR IGNORE INTO meta VALUES (?, ?)", (k, v))
-            db.execute("INSERT OR REPLACE INTO meta VALUES ('jitterid_version', ?)",
-                             (__version__,))
+            db.execute("INSERT OR REPLACE INTO meta VALUES ('jitterid_version', ?)", (__version__,))
             db.execute(
                 "INSERT OR REPLACE INTO meta VALUES ('definition', ?)",
                 (json.dumps(_definition(experiment), sort_keys=True),),

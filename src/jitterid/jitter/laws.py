@@ -892,7 +892,9 @@ class Shifted(JitterLaw):
                 f"{type(self.law).__name__}"
             )
         m = _checks.finite(self.mean_s, "mean_s")
-        if isinstance(self.law, Shifted):  # one level: Shifted(Shifted(l, a), b) = Shifted(l, a + b)
+        if isinstance(
+            self.law, Shifted
+        ):  # one level: Shifted(Shifted(l, a), b) = Shifted(l, a + b)
             object.__setattr__(self, "mean_s", m + self.law.mean_s)
             object.__setattr__(self, "law", self.law.law)
         else:

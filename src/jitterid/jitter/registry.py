@@ -67,7 +67,11 @@ FAMILIES: dict[str, Kind] = _kinds(
     Kind("uniform", UniformFamily, ("a_max", "a_min")),
     Kind("gaussian", GaussianFamily, ("sigma_max", "sigma_min")),
     Kind("sum-of-uniforms", SumOfUniformsFamily, ("n_max", "a_max", "a_min")),
-    Kind("generalized-normal", GeneralizedNormalFamily, ("std_max", "std_min", "beta_min", "beta_max")),
+    Kind(
+        "generalized-normal",
+        GeneralizedNormalFamily,
+        ("std_max", "std_min", "beta_min", "beta_max"),
+    ),
     Kind("dual-dirac", DualDiracFamily, ("rj_max", "rj_min", "dj_max")),
 )
 

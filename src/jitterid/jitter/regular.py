@@ -53,8 +53,9 @@ __all__ = [
 ]
 
 #: Mass of :class:`GeneralizedNormal` outside its (truncated) support: that of the Gaussian
-#: outside +-8.5 sigma (``2 Phi(-8.5) = 1.9e-17``, :data:`~jitterid.jitter.laws.GAUSS_SUPPORT_SIGMAS`),
-#: so that ``beta = 2`` has exactly :class:`~jitterid.Gaussian`'s support.
+#: outside +-8.5 sigma (``2 Phi(-8.5) = 1.9e-17``,
+#: :data:`~jitterid.jitter.laws.GAUSS_SUPPORT_SIGMAS`), so that ``beta = 2`` has exactly
+#: :class:`~jitterid.Gaussian`'s support.
 GN_TAIL_MASS = math.erfc(GAUSS_SUPPORT_SIGMAS / math.sqrt(2.0))
 
 #: Range of ``beta`` accepted by :class:`GeneralizedNormal`. Below 0.5 the tails reach
@@ -72,7 +73,9 @@ _U_LO, _U_HI = -4, 5
 
 #: Cuts around each centre of :class:`DualDirac`, in units of rj: the zones of the library's
 #: Gaussian rule (panels of 0.6 rj within 3 rj, 0.75 rj to 6 rj, 1.25 rj to 8.5 rj).
-_DD_ZONES = np.r_[np.arange(0.0, 3.0, 0.6), np.arange(3.0, 6.0, 0.75), 6.0, 7.25, GAUSS_SUPPORT_SIGMAS]
+_DD_ZONES = np.r_[
+    np.arange(0.0, 3.0, 0.6), np.arange(3.0, 6.0, 0.75), 6.0, 7.25, GAUSS_SUPPORT_SIGMAS
+]
 _DD_MIN_GAP = 0.2  # cuts of the two centres closer than this (in rj) are merged
 
 #: |f| times the sub-panel width at most this in :meth:`GeneralizedNormal.cf` (64 nodes).
@@ -91,7 +94,8 @@ def _sym(half: NDArray[np.float64]) -> NDArray[np.float64]:
 
 @dataclass(frozen=True, init=False, repr=False)
 class GeneralizedNormal(JitterLaw):
-    """Generalized normal jitter: ``p(tau) = beta / (2 alpha Gamma(1/beta)) exp(-|tau/alpha|^beta)``.
+    """Generalized normal jitter:
+    ``p(tau) = beta / (2 alpha Gamma(1/beta)) exp(-|tau/alpha|^beta)``.
 
     ``alpha = std sqrt(Gamma(1/beta) / Gamma(3/beta))`` makes the standard deviation ``std``
     whatever the shape ``beta``: ``beta = 1`` is the Laplace law, ``beta = 2`` the Gaussian
@@ -134,7 +138,8 @@ class GeneralizedNormal(JitterLaw):
     True
     >>> round(float(law.expect(lambda t: t**2)), 12)  # the variance, std^2
     0.01
-    >>> round(float(ji.GeneralizedNormal(0.1, 1.0).cf(1.0).real), 6)  # Laplace: 1/(1 + 2 pi^2 std^2 f^2)
+    >>> # Laplace (beta = 1): cf = 1/(1 + 2 pi^2 std^2 f^2)
+    >>> round(float(ji.GeneralizedNormal(0.1, 1.0).cf(1.0).real), 6)
     0.835148
     """
 
@@ -442,7 +447,9 @@ class GeneralizedNormalFamily(JitterFamily):
     def __post_init__(self) -> None:
         _upper(self.std_max, "std_max")
         if not _checks.positive(self.std_min, "std_min") < _upper(self.std_max, "std_max"):
-            raise ValueError(f"std_min must be below std_max; got {self.std_min!r} >= {self.std_max!r}")
+            raise ValueError(
+                f"std_min must be below std_max; got {self.std_min!r} >= {self.std_max!r}"
+            )
         lo = _checks.positive(self.beta_min, "beta_min")
         hi = _checks.positive(self.beta_max, "beta_max")
         if not BETA_MIN <= lo < hi <= BETA_MAX:

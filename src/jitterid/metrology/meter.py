@@ -322,7 +322,13 @@ def _fit_one(
     if other is not None:
         sine, std, noise = other
         lo = data.resolution or 0.0
-        alt = fit(data, model, family, method="ml", start=np.r_[family.start_for_std(std), sine, max(noise, lo)])
+        alt = fit(
+            data,
+            model,
+            family,
+            method="ml",
+            start=np.r_[family.start_for_std(std), sine, max(noise, lo)],
+        )
         if np.isfinite(alt.cost) and (not np.isfinite(out.cost) or alt.cost < out.cost):
             out = alt
     return out
@@ -431,8 +437,9 @@ def measure_jitter(
         # the second-moment criterion sees a law only through chi(w) and chi(2 w): its
         # value does not rank laws (measured: Gaussian records at 2 pi f sigma = 0.5 and 1
         # came out as 'uniform', 8 % and 25 % low)
-        laws, note = tuple(laws[:1]), (
-            f"; method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"
+        laws, note = (
+            tuple(laws[:1]),
+            (f"; method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"),
         )
     known = _families(T)
     unknown = [name for name in laws if name not in known]
@@ -482,7 +489,13 @@ def measure_jitter(
     sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
     for name in laws[1:]:
         fitted[name] = _fit_one(
-            data, chosen_model, known[name], theta_b, sj_b, sv_b, method,
+            data,
+            chosen_model,
+            known[name],
+            theta_b,
+            sj_b,
+            sv_b,
+            method,
             other=(sine, best.jitter_std, float(best.x[-1])),
         )
     cands_law = []
@@ -490,7 +503,9 @@ def measure_jitter(
         p = r.x.size
         ll = -0.5 * r.cost
         cands_law.append(
-            LawCandidate(name, ll, p, 2 * p - 2 * ll, p * math.log(N) - 2 * ll, r.jitter_std, r.status)
+            LawCandidate(
+                name, ll, p, 2 * p - 2 * ll, p * math.log(N) - 2 * ll, r.jitter_std, r.status
+            )
         )
     ok = [c for c in cands_law if c.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)]
     chosen = min(ok or cands_law, key=lambda c: c.bic)
@@ -594,7 +609,8 @@ def alias_likelihoods(
     T = positive(T, "T")
     if not isinstance(jitter, JitterLaw):
         raise TypeError(
-            f"jitter must be a known jitter law (e.g. jitterid.Uniform(1.0)); got {type(jitter).__name__}"
+            "jitter must be a known jitter law (e.g. jitterid.Uniform(1.0)); got "
+            f"{type(jitter).__name__}"
         )
     data = SampledData(yv, T, None, noise_std=noise_std)
     cands = SineWave(band_hz=band_hz).start_frequencies(data)
@@ -612,5 +628,7 @@ def alias_likelihoods(
         model = SineWave(band_hz=band)
         x0 = theta if noise_std is not None else np.r_[theta, sv]
         r = fit(data, model, jitter, method="ml", start=x0)
-        out.append(AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, float(jitter.std)))
+        out.append(
+            AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, float(jitter.std))
+        )
     return tuple(sorted(out, key=lambda a: -a.loglik))

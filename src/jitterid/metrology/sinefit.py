@@ -84,7 +84,9 @@ def _instants(t: ArrayLike, n: int) -> NDArray[np.float64]:
             "sample, e.g. t = T * np.arange(len(y))"
         )
     if np.ptp(arr) == 0:
-        raise ValueError("t has every instant equal: pass the nominal instants, e.g. T * np.arange(len(y))")
+        raise ValueError(
+            "t has every instant equal: pass the nominal instants, e.g. T * np.arange(len(y))"
+        )
     return arr
 
 
@@ -151,7 +153,7 @@ class SineFit:
         return self.amplitude * np.sin(2 * np.pi * self.frequency * tt + self.phase) + self.offset
 
     def slope(self, t: ArrayLike) -> NDArray[np.float64]:
-        """The time derivative ``s'(t) = 2 pi f amplitude cos(2 pi f t + phase)`` (units of y / s)."""
+        """The time derivative ``s'(t) = 2 pi f amplitude cos(2 pi f t + phase)`` (y / s)."""
         tt = np.asarray(t, dtype=float)
         w = 2 * np.pi * self.frequency
         return w * self.amplitude * np.cos(w * tt + self.phase)
@@ -228,7 +230,11 @@ def periodogram_peak(y: ArrayLike, T: float, *, oversample: int = 8) -> float:
     """
     arr = _record(y, _MIN_SAMPLES_PERIODOGRAM)
     T = positive(T, "T")
-    if isinstance(oversample, bool) or not isinstance(oversample, (int, np.integer)) or oversample < 1:
+    if (
+        isinstance(oversample, bool)
+        or not isinstance(oversample, (int, np.integer))
+        or oversample < 1
+    ):
         raise ValueError(f"oversample must be an integer >= 1; got {oversample!r}")
     n = arr.size
     nfft = 1 << max(math.ceil(math.log2(n * int(oversample))), 3)
@@ -274,7 +280,8 @@ def _lsq(design: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray[n
 def _fit3_centered(
     y: NDArray[np.float64], tc: NDArray[np.float64], omega: float
 ) -> tuple[float, float, float, float]:
-    """Least squares ``alpha cos(omega tc) + beta sin(omega tc) + c``; returns (alpha, beta, c, ssr)."""
+    """Least squares ``alpha cos(omega tc) + beta sin(omega tc) + c``; returns
+    (alpha, beta, c, ssr)."""
     ph = omega * tc
     design = np.column_stack((np.cos(ph), np.sin(ph), np.ones_like(tc)))
     coef, ratio = _lsq(design, y)
@@ -365,7 +372,9 @@ def sine_fit_3(y: ArrayLike, t: ArrayLike, frequency: float) -> SineFit:
     tt = _instants(t, arr.size)
     f = _frequency(frequency, "frequency")
     tm = 0.5 * (float(tt.min()) + float(tt.max()))
-    return _result(arr, tt, tm, 2 * np.pi * f, 0, True, "three-parameter fit at the given frequency")
+    return _result(
+        arr, tt, tm, 2 * np.pi * f, 0, True, "three-parameter fit at the given frequency"
+    )
 
 
 def sine_fit_4(
@@ -462,9 +471,15 @@ def sine_fit_4(
         amp = math.hypot(alpha, beta)
         if amp <= 1e-12 * float(np.max(np.abs(arr))):
             return _result(
-                arr, tt, tm, omega, it - 1, False,
+                arr,
+                tt,
+                tm,
+                omega,
+                it - 1,
+                False,
                 f"iteration {it}: the fitted amplitude vanished at {omega / (2 * np.pi):.6g} Hz, "
-                "so the frequency cannot be updated: start closer, e.g. from periodogram_peak(y, T)",
+                "so the frequency cannot be updated: start closer, e.g. from periodogram_peak(y, "
+                "T)",
             )
         dscale = half_span * amp  # the frequency column, scaled to O(1)
         design = np.column_stack(
@@ -473,7 +488,12 @@ def sine_fit_4(
         coef, ratio = _lsq(design, arr)
         if ratio < _COND_LIMIT:
             return _result(
-                arr, tt, tm, omega, it - 1, False,
+                arr,
+                tt,
+                tm,
+                omega,
+                it - 1,
+                False,
                 f"iteration {it}: the frequency column is (nearly) dependent on the others (the "
                 "fitted amplitude vanished): start closer, e.g. from periodogram_peak(y, T)",
             )
@@ -481,7 +501,12 @@ def sine_fit_4(
         new = omega + step
         if not 2 * np.pi * lo < new < 2 * np.pi * hi:
             return _result(
-                arr, tt, tm, omega, it - 1, False,
+                arr,
+                tt,
+                tm,
+                omega,
+                it - 1,
+                False,
                 f"the frequency update at iteration {it} left frequency_bounds ({lo:g}, {hi:g}) "
                 f"Hz (to {new / (2 * np.pi):.6g} Hz from {omega / (2 * np.pi):.6g} Hz): start "
                 "closer to the sine's frequency, e.g. from periodogram_peak(y, T)",
@@ -501,7 +526,12 @@ def sine_fit_4(
             if abs(step) * half_span <= tol:
                 return _result(arr, tt, tm, omega, it - 1, True, "converged (at the minimum)")
             return _result(
-                arr, tt, tm, omega, it - 1, False,
+                arr,
+                tt,
+                tm,
+                omega,
+                it - 1,
+                False,
                 f"iteration {it}: no step along the linearised update reduced the residual; the "
                 "start is probably on another peak: start from periodogram_peak(y, T)",
             )
@@ -517,7 +547,12 @@ def sine_fit_4(
                 )
             return _result(arr, tt, tm, omega, it, True, msg)
     return _result(
-        arr, tt, tm, omega, int(max_iterations), False,
+        arr,
+        tt,
+        tm,
+        omega,
+        int(max_iterations),
+        False,
         f"no convergence in {max_iterations} iterations (last step moved the end-of-record "
         f"phase by {abs(step) * half_span:.3g} rad > tol = {tol:g}); raise max_iterations or tol",
     )
@@ -583,7 +618,9 @@ def slope_regression_jitter(y: ArrayLike, t: ArrayLike, fit: SineFit) -> SlopeRe
     arr = _record(y, _MIN_SAMPLES_3)
     tt = _instants(t, arr.size)
     if not isinstance(fit, SineFit):
-        raise TypeError(f"fit must be a SineFit (from sine_fit_3 / sine_fit_4); got {type(fit).__name__}")
+        raise TypeError(
+            f"fit must be a SineFit (from sine_fit_3 / sine_fit_4); got {type(fit).__name__}"
+        )
     if not fit.converged:
         raise ValueError(
             f"fit did not converge ({fit.message}); the residuals of an unconverged fit still "

@@ -171,7 +171,16 @@ class PieceChunk:
 
     @property
     def nbytes(self) -> int:
-        arrays = (self.row, self.owner, self.first, self.mass, self.pdt, self.sp_piece, self.sp_dt, self.sp_m)
+        arrays = (
+            self.row,
+            self.owner,
+            self.first,
+            self.mass,
+            self.pdt,
+            self.sp_piece,
+            self.sp_dt,
+            self.sp_m,
+        )
         more = (self.cn_piece, self.cn_dt, self.cn_w)
         extra = tuple(a for a in (self.cn_gw, self.cn_tau) if a is not None)
         return sum(a.nbytes for a in arrays + more + extra)
@@ -204,7 +213,9 @@ def switch_segments(u: PiecewiseConstant) -> IntArray:
     return np.flatnonzero(np.r_[True, lev[1:] != lev[:-1]])
 
 
-_merged: weakref.WeakKeyDictionary[PiecewiseConstant, PiecewiseConstant] = weakref.WeakKeyDictionary()
+_merged: weakref.WeakKeyDictionary[PiecewiseConstant, PiecewiseConstant] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 def merged_input(u: PiecewiseConstant) -> PiecewiseConstant:
@@ -216,13 +227,23 @@ def merged_input(u: PiecewiseConstant) -> PiecewiseConstant:
     got = _merged.get(u)
     if got is None:
         segs = switch_segments(u)
-        got = u if segs.size == u.levels.size else PiecewiseConstant(np.r_[u.times[segs], u.times[-1]], u.levels[segs])
+        got = (
+            u
+            if segs.size == u.levels.size
+            else PiecewiseConstant(np.r_[u.times[segs], u.times[-1]], u.levels[segs])
+        )
         _merged[u] = got
     return got
 
 
 def _pieces(
-    pch: PanelChunk, law: JitterLaw, T: float, order: int, std: StdTable, times: FloatArray, geometry: bool,
+    pch: PanelChunk,
+    law: JitterLaw,
+    T: float,
+    order: int,
+    std: StdTable,
+    times: FloatArray,
+    geometry: bool,
 ) -> PieceChunk:
     # Panels are cut at the segments' start times, so each lies in one segment (found from
     # its midpoint); within a sample the panels increase.
@@ -343,10 +364,15 @@ class SegmentPlan:
         if self.edges.size > 1:
             per = panels_per_sample(self.edges, self._times, self.grade, self.T)
             if per * self.N > PANEL_LIMIT:
-                fast = "" if self.poles is None else f" (poles {np.round(np.asarray(self.poles), 6).tolist()})"
+                fast = (
+                    ""
+                    if self.poles is None
+                    else f" (poles {np.round(np.asarray(self.poles), 6).tolist()})"
+                )
                 raise ValueError(
                     f"the jitter quadrature would need ~{per * self.N:.3g} panels ({per:.3g} per "
-                    f"sample, limit {PANEL_LIMIT:.3g}): the signal varies at rate {lay.rate:.3g} 1/s"
+                    f"sample, limit {PANEL_LIMIT:.3g}): the signal varies at rate {lay.rate:.3g} "
+                    "1/s"
                     f"{fast}, far faster than the jitter's scale {self.law.std:.3g} s, with too "
                     "little damping to be resolved only after each switch. Bound the model's "
                     "poles (a lower model order or tighter structure bounds), or start the "
@@ -365,7 +391,12 @@ class SegmentPlan:
         return type(law) is Gaussian and type(self.law) is Gaussian
 
     def matches(
-        self, law: JitterLaw, T: float, N: int, u: PiecewiseConstant, rate: float,
+        self,
+        law: JitterLaw,
+        T: float,
+        N: int,
+        u: PiecewiseConstant,
+        rate: float,
         poles: ArrayLike | None = None,
     ) -> bool:
         """Whether this plan's nodes are the rule for these arguments (same panel edges and
@@ -374,8 +405,14 @@ class SegmentPlan:
             return False
         if (poles is None) != (self.poles is None):
             return False
-        lay = Layout(float(rate), np.zeros(0)) if poles is None else panel_layout(law, poles, self.order)
-        return np.array_equal(relative_cuts(law, lay.rate), self.edges) and np.array_equal(lay.grade, self.grade)
+        lay = (
+            Layout(float(rate), np.zeros(0))
+            if poles is None
+            else panel_layout(law, poles, self.order)
+        )
+        return np.array_equal(relative_cuts(law, lay.rate), self.edges) and np.array_equal(
+            lay.grade, self.grade
+        )
 
     def view(self, law: JitterLaw) -> SegmentPlan:
         """This plan for another law with the same nodes (a Gaussian of the same band): the
@@ -390,7 +427,9 @@ class SegmentPlan:
         if self.edges.size == 0:  # a point mass: one node per sample, at kT + lo
             yield from self._point_mass()
             return
-        panels = jitter_panels(self.law, self.T, self.N, self._times, self.edges, grade=self.grade, chunk=self.chunk)
+        panels = jitter_panels(
+            self.law, self.T, self.N, self._times, self.edges, grade=self.grade, chunk=self.chunk
+        )
         geometry = type(self.law) is Gaussian
         std = StdTable.make(self.law, self.edges, self.order)
         for pch in panels:
@@ -409,8 +448,20 @@ class SegmentPlan:
             row = run.astype(np.int32)
             idx = np.arange(k1 - k0)
             yield PieceChunk(
-                k0, k1, row, idx.astype(np.int32), idx, np.ones(k1 - k0), np.zeros(k1 - k0), empty_i, empty_f, empty_i,
-                idx.astype(np.int32), dt, np.ones(k1 - k0), std,
+                k0,
+                k1,
+                row,
+                idx.astype(np.int32),
+                idx,
+                np.ones(k1 - k0),
+                np.zeros(k1 - k0),
+                empty_i,
+                empty_f,
+                empty_i,
+                idx.astype(np.int32),
+                dt,
+                np.ones(k1 - k0),
+                std,
             )
 
     @property
@@ -455,7 +506,12 @@ def _trim_cache() -> None:
 
 
 def cached_plan(
-    law: JitterLaw, T: float, N: int, u: PiecewiseConstant, rate: float, poles: ArrayLike | None = None
+    law: JitterLaw,
+    T: float,
+    N: int,
+    u: PiecewiseConstant,
+    rate: float,
+    poles: ArrayLike | None = None,
 ) -> SegmentPlan:
     """The plan for these arguments from a small process-wide cache (least recently used first
     out), so that every criterion fitted to one data set, the BCLS pre-fit and the lazy
@@ -510,8 +566,8 @@ def modal_sensitivity(
     form for :class:`PolePairGain` and :class:`RationalModel`, else central differences of the
     structure's map theta -> (num, den) (exact up to rounding for maps polynomial in theta).
     No root finding at shifted points: the central differences of the modal form itself
-    (:func:`jitterid.estimation.likelihood._modal_gradient`) cost 2P root findings, most of a Jacobian's
-    time at N = 200.
+    (:func:`jitterid.estimation.likelihood._modal_gradient`) cost 2P root findings, most of a
+    Jacobian's time at N = 200.
     """
     n = tf.den.size
     num, den = padded(tf.num, n), tf.den
@@ -653,8 +709,13 @@ def _recomb(coef: ComplexArray, e: Phasor) -> FloatArray:
 
 
 def _scale_terms(
-    plan: SegmentPlan, pc: PieceChunk, tab: Tables, c: FloatArray, beta: ComplexArray,
-    m: FloatArray, a: float,
+    plan: SegmentPlan,
+    pc: PieceChunk,
+    tab: Tables,
+    c: FloatArray,
+    beta: ComplexArray,
+    m: FloatArray,
+    a: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The scale derivative (M3) as a coefficient row (dbeta = beta p delta / a, gamma =
     beta p / a), and its jump terms per piece.
@@ -720,7 +781,11 @@ class _PoleTable:
         if not std.hx.size or abs(p.real) * float(np.max(np.abs(std.hx))) < _TABLE_LIMIT:
             ep = np.exp(p * std.hx)
             K, K1 = (std.w * ep).sum(axis=1), (std.w * std.hx * ep).sum(axis=1)
-            if factor and std.mid.size and abs(p.real) * float(np.max(np.abs(std.mid))) < _FACTOR_LIMIT:
+            if (
+                factor
+                and std.mid.size
+                and abs(p.real) * float(np.max(np.abs(std.mid))) < _FACTOR_LIMIT
+            ):
                 er = np.exp(p * std.mid)
                 G, H = er * K, er * (std.mid * K + K1)
         return cls(p, ep, K, K1, er, G, H)
@@ -746,7 +811,9 @@ class _PoleTable:
         g = (W * E[0]).sum(axis=0), ((W * E[1]).sum(axis=0) if E[1] is not None else None)
         return _complex(_psum(pc.sp_piece, g, pc.row.size))
 
-    def s1(self, pc: PieceChunk, ce: Phasor, gh: tuple[ComplexArray, ComplexArray] | None = None) -> ComplexArray:
+    def s1(
+        self, pc: PieceChunk, ce: Phasor, gh: tuple[ComplexArray, ComplexArray] | None = None
+    ) -> ComplexArray:
         """S1 = sum w e^{p dt} per piece (``gh``: sum G and sum H per piece, if known)."""
         npc = pc.row.size
         cut = _complex(_psum(pc.cn_piece, _scaled(pc.cn_w, ce), npc))
@@ -758,7 +825,9 @@ class _PoleTable:
             return _complex(_psum(pc.sp_piece, _times(se, self.K[pc.sp_m]), npc)) + cut
         return self._node_sums(pc, False) + cut
 
-    def s2(self, pc: PieceChunk, ce: Phasor, gh: tuple[ComplexArray, ComplexArray] | None = None) -> ComplexArray:
+    def s2(
+        self, pc: PieceChunk, ce: Phasor, gh: tuple[ComplexArray, ComplexArray] | None = None
+    ) -> ComplexArray:
         """S2 = sum w dt e^{p dt} per piece."""
         npc = pc.row.size
         cut = _complex(_psum(pc.cn_piece, _scaled(pc.cn_w * pc.cn_dt, ce), npc))
@@ -767,7 +836,14 @@ class _PoleTable:
             return self._piece_phasor(pc) * (pc.pdt * g + h) + cut
         if self.K is not None and self.K1 is not None:
             se = _phasors(self.p, pc.sp_dt)
-            return _complex(_psum(pc.sp_piece, _times(se, pc.sp_dt * self.K[pc.sp_m] + self.K1[pc.sp_m]), npc)) + cut
+            return (
+                _complex(
+                    _psum(
+                        pc.sp_piece, _times(se, pc.sp_dt * self.K[pc.sp_m] + self.K1[pc.sp_m]), npc
+                    )
+                )
+                + cut
+            )
         return self._node_sums(pc, True) + cut
 
     def node_phasors(self, pc: PieceChunk, dt: FloatArray) -> Phasor:
@@ -793,7 +869,11 @@ def _table_sums(
         return [None] * len(tabs)
     npc, R = pc.row.size, std.mid.size
     counts = sparse.csr_matrix(
-        (np.ones(pc.sp_m.size), pc.sp_m, np.r_[0, np.cumsum(np.bincount(pc.sp_piece, minlength=npc))]),
+        (
+            np.ones(pc.sp_m.size),
+            pc.sp_m,
+            np.r_[0, np.cumsum(np.bincount(pc.sp_piece, minlength=npc))],
+        ),
         shape=(npc, R),
     )
     sums = counts @ np.column_stack([c for pair in cols for c in pair])
@@ -809,7 +889,11 @@ def _table_sums(
 
 
 def _second_pass(
-    pc: PieceChunk, std: StdTable, tabs: list[_PoleTable], cn_e: list[Phasor], a: FloatArray,
+    pc: PieceChunk,
+    std: StdTable,
+    tabs: list[_PoleTable],
+    cn_e: list[Phasor],
+    a: FloatArray,
     beta: ComplexArray,
 ) -> tuple[FloatArray, FloatArray, list[ComplexArray], list[ComplexArray]]:
     """Var_k = sum w d^2 with d = s - m_k at every node, and per piece T0 = sum w d,
@@ -841,7 +925,9 @@ def _second_pass(
         g1 = (wd * E[0]).sum(axis=0), ((wd * E[1]).sum(axis=0) if E[1] is not None else None)
         g2 = (wddt * E[0]).sum(axis=0), ((wddt * E[1]).sum(axis=0) if E[1] is not None else None)
         t1 = _padd(_psum(pc.sp_piece, g1, npc), _psum(pc.cn_piece, _scaled(wdc, ce), npc))
-        t2 = _padd(_psum(pc.sp_piece, g2, npc), _psum(pc.cn_piece, _scaled(wdc * pc.cn_dt, ce), npc))
+        t2 = _padd(
+            _psum(pc.sp_piece, g2, npc), _psum(pc.cn_piece, _scaled(wdc * pc.cn_dt, ce), npc)
+        )
         T1.append(_complex(t1))
         T2.append(_complex(t2))
     return var, t0, T1, T2
@@ -851,7 +937,9 @@ def _complex(e: Phasor) -> ComplexArray:
     return e[0] + 1j * e[1] if e[1] is not None else e[0].astype(complex)
 
 
-def _zv(tab: Tables, dtab: DerivativeTables, row: IntArray) -> tuple[FloatArray, ComplexArray, ComplexArray]:
+def _zv(
+    tab: Tables, dtab: DerivativeTables, row: IntArray
+) -> tuple[FloatArray, ComplexArray, ComplexArray]:
     """u_j, z = x(t_j) + u_j / p and v = rho (dx/dp(t_j) - u_j / p^2) per piece: dbeta =
     drho z + dp v (:meth:`DerivativeTables.coefficients`)."""
     lev, X = tab.segment(row)
@@ -862,8 +950,14 @@ def _zv(tab: Tables, dtab: DerivativeTables, row: IntArray) -> tuple[FloatArray,
 
 
 def _combine(
-    dtab: DerivativeTables, first: IntArray, lev_mass: FloatArray, z: ComplexArray, v: ComplexArray,
-    S1: list[ComplexArray], S2: list[ComplexArray], beta: ComplexArray,
+    dtab: DerivativeTables,
+    first: IntArray,
+    lev_mass: FloatArray,
+    z: ComplexArray,
+    v: ComplexArray,
+    S1: list[ComplexArray],
+    S2: list[ComplexArray],
+    beta: ComplexArray,
 ) -> FloatArray:
     """Per sample and system parameter r: dg0_r sum u S + sum_p Re(drho_rp sum z_p S1_p +
     dp_rp sum (v_p S1_p + beta_p S2_p)), the sums over the sample's pieces."""

@@ -58,7 +58,10 @@ def _gauss_legendre(order: int) -> tuple[FloatArray, FloatArray]:
 
 
 def _relative_cuts(
-    law: JitterLaw, max_panel: float, knots: FloatArray | None = None, limits: FloatArray | None = None
+    law: JitterLaw,
+    max_panel: float,
+    knots: FloatArray | None = None,
+    limits: FloatArray | None = None,
 ) -> FloatArray:
     """The pdf's knots (or ``knots``), subdivided so that no gap exceeds ``max_panel`` (nor
     ``limits[i]`` between knots i and i + 1)."""
@@ -114,9 +117,9 @@ def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -
 
     The pdf's knots, subdivided so that no panel exceeds the support width, ``1 / rate``, the
     jitter's standard deviation or ``max_panel`` (for a Gaussian: the window of its band,
-    :func:`rule_frame`, with panels of 0.6 to 1.7 sigma_b by zone, ``_GAUSS_ZONES``). Two signals whose rates give the same edges
-    get the same nodes, which lets a caller keep a rule across parameter values
-    (:mod:`jitterid.moments.modal`). Empty for a point mass.
+    :func:`rule_frame`, with panels of 0.6 to 1.7 sigma_b by zone, ``_GAUSS_ZONES``). Two signals
+    whose rates give the same edges get the same nodes, which lets a caller keep a rule across
+    parameter values (:mod:`jitterid.moments.modal`). Empty for a point mass.
     """
     lo, hi = (float(v) for v in law.support)
     if hi <= lo:
@@ -220,7 +223,11 @@ def _window_cuts(
     g0, g1 = grid[:, 0], grid[:, -1]
     reach = float(grade[-1]) if grade.size else 0.0
     # breaks whose cuts b + {0, grade} can fall inside the window (g0, g1)
-    b_lo = np.searchsorted(breaks, g0 - reach, side="right") if reach else np.searchsorted(breaks, g0, side="right")
+    b_lo = (
+        np.searchsorted(breaks, g0 - reach, side="right")
+        if reach
+        else np.searchsorted(breaks, g0, side="right")
+    )
     b_hi = np.searchsorted(breaks, g1, side="left")
     nb = np.maximum(b_hi - b_lo, 0)
     offs = np.r_[0.0, grade]
@@ -328,7 +335,9 @@ def jitter_nodes(
     std_half = 0.5 * np.diff(rel)
     std_pdf = None
     if shared_pdf:
-        std_pdf = law.pdf(np.clip((0.5 * (rel[:-1] + rel[1:]))[:, None] + std_half[:, None] * x, lo, hi))
+        std_pdf = law.pdf(
+            np.clip((0.5 * (rel[:-1] + rel[1:]))[:, None] + std_half[:, None] * x, lo, hi)
+        )
     for pch in _panels(rel, breaks, grade, T, N, step=_step(rel, breaks, grade, T, chunk)):
         k0, k1, owner = pch.k0, pch.k1, pch.owner
         ks = np.arange(k0, k1)
@@ -365,10 +374,14 @@ class PanelChunk:
 
 def _step(rel: FloatArray, breaks: FloatArray, grade: FloatArray, T: float, chunk: int) -> int:
     """Samples per chunk: at most ``chunk`` and about ``_CHUNK_PANELS`` panels."""
-    return max(1, min(chunk, int(_CHUNK_PANELS // max(panels_per_sample(rel, breaks, grade, T), 1.0))))
+    return max(
+        1, min(chunk, int(_CHUNK_PANELS // max(panels_per_sample(rel, breaks, grade, T), 1.0)))
+    )
 
 
-def _panels(rel: FloatArray, breaks: FloatArray, grade: FloatArray, T: float, N: int, step: int) -> Iterator[PanelChunk]:
+def _panels(
+    rel: FloatArray, breaks: FloatArray, grade: FloatArray, T: float, N: int, step: int
+) -> Iterator[PanelChunk]:
     for k0 in range(0, N, step):
         k1 = min(N, k0 + step)
         ks = np.arange(k0, k1)

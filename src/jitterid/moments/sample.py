@@ -131,7 +131,9 @@ def sample_moments(
     if isinstance(signal, Response) and isinstance(signal.u, PiecewiseConstant) and hi > lo:
         # The same nodes, summed per input segment from the modal form (:mod:`._modal`):
         # a few times faster than evaluating s(t) node by node.
-        plan = SegmentPlan(jitter, T, N, signal.u, signal.rate, order=order, poles=signal.system._modal[2])
+        plan = SegmentPlan(
+            jitter, T, N, signal.u, signal.rate, order=order, poles=signal.system._modal[2]
+        )
         mean, var, _, _ = modal_moments(plan, tables(signal.system, signal.u), keep=False)
         assert var is not None
         return SampleMoments(mean, var)

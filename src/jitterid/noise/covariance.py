@@ -104,7 +104,9 @@ def _offsets(coarse: float, fine: float) -> FloatArray:
 _RULE_MEMO: list[tuple[tuple[object, ...], tuple[FloatArray, FloatArray]]] = []
 
 
-def _rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tuple[FloatArray, FloatArray]:
+def _rule(
+    law: JitterLaw, coarse: float, anchors: FloatArray, fine: float
+) -> tuple[FloatArray, FloatArray]:
     """Nodes and weights w = (GL weight) p(tau): the law's analytic pieces cut to ``coarse``,
     refined geometrically from ``fine`` around each of ``anchors``. Work O(log(coarse/fine))
     per anchor however fast the noise, instead of O((hi - lo) / fine). The last rule is
@@ -122,9 +124,13 @@ def _rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tu
     return out
 
 
-def _new_rule(law: JitterLaw, coarse: float, anchors: FloatArray, fine: float) -> tuple[FloatArray, FloatArray]:
+def _new_rule(
+    law: JitterLaw, coarse: float, anchors: FloatArray, fine: float
+) -> tuple[FloatArray, FloatArray]:
     lo, hi = law.support
-    edges = np.concatenate([_relative_cuts(law, coarse), (anchors[:, None] + _offsets(coarse, fine)).ravel()])
+    edges = np.concatenate(
+        [_relative_cuts(law, coarse), (anchors[:, None] + _offsets(coarse, fine)).ravel()]
+    )
     edges = np.unique(np.clip(edges, lo, hi))
     x, wx = _GL
     half = 0.5 * np.diff(edges)[:, None]
@@ -162,7 +168,7 @@ class JitteredAutocovariance:
         if m.dtype.kind not in "iu":
             raise TypeError(f"lags must be integers; got dtype {m.dtype}")
         tail = np.maximum(m - self.start, 0)[..., None]
-        geo = (self.ratios ** tail) @ self.weights if self.ratios.size else np.zeros(m.shape)
+        geo = (self.ratios**tail) @ self.weights if self.ratios.size else np.zeros(m.shape)
         near = self.near[np.minimum(m, self.start - 1)]
         return np.asarray(np.where(m < self.start, near, np.real(geo)), dtype=float)
 
@@ -192,7 +198,7 @@ class JitteredAutocovariance:
         m = np.arange(1, self.start)
         one_sided = (e[..., 0:1] ** m) @ self.near[1:] if m.size else np.zeros(ff.shape)
         if self.ratios.size:
-            tail = e ** self.start / (1.0 - self.ratios * e)
+            tail = e**self.start / (1.0 - self.ratios * e)
             one_sided = one_sided + tail @ self.weights
         return np.asarray(self.T * (self.near[0] + 2.0 * np.real(one_sided)), dtype=float)
 
@@ -202,7 +208,9 @@ class JitteredAutocovariance:
         return np.real(np.poly(self.ratios)) if self.ratios.size else np.ones(1)
 
 
-def jittered_autocovariance(noise: NoiseModel, jitter: JitterLaw, T: float) -> JitteredAutocovariance:
+def jittered_autocovariance(
+    noise: NoiseModel, jitter: JitterLaw, T: float
+) -> JitteredAutocovariance:
     """The autocovariance of v(kT + tau_k), eqs. (C1) and (C3).
 
     Parameters
@@ -313,7 +321,8 @@ def _near_lag(noise: NoiseModel, law: JitterLaw, lag: float, coarse: float, fine
         xs = outer[i0 : i0 + step] - lag
         # Clipped duplicates give zero-length panels, which weigh nothing.
         pts = np.concatenate(
-            [np.broadcast_to(base, (xs.size, base.size)), np.clip(xs[:, None] + offs, lo, hi)], axis=1
+            [np.broadcast_to(base, (xs.size, base.size)), np.clip(xs[:, None] + offs, lo, hi)],
+            axis=1,
         )
         edges = np.sort(pts, axis=1)
         half = 0.5 * np.diff(edges, axis=1)[..., None]
@@ -447,7 +456,9 @@ class SampleCovariance:
 
     def band_solve(self, u: ArrayLike) -> FloatArray:
         """B^{-1} u, B = L_a Sigma_y L_a^T (so Sigma_y^{-1} r = L_a^T B^{-1} L_a r)."""
-        return np.asarray(cho_solve_banded((self._factor[0], True), np.asarray(u, dtype=float)), dtype=float)
+        return np.asarray(
+            cho_solve_banded((self._factor[0], True), np.asarray(u, dtype=float)), dtype=float
+        )
 
     def solve(self, r: ArrayLike) -> FloatArray:
         """Sigma_y^{-1} r for r of shape (N,) or (N, p), by (C4)."""
@@ -520,7 +531,11 @@ class SampleCovariance:
         S, w = self._stencil, self.width
         n = S.shape[1] - 1
         D = np.atleast_2d(dd)
-        dg = np.zeros(w + n + 1) if dgamma is None else np.asarray(dgamma, dtype=float)[:, : w + n + 1]
+        dg = (
+            np.zeros(w + n + 1)
+            if dgamma is None
+            else np.asarray(dgamma, dtype=float)[:, : w + n + 1]
+        )
         if dar is None or not np.any(dar):
             return _band(S, S, dg, D, w)
         # L dSigma L^T, dL Sigma L^T and L Sigma dL^T in one batched pass (3P rows): the same
@@ -532,9 +547,11 @@ class SampleCovariance:
         SS = np.broadcast_to(S, dS.shape)
         G = np.broadcast_to(dg, (P, w + n + 1))
         parts = _band(
-            np.concatenate([SS, dS, SS]), np.concatenate([SS, SS, dS]),
+            np.concatenate([SS, dS, SS]),
+            np.concatenate([SS, SS, dS]),
             np.concatenate([G, np.broadcast_to(gam, (2 * P, w + n + 1))]),
-            np.concatenate([D, np.broadcast_to(self.d, (2 * P, self.N))]), w,
+            np.concatenate([D, np.broadcast_to(self.d, (2 * P, self.N))]),
+            w,
         )
         return parts[:P] + (parts[P : 2 * P] + parts[2 * P :])
 
@@ -560,7 +577,9 @@ class SampleCovariance:
         g = None if self.gamma is None else self.gamma.sequence(self.N)
         return toeplitz_dft_diagonal(self.d, g, T, np.atleast_1d(real_array(f, "f")))
 
-    def dft(self, T: float, f: ArrayLike, psi: ArrayLike | None = None, sign: float = 1.0) -> ComplexArray:
+    def dft(
+        self, T: float, f: ArrayLike, psi: ArrayLike | None = None, sign: float = 1.0
+    ) -> ComplexArray:
         """R_Y(f, psi) = E Sigma E^H (sign 1) or the pseudo-covariance C_Y (sign -1), (17), (C2).
 
         Rows over ``f``, columns over ``psi`` (default ``f``); any frequencies in Hz.
@@ -571,7 +590,9 @@ class SampleCovariance:
         return toeplitz_dft(self.d, g, T, ff, other)
 
 
-def toeplitz_dft_diagonal(d: FloatArray, g: FloatArray | None, T: float, f: FloatArray) -> FloatArray:
+def toeplitz_dft_diagonal(
+    d: FloatArray, g: FloatArray | None, T: float, f: FloatArray
+) -> FloatArray:
     """E M E^H on the diagonal for M = diag(d) + Toeplitz(g) (g = gamma(0..N-1) or None):
     :meth:`SampleCovariance.dft_diagonal`, and its derivatives (M linear in d, g)."""
     total = float(np.sum(d))
@@ -595,7 +616,9 @@ def toeplitz_products(g: FloatArray, x: FloatArray) -> FloatArray:
     return np.asarray(out[:N], dtype=float)
 
 
-def toeplitz_dft(d: FloatArray, g: FloatArray | None, T: float, f: FloatArray, other: FloatArray) -> ComplexArray:
+def toeplitz_dft(
+    d: FloatArray, g: FloatArray | None, T: float, f: FloatArray, other: FloatArray
+) -> ComplexArray:
     """E_f M E_other^H for M = diag(d) + Toeplitz(g): :meth:`SampleCovariance.dft`, and its
     derivatives (M linear in d, g)."""
     g0 = g[0] if g is not None else 0.0
@@ -636,7 +659,9 @@ def sample_covariance(
     SampleCovariance
     """
     if noise_model is not None and not isinstance(noise_model, NoiseModel):
-        raise TypeError(f"noise_model must be a NoiseModel or None; got {type(noise_model).__name__}")
+        raise TypeError(
+            f"noise_model must be a NoiseModel or None; got {type(noise_model).__name__}"
+        )
     T = positive(T, "T")
     N = count(N, "N", minimum=1)
     white = positive(noise_std, "noise_std", allow_zero=True) ** 2

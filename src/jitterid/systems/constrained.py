@@ -155,9 +155,15 @@ class Constrained(ModelStructure):
                 )
         order = {n: i for i, n in enumerate(names)}
         object.__setattr__(self, "structure", structure)
-        object.__setattr__(self, "start", dict(sorted(start_v.items(), key=lambda kv: order[kv[0]])))
-        object.__setattr__(self, "user_bounds", dict(sorted(user_v.items(), key=lambda kv: order[kv[0]])))
-        object.__setattr__(self, "fixed", dict(sorted(fixed_v.items(), key=lambda kv: order[kv[0]])))
+        object.__setattr__(
+            self, "start", dict(sorted(start_v.items(), key=lambda kv: order[kv[0]]))
+        )
+        object.__setattr__(
+            self, "user_bounds", dict(sorted(user_v.items(), key=lambda kv: order[kv[0]]))
+        )
+        object.__setattr__(
+            self, "fixed", dict(sorted(fixed_v.items(), key=lambda kv: order[kv[0]]))
+        )
         # the maps, once: inner positions of the free and fixed parameters, fixed values
         object.__setattr__(self, "_names", free)
         object.__setattr__(self, "_bounds", tuple(eff))
@@ -167,7 +173,10 @@ class Constrained(ModelStructure):
 
     def __hash__(self) -> int:
         return hash(
-            (self.structure, *(tuple(d.items()) for d in (self.start, self.user_bounds, self.fixed)))
+            (
+                self.structure,
+                *(tuple(d.items()) for d in (self.start, self.user_bounds, self.fixed)),
+            )
         )
 
     def __repr__(self) -> str:
@@ -197,7 +206,9 @@ class Constrained(ModelStructure):
         names = self.structure.param_names
         gains = [names[i] for i in self.structure.gain_params]
         touched = any(
-            n in self.fixed or n in self.start or any(map(math.isfinite, self.user_bounds.get(n, ())))
+            n in self.fixed
+            or n in self.start
+            or any(map(math.isfinite, self.user_bounds.get(n, ())))
             for n in gains
         )
         if touched:
@@ -233,7 +244,9 @@ class Constrained(ModelStructure):
     def system(self, params: ArrayLike = ()) -> TransferFunction:
         return self.structure.system(self.full(params))
 
-    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+    def coefficient_jacobian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
         """The inner closed form's rows of the free parameters (None where the inner
         structure declares none: the moments then difference :meth:`system`).
 
@@ -276,12 +289,16 @@ class Constrained(ModelStructure):
         return out
 
 
-def _by_name(values: Mapping[str, Any] | None, arg: str, names: tuple[str, ...], what: str) -> dict[str, Any]:
+def _by_name(
+    values: Mapping[str, Any] | None, arg: str, names: tuple[str, ...], what: str
+) -> dict[str, Any]:
     """``values`` as a dict whose keys are all in ``names``, or a ValueError naming ``arg``."""
     if values is None:
         return {}
     if not isinstance(values, Mapping):
-        raise TypeError(f"{arg} must be a dict by parameter name; got {type(values).__name__} ({what})")
+        raise TypeError(
+            f"{arg} must be a dict by parameter name; got {type(values).__name__} ({what})"
+        )
     unknown = [k for k in values if k not in names]
     if unknown:
         hints = ", ".join(f"{k!r}{did_you_mean(str(k), names)}" for k in unknown)
@@ -310,7 +327,11 @@ def _pair(v: Any, name: str) -> tuple[float, float]:
         if end is None:
             ends.append(default)
             continue
-        x = _finite(end, what) if not (isinstance(end, (int, float)) and math.isinf(end)) else float(end)
+        x = (
+            _finite(end, what)
+            if not (isinstance(end, (int, float)) and math.isinf(end))
+            else float(end)
+        )
         ends.append(x)
     lo, hi = ends
     if lo == math.inf or hi == -math.inf or not lo < hi:

@@ -167,10 +167,14 @@ class FunctionSignal(Signal):
         self.breaks = np.zeros(0)
         self.start, self.end = -np.inf, np.inf
 
-    def _values(self, fun: Function, t: FloatArray, shape: tuple[int, ...], what: str) -> FloatArray:
+    def _values(
+        self, fun: Function, t: FloatArray, shape: tuple[int, ...], what: str
+    ) -> FloatArray:
         out = np.asarray(fun(t, self.theta), dtype=float)
         if out.shape != shape:
-            raise ValueError(f"the signal model's {what} returned shape {out.shape}; expected {shape}")
+            raise ValueError(
+                f"the signal model's {what} returned shape {out.shape}; expected {shape}"
+            )
         if not np.all(np.isfinite(out)):
             raise ValueError(f"the signal model's {what} is not finite at theta = {self.theta}")
         return out

@@ -90,7 +90,9 @@ class ModelStructure(Model):
     def initial_points(self, data: SampledData) -> list[FloatArray]:
         return self.starts(data.T)
 
-    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+    def coefficient_jacobian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
         """d(num, den)/dtheta in closed form, shape (P, n) each (num padded to the length n
         of the denominator), or None: this structure declares no analytic derivative, and
         :meth:`coefficient_derivatives` then takes central differences of :meth:`system`.
@@ -190,7 +192,9 @@ class PolePairGain(ModelStructure):
         k0, pr, pi = self._check(params)
         return TransferFunction(np.array([k0]), np.array([1.0, -2.0 * pr, pr * pr + pi * pi]))
 
-    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+    def coefficient_jacobian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
         _, pr, pi = self._check(params)  # k0 / (s^2 - 2 pr s + pr^2 + pi^2)
         dnum, dden = np.zeros((3, n)), np.zeros((3, n))
         dnum[0, -1] = 1.0
@@ -264,7 +268,9 @@ class RationalModel(ModelStructure):
         nb = self.num_order + 1
         return TransferFunction(x[:nb], np.r_[1.0, x[nb:]])
 
-    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+    def coefficient_jacobian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
         x = self._check(params)  # (b_m .. b_0) / (1, a_{n-1} .. a_0): the identity
         if n != self.den_order + 1:
             return None
@@ -394,7 +400,9 @@ class Delayed(ModelStructure):
         tf = self.structure.system(x[:-1])
         return TransferFunction(tf.num, tf.den, delay_s=float(x[-1]))
 
-    def coefficient_jacobian(self, params: ArrayLike, n: int) -> tuple[FloatArray, FloatArray] | None:
+    def coefficient_jacobian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
         x = self._check(params)
         inner = self.structure.coefficient_jacobian(x[:-1], n)
         if inner is None:

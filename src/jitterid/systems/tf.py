@@ -436,7 +436,9 @@ class _Recursion:
         row = np.repeat(np.arange(starts.size), ends - starts)
         col = np.arange(times.size) - starts[row]
         rel = (times - times[starts[row]])[:, None]
-        return cls(p, dt, np.expm1(p * dt), np.exp(p * rel), np.exp(-p * rel), starts, ends, row, col)
+        return cls(
+            p, dt, np.expm1(p * dt), np.exp(p * rel), np.exp(-p * rel), starts, ends, row, col
+        )
 
     @cached_property
     def step(self) -> ComplexArray:

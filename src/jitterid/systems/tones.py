@@ -166,7 +166,7 @@ class ToneSignal(Signal):
     ) -> MomentPass | None:
         """m_k, Var_k and their derivatives by (S1)-(S2) (module doc); None with ``higher``
         (the third and fourth moments take the generic quadrature path)."""
-    
+
         if higher:
             return None
         tn = self.tones
@@ -190,7 +190,9 @@ class ToneSignal(Signal):
         zp = z[:, None, :] * z[None, :, :]
         Pm, Pp = zm * cm[:, :, None], zp * cp[:, :, None]
         if variance:
-            second = 0.5 * np.real(np.einsum("hg,hgn->n", aa_m, Pm) - np.einsum("hg,hgn->n", aa_p, Pp))
+            second = 0.5 * np.real(
+                np.einsum("hg,hgn->n", aa_m, Pm) - np.einsum("hg,hgn->n", aa_p, Pp)
+            )
             var = np.maximum(second - dev**2, 0.0)
         if gradient:
             # dE_h = dw_h (i t E_h + z_h chi'(w_h)); dP = (dw_h -+ dw_g)(i t P + z.. chi'(.))
@@ -202,7 +204,9 @@ class ToneSignal(Signal):
                 rows = []
                 for i in range(tn.dc.size):
                     da, dw = tn.da[i], tn.dw[i]
-                    d_aam = da[:, None] * np.conj(tn.a)[None, :] + tn.a[:, None] * np.conj(da)[None, :]
+                    d_aam = (
+                        da[:, None] * np.conj(tn.a)[None, :] + tn.a[:, None] * np.conj(da)[None, :]
+                    )
                     d_aap = da[:, None] * tn.a[None, :] + tn.a[:, None] * da[None, :]
                     dwm = dw[:, None] - dw[None, :]
                     dwp = dw[:, None] + dw[None, :]
@@ -221,7 +225,9 @@ class ToneSignal(Signal):
             if variance:
                 dPm = zm * (wm / scale * cmd)[:, :, None]
                 dPp = zp * (wp / scale * cpd)[:, :, None]
-                d2 = 0.5 * np.real(np.einsum("hg,hgn->n", aa_m, dPm) - np.einsum("hg,hgn->n", aa_p, dPp))
+                d2 = 0.5 * np.real(
+                    np.einsum("hg,hgn->n", aa_m, dPm) - np.einsum("hg,hgn->n", aa_p, dPp)
+                )
                 scale_var = d2 - 2 * dev * scale_mean
         return MomentPass(mean, var, dmean, dvar, scale_mean, scale_var)
 
@@ -499,10 +505,13 @@ class MultiTone(Model):
             f = np.atleast_1d(np.asarray(self.frequencies_hz, dtype=float))
         except (TypeError, ValueError) as exc:
             raise ValueError(
-                f"frequencies_hz must be a sequence of frequencies in Hz; got {self.frequencies_hz!r}"
+                "frequencies_hz must be a sequence of frequencies in Hz; got "
+                f"{self.frequencies_hz!r}"
             ) from exc
         if f.ndim != 1 or f.size < 1 or not np.all(np.isfinite(f)) or np.any(f <= 0):
-            raise ValueError(f"frequencies_hz must hold one or more finite frequencies > 0 Hz; got {f}")
+            raise ValueError(
+                f"frequencies_hz must hold one or more finite frequencies > 0 Hz; got {f}"
+            )
         if np.unique(f).size != f.size:
             raise ValueError(f"frequencies_hz must be distinct; got {f}")
         if self.form not in _FORMS:

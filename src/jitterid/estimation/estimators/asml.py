@@ -34,9 +34,10 @@ def _value_gradient_information(
     grad += np.trace(RdR, axis1=1, axis2=2).real - ((dR @ a) @ a.conj()).real
     # tr(R^{-1} dR_i R^{-1} dR_j) = sum_kl (R^{-1} dR_i)_kl (R^{-1} dR_j)_lk
     flat = RdR.reshape(RdR.shape[0], -1)
-    info = 2 * (dmu.conj() @ Rinv @ dmu.T).real + (
-        flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T
-    ).real
+    info = (
+        2 * (dmu.conj() @ Rinv @ dmu.T).real
+        + (flat @ RdR.transpose(0, 2, 1).reshape(flat.shape).T).real
+    )
     return value, grad, info
 
 
@@ -147,7 +148,12 @@ class AsMLDiag(Estimator):
         rho, drho = float(np.sum(w)), dw.sum(axis=1)
         base = 2 * problem.adjoint(r)
         dmu = problem.dmu(dm)
-        return np.array([-2 * problem.adjoint(row) / rho - base * dr / rho**2 for row, dr in zip(dmu, drho, strict=True)])
+        return np.array(
+            [
+                -2 * problem.adjoint(row) / rho - base * dr / rho**2
+                for row, dr in zip(dmu, drho, strict=True)
+            ]
+        )
 
     # ------------------------------------------------------------------ coloured noise
     # R(f, f) of (23) is no longer the same at every frequency: rho(f) and its derivatives

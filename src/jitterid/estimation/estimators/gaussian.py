@@ -110,7 +110,10 @@ class GaussianCriterion(Estimator):
         return value, grad, info
 
     def _bj_parts(
-        self, problem: ColouredContext, x: FloatArray, free: NDArray[np.intp] | None,
+        self,
+        problem: ColouredContext,
+        x: FloatArray,
+        free: NDArray[np.intp] | None,
         information: bool,
     ) -> tuple[float, FloatArray, FloatArray | None]:
         """(V, dV/dx, M or None): :meth:`bj_objective_gradient`, M only if ``information``."""
