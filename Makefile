@@ -7,7 +7,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint format-check bench reproduce docs clean
+.PHONY: demo test test-slow test-wheel lint format-check bench reproduce docs clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -20,6 +20,11 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# Build the sdist and wheel, install the wheel into a fresh virtual environment and run the
+# README's example there (tests/test_wheel.py; downloads the dependencies).
+test-wheel: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow tests/test_wheel.py
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
