@@ -300,6 +300,15 @@ class KnownSystem(ModelStructure):
     ----------
     tf : TransferFunction
         The known system.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> model = ji.KnownSystem(ji.TransferFunction([1.0], [1.0, 2.0]))
+    >>> model.param_names
+    ()
+    >>> model.system([]).den.tolist()
+    [1.0, 2.0]
     """
 
     tf: TransferFunction
