@@ -114,6 +114,16 @@ class BodeBand:
         Unwrapped phase in degrees and its band.
     level : float
         Confidence level; NaN bands mean the covariance was unavailable.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> band = ji.bode_band(ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05)), [0.01, 1.0])
+    >>> band.magnitude.shape, bool((band.magnitude_lo <= band.magnitude_hi).all())
+    ((2,), True)
     """
 
     f: FloatArray
