@@ -146,6 +146,16 @@ class JitterDetection:
         Confidence level of ``jitter_std_ci``.
     t, residuals, slopes : ndarray
         Nominal instants, residuals y_k - s(kT) and model slopes s'(kT), for plots.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(20.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=200, noise_std=0.01, rng=2)
+    >>> det = ji.detect_jitter(data, G)
+    >>> det.detected(), bool(det.pvalue < 0.05)
+    (True, True)
     """
 
     statistic: float
@@ -450,6 +460,16 @@ class ResidualTest:
         The lags tested.
     values : ndarray
         The normalised correlations at those lags (about N(0, 1/N) each under H0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> test = ji.ljung_box(np.random.default_rng(0).standard_normal(100), lags=5)
+    >>> test.name, test.dof, test.lags.tolist()
+    ('Ljung-Box whiteness', 5, [1, 2, 3, 4, 5])
+    >>> test.passed()
+    True
     """
 
     name: str
