@@ -279,6 +279,18 @@ class PdfBand:
     fixed : tuple of str
         Family parameters held at their estimate because their variance was unavailable
         (e.g. on a bound); the band then understates the uncertainty.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(25.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Gaussian(0.03), T=0.1, N=200, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.GaussianFamily())
+    >>> band = ji.jitter_pdf_band(res, [0.0, 0.03], rng=0, n_draws=100)
+    >>> band.tau.tolist(), band.level, band.fixed
+    ([0.0, 0.03], 0.95, ())
     """
 
     tau: FloatArray
@@ -331,6 +343,18 @@ def jitter_pdf_band(
     ValueError
         If fewer than 10 % of the draws lie inside the bounds: the normal approximation of
         the estimate is then too poor for a band.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(25.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Gaussian(0.03), T=0.1, N=200, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.GaussianFamily())
+    >>> band = ji.jitter_pdf_band(res, [0.0, 0.03], rng=0, n_draws=100)
+    >>> band.pdf.shape, bool(np.all(band.lo <= band.hi))
+    ((2,), True)
     """
     if isinstance(tau, JitterFamily) or tau is None:  # the old order (result, family, tau, rng)
         warnings.warn(
