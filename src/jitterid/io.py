@@ -110,7 +110,22 @@ _U_TAIL = 64
 
 
 class DataFileError(ValueError):
-    """A data or input file that cannot be used; the message says where and how to fix it."""
+    """A data or input file that cannot be used; the message says where and how to fix it.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import jitterid as ji
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "bad.csv")
+    ...     with open(path, "w") as fh:
+    ...         _ = fh.write("nothing,useful\n1,2\n")
+    ...     try:
+    ...         ji.load(path)
+    ...     except ji.DataFileError as err:
+    ...         print(type(err).__name__)
+    DataFileError
+    """
 
 
 @dataclass(frozen=True)
@@ -1074,6 +1089,20 @@ def save_input(
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.NoJitter(), 0.1, 40, 0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     upath = ji.save_input(os.path.join(tmp, "u.csv"), u)
+    ...     ds = ji.load(ji.save_data(os.path.join(tmp, "y.csv"), data), upath)
+    >>> upath.name, bool(np.allclose(ds.data.u(data.t_nominal), u(data.t_nominal)))
+    ('u.csv', True)
     """
     if not isinstance(u, PiecewiseConstant):
         raise TypeError(
