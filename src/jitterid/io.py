@@ -119,7 +119,7 @@ class DataFileError(ValueError):
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     path = os.path.join(tmp, "bad.csv")
     ...     with open(path, "w") as fh:
-    ...         _ = fh.write("nothing,useful\n1,2\n")
+    ...         print("nothing,useful", file=fh)
     ...     try:
     ...         ji.load(path)
     ...     except ji.DataFileError as err:
