@@ -140,6 +140,19 @@ class Source:
         The file's path, as read.
     sha256 : str
         Hex SHA-256 checksum of its bytes.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import jitterid as ji
+    >>> G, u = ji.TransferFunction([2.0], [1.0, 2.0]), ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.NoJitter(), 0.1, 40, 0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = ji.save_data(os.path.join(tmp, "run.npz"), data)
+    ...     ds = ji.load(path, require_input=False)
+    >>> src = ds.sources[0]
+    >>> isinstance(src, ji.Source), src.role, len(src.sha256)
+    (True, 'data', 64)
     """
 
     role: str
@@ -165,6 +178,18 @@ class Dataset:
         The files read, with their checksums (data first).
     notes : tuple of str
         What loading assumed beyond the file (e.g. a 'u' column's last value held on).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import jitterid as ji
+    >>> G, u = ji.TransferFunction([2.0], [1.0, 2.0]), ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.NoJitter(), 0.1, 40, 0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = ji.save_data(os.path.join(tmp, "run.npz"), data)
+    ...     ds = ji.load(path, require_input=False)
+    >>> isinstance(ds, ji.Dataset), ds.data.N, ds.t0, ds.units["time"]
+    (True, 40, 0.0, 's')
     """
 
     data: SampledData
