@@ -41,6 +41,14 @@ class SampledData:
         jitter dominates, the exact likelihood's noise std can run to zero (the noise-free
         jittered signal explains the samples at least as well); a fit then stops at this
         floor and says so (AT_BOUND) instead of creeping towards 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> data = ji.SampledData(y=np.zeros(40), T=0.1, noise_std=0.01)
+    >>> data.N, round(float(data.t_nominal[-1]), 6)
+    (40, 3.9)
     """
 
     y: FloatArray

@@ -33,7 +33,18 @@ FloatArray = NDArray[np.float64]
 
 
 class Input:
-    """Base of the known inputs: ``start``, ``end``, ``__call__(t)`` and ``fourier(psi)``."""
+    """Base of the known inputs: ``start``, ``end``, ``__call__(t)`` and ``fourier(psi)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> u = ji.zoh_input([1.0, -1.0], T=0.5)
+    >>> isinstance(u, ji.Input), u.start, u.end
+    (True, 0.0, 1.0)
+    >>> u(np.array([0.25, 0.75])).tolist()
+    [1.0, -1.0]
+    """
 
     start: float
     end: float
@@ -78,6 +89,14 @@ class PiecewiseConstant(Input):
         Strictly increasing boundaries; ``times[0]`` is the start, ``times[-1]`` the end.
     levels : array_like, shape (J,)
         The value held on each interval.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> u = ji.PiecewiseConstant(np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0]))
+    >>> u(np.array([-0.5, 0.5, 1.5, 2.5])).tolist()
+    [0.0, 1.0, -1.0, 0.0]
     """
 
     times: FloatArray
@@ -160,6 +179,14 @@ class Multisine(Input):
     steady_state : bool
         If True the sinusoids have been on forever (no start transient): the input is
         defined for every t < end and a system's response is its periodic steady state.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> u = ji.Multisine(np.array([0.5, 1.5]), np.array([1.0, 0.5]), end=4.0)
+    >>> round(float(u(np.array([0.5]))[0]), 6)
+    0.5
     """
 
     freqs: FloatArray

@@ -110,7 +110,22 @@ _U_TAIL = 64
 
 
 class DataFileError(ValueError):
-    """A data or input file that cannot be used; the message says where and how to fix it."""
+    """A data or input file that cannot be used; the message says where and how to fix it.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import jitterid as ji
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = os.path.join(tmp, "bad.csv")
+    ...     with open(path, "w") as fh:
+    ...         print("nothing,useful", file=fh)
+    ...     try:
+    ...         ji.load(path)
+    ...     except ji.DataFileError as err:
+    ...         print(type(err).__name__)
+    DataFileError
+    """
 
 
 @dataclass(frozen=True)
@@ -125,6 +140,19 @@ class Source:
         The file's path, as read.
     sha256 : str
         Hex SHA-256 checksum of its bytes.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import jitterid as ji
+    >>> G, u = ji.TransferFunction([2.0], [1.0, 2.0]), ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.NoJitter(), 0.1, 40, 0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = ji.save_data(os.path.join(tmp, "run.npz"), data)
+    ...     ds = ji.load(path, require_input=False)
+    >>> src = ds.sources[0]
+    >>> isinstance(src, ji.Source), src.role, len(src.sha256)
+    (True, 'data', 64)
     """
 
     role: str
@@ -150,6 +178,18 @@ class Dataset:
         The files read, with their checksums (data first).
     notes : tuple of str
         What loading assumed beyond the file (e.g. a 'u' column's last value held on).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import jitterid as ji
+    >>> G, u = ji.TransferFunction([2.0], [1.0, 2.0]), ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.NoJitter(), 0.1, 40, 0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = ji.save_data(os.path.join(tmp, "run.npz"), data)
+    ...     ds = ji.load(path, require_input=False)
+    >>> isinstance(ds, ji.Dataset), ds.data.N, ds.t0, ds.units["time"]
+    (True, 40, 0.0, 's')
     """
 
     data: SampledData
@@ -1074,6 +1114,20 @@ def save_input(
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.NoJitter(), 0.1, 40, 0.01, rng=2)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     upath = ji.save_input(os.path.join(tmp, "u.csv"), u)
+    ...     ds = ji.load(ji.save_data(os.path.join(tmp, "y.csv"), data), upath)
+    >>> upath.name, bool(np.allclose(ds.data.u(data.t_nominal), u(data.t_nominal)))
+    ('u.csv', True)
     """
     if not isinstance(u, PiecewiseConstant):
         raise TypeError(

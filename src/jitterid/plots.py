@@ -448,6 +448,18 @@ def plot_step_response(
     Plot
         ``response``, ``band`` (absent where the band is empty or NaN) and, per reference,
         its name.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05))
+    >>> band = ji.step_response(res, [0.0, 1.0, 3.0])
+    >>> plot = ji.plot_step_response(band, references={"true": G})
+    >>> type(plot).__name__
+    'Plot'
     """
     if not isinstance(band, TimeResponseBand):
         raise TypeError(

@@ -102,6 +102,17 @@ def model_output(
     s, slope : ndarray, shape (N,)
         The slope is exact (the response of s G(s)); for a biproper G the jumps of the
         direct term at input switches are not slopes and are left out.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.zoh_input([1.0] * 40, T=0.1)
+    >>> data = ji.SampledData(y=ji.Response(G, u)(0.1 * np.arange(40)), T=0.1, u=u)
+    >>> s, slope = ji.model_output(data, G)
+    >>> s.shape, round(float(s[10]), 4), round(float(slope[0]), 4)
+    ((40,), 0.8647, 2.0)
     """
     if isinstance(model, SampledData) and not isinstance(data, SampledData):
         warnings.warn(
@@ -146,6 +157,16 @@ class JitterDetection:
         Confidence level of ``jitter_std_ci``.
     t, residuals, slopes : ndarray
         Nominal instants, residuals y_k - s(kT) and model slopes s'(kT), for plots.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(20.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=200, noise_std=0.01, rng=2)
+    >>> det = ji.detect_jitter(data, G)
+    >>> det.detected(), bool(det.pvalue < 0.05)
+    (True, True)
     """
 
     statistic: float
@@ -450,6 +471,16 @@ class ResidualTest:
         The lags tested.
     values : ndarray
         The normalised correlations at those lags (about N(0, 1/N) each under H0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> test = ji.ljung_box(np.random.default_rng(0).standard_normal(100), lags=5)
+    >>> test.name, test.dof, test.lags.tolist()
+    ('Ljung-Box whiteness', 5, [1, 2, 3, 4, 5])
+    >>> test.passed()
+    True
     """
 
     name: str
@@ -510,6 +541,16 @@ def ljung_box(residuals: ArrayLike, lags: int | None = None) -> ResidualTest:
     Returns
     -------
     ResidualTest
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> e = np.random.default_rng(0).standard_normal(100)
+    >>> ji.ljung_box(e, lags=5).passed()
+    True
+    >>> ji.ljung_box(np.cumsum(e), lags=5).passed()  # a random walk is far from white
+    False
     """
     r = _resid(residuals)
     n = r.size
@@ -544,6 +585,17 @@ def input_correlation_test(
     -------
     ResidualTest
         ``values`` are the normalised cross-correlations at each lag.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> rng = np.random.default_rng(0)
+    >>> u, e = rng.standard_normal(100), rng.standard_normal(100)
+    >>> ji.input_correlation_test(e, u, lags=5).passed()
+    True
+    >>> ji.input_correlation_test(e + u, u, lags=5).passed()
+    False
     """
     r = _resid(residuals)
     u = real_array(u_samples, "u_samples", ndim=1)
@@ -589,6 +641,18 @@ def standardized_residuals(data: SampledData, result: FitResult) -> FloatArray:
     -------
     ndarray, shape (N,)
         Independent with unit variance if the model is right.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05))
+    >>> r = ji.standardized_residuals(data, res)
+    >>> r.shape, bool(0.5 < np.std(r) < 1.5)
+    ((100,), True)
     """
     if not isinstance(result, FitResult):
         raise TypeError(f"result must be a FitResult; got {type(result).__name__}")
@@ -623,6 +687,12 @@ def ls_gain_factor(jitter: JitterLaw, f: ArrayLike) -> FloatArray:
     -------
     ndarray
         |phi(f)| in [0, 1], same shape as ``f``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> ji.ls_gain_factor(ji.Uniform(0.05), [0.0, 1.0, 5.0]).round(4).tolist()
+    [1.0, 0.9836, 0.6366]
     """
     if not isinstance(jitter, JitterLaw):
         raise TypeError(
@@ -646,6 +716,12 @@ def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
     -------
     float
         ``inf`` if there is no jitter (|phi| = 1 everywhere).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> round(ji.bias_frequency(ji.Uniform(0.05), tol=0.01), 3)
+    0.781
     """
     tol = _level(tol)
     if not isinstance(jitter, JitterLaw):

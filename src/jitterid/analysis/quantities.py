@@ -96,6 +96,17 @@ class Quantity:
         ``"quantiles"`` (of the sampled quantity), ``"known"`` (no uncertainty).
     note : str
         Why a value or an interval is NaN, or what it is conditional on; ``""`` if nothing.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05))
+    >>> q = ji.physical_quantities(res)["tau_s"]
+    >>> q.name, q.unit, round(q.value, 1), bool(q.low < q.value < q.high)
+    ('tau_s', 's', 0.5, True)
     """
 
     name: str
@@ -135,6 +146,18 @@ class PhysicalQuantities:
         Coverage of the intervals, in (0, 1).
     method : str
         How the intervals were computed: ``"delta"`` or ``"sampling"``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> pq = ji.physical_quantities(ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05)))
+    >>> pq.names
+    ('pole_re_per_s', 'dc_gain', 'bandwidth_hz', 'tau_s')
+    >>> round(pq["dc_gain"].value, 1)
+    1.0
     """
 
     quantities: tuple[Quantity, ...]

@@ -61,6 +61,20 @@ class TimeResponseBand:
     note : str
         Why the band is NaN, or that a biproper system's impulse response has a Dirac term
         D delta(t) that is not in ``response``; ``""`` if nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05))
+    >>> band = ji.step_response(res, [0.0, 1.0, 3.0])
+    >>> band.kind, band.level, band.response.round(1).tolist()
+    ('step', 0.95, [0.0, 0.9, 1.0])
+    >>> bool(np.all(band.lo <= band.hi))
+    True
     """
 
     t_s: FloatArray
@@ -277,5 +291,16 @@ def impulse_response(
     -------
     TimeResponseBand
         ``kind="impulse"``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05))
+    >>> band = ji.impulse_response(res, [0.0, 1.0])
+    >>> band.kind, band.response.round(2).tolist()
+    ('impulse', [2.0, 0.27])
     """
     return _band(result, t_s, "impulse", level, method, draws, rng)

@@ -276,6 +276,17 @@ class OrderSelection:
     tests : tuple of NestedTest
         Likelihood-ratio tests between consecutive nested candidates (``ml`` and
         ``gaussian`` only: the other criteria do not maximise a likelihood).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> candidates = [ji.RationalModel(0, 1), ji.RationalModel(1, 2)]
+    >>> sel = ji.select_order(data, candidates, ji.Uniform(0.05))
+    >>> sel.labels, sel.best.label
+    (('tf:0,1', 'tf:1,2'), 'tf:0,1')
     """
 
     rows: tuple[OrderRow, ...]

@@ -114,6 +114,16 @@ class BodeBand:
         Unwrapped phase in degrees and its band.
     level : float
         Confidence level; NaN bands mean the covariance was unavailable.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> band = ji.bode_band(ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05)), [0.01, 1.0])
+    >>> band.magnitude.shape, bool((band.magnitude_lo <= band.magnitude_hi).all())
+    ((2,), True)
     """
 
     f: FloatArray
@@ -269,6 +279,18 @@ class PdfBand:
     fixed : tuple of str
         Family parameters held at their estimate because their variance was unavailable
         (e.g. on a bound); the band then understates the uncertainty.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(25.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Gaussian(0.03), T=0.1, N=200, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.GaussianFamily())
+    >>> band = ji.jitter_pdf_band(res, [0.0, 0.03], rng=0, n_draws=100)
+    >>> band.tau.tolist(), band.level, band.fixed
+    ([0.0, 0.03], 0.95, ())
     """
 
     tau: FloatArray
@@ -321,6 +343,18 @@ def jitter_pdf_band(
     ValueError
         If fewer than 10 % of the draws lie inside the bounds: the normal approximation of
         the estimate is then too poor for a band.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(25.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Gaussian(0.03), T=0.1, N=200, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.GaussianFamily())
+    >>> band = ji.jitter_pdf_band(res, [0.0, 0.03], rng=0, n_draws=100)
+    >>> band.pdf.shape, bool(np.all(band.lo <= band.hi))
+    ((2,), True)
     """
     if isinstance(tau, JitterFamily) or tau is None:  # the old order (result, family, tau, rng)
         warnings.warn(

@@ -208,6 +208,16 @@ def gaussian_bound(
     -------
     ndarray, shape (P, P)
         The bound's covariance matrix.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(5.0, rng=1)
+    >>> model, law = ji.RationalModel(0, 1), ji.Uniform(0.05)
+    >>> crb = ji.gaussian_bound(model, law, u, 0.1, 40, 0.01, true_params=[2.0, 2.0])
+    >>> crb.shape, bool(np.all(np.linalg.eigvalsh(crb) > 0))
+    ((2, 2), True)
     """
     structure, x = _problem_setup(system_structure, jitter, T, N, noise_std, true_params)
     if estimate_noise:

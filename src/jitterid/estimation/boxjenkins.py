@@ -394,6 +394,21 @@ def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> Noise
         A result of ``fit(..., noise=noise)``.
     noise : NoiseStructure or NoiseModel
         The noise structure that was fitted (a NoiseModel is returned as it is).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> H = ji.NoiseModel(ji.TransferFunction([0.01], [1.0, 2.0]))
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), noise=H)
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", DeprecationWarning)
+    ...     old = ji.fitted_noise(res, H)
+    >>> old is H, res.noise_model is H  # prefer result.noise_model
+    (True, True)
     """
     warnings.warn(
         "fitted_noise(result, noise) is deprecated: the result keeps its fitted noise model, "

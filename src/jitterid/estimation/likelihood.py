@@ -622,6 +622,18 @@ class ExactLikelihood:
     -----
     The quadrature rule is designed at the first parameter vector evaluated (or by
     :meth:`design`) and then frozen: evaluations far from there are less accurate.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=40, noise_std=0.01, rng=2)
+    >>> lik = ji.ExactLikelihood(ji.RationalModel(0, 1), ji.Uniform(0.05), u, 0.1, 40, 0.01)
+    >>> lik.names
+    ('b0', 'a0')
+    >>> lik.logpdf([2.0, 2.0], data.y).shape
+    (40,)
     """
 
     structure: Model | TransferFunction
@@ -1396,6 +1408,17 @@ def log_density(
     Returns
     -------
     ndarray, shape (N,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.telegraph_input(5.0, rng=1)
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=40, noise_std=0.01, rng=2)
+    >>> lp = ji.log_density(G, u, ji.Uniform(0.05), 0.1, data.y, noise_std=0.01)
+    >>> lp.shape, bool(np.all(np.isfinite(lp)))
+    ((40,), True)
     """
     if not isinstance(system, TransferFunction):
         raise TypeError(f"system must be a TransferFunction; got {type(system).__name__}")

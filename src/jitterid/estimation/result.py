@@ -39,7 +39,16 @@ DISCRETE_METHODS = ("zoh", "foh", "bilinear", "euler", "backward_diff", "impulse
 
 
 class FitStatus(enum.Enum):
-    """How the search ended; the value is a message that says what to do."""
+    """How the search ended; the value is a message that says what to do.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> ji.FitStatus.CONVERGED.name
+    'CONVERGED'
+    >>> ji.FitStatus.MAX_EVALUATIONS.value.split(":")[0]
+    'failed'
+    """
 
     CONVERGED = "converged: the optimiser's convergence test was met"
     MAX_EVALUATIONS = (
@@ -152,6 +161,18 @@ class FitResult:
         The coloured-noise structure (Box-Jenkins), None for white noise.
     noise_model : NoiseModel or None
         The fitted coloured-noise model, None for white noise.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05))
+    >>> res.success, res.names
+    (True, ('b0', 'a0'))
+    >>> {name: round(value, 1) for name, value in res.params.items()}
+    {'b0': 2.0, 'a0': 2.0}
     """
 
     method: str

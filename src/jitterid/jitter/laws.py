@@ -135,6 +135,15 @@ class JitterLaw(abc.ABC):
     Lemma 1), the density :meth:`pdf`, a sampler :meth:`sample`, the moments :attr:`mean`,
     :attr:`var`, :attr:`std`, a finite :attr:`support` holding the mass and the
     :meth:`breakpoints` between which the density is analytic.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> law = ji.Uniform(0.05)
+    >>> isinstance(law, ji.JitterLaw), round(float(law.std), 6)
+    (True, 0.028868)
+    >>> law.sample(3, rng=0).shape
+    (3,)
     """
 
     # -- interface -----------------------------------------------------------------------------
@@ -296,6 +305,13 @@ class NoJitter(JitterLaw):
     :class:`NotImplementedError`. :meth:`quadrature` returns the single node 0 with weight 1, so
     :meth:`expect` gives ``g(0)`` and generic code using those two methods needs no special case.
     The support is the degenerate interval ``(0, 0)`` and :meth:`breakpoints` is ``[0.0]``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> law = ji.NoJitter()
+    >>> law.support, float(law.std), complex(law.cf(3.0))
+    ((0.0, 0.0), 0.0, (1+0j))
     """
 
     def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
@@ -524,6 +540,15 @@ class SumOfUniforms(JitterLaw):
         Order, ``0 <= n <= 50`` (``n + 1`` uniforms for integer ``n``).
     a : float
         Half-width of the support, ``> 0``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> law = ji.SumOfUniforms(2, 0.3)
+    >>> law.support
+    (-0.3, 0.3)
+    >>> round(float(law.std), 6)
+    0.1
     """
 
     n: float
@@ -686,6 +711,16 @@ class CustomJitter(JitterLaw):
     ValueError
         If the density is negative or non-finite at a quadrature node, has zero mass, or is not
         vectorised, or if ``support``/``breakpoints`` are invalid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> def triangle(t):
+    ...     return 1.0 - np.abs(t) / 0.1
+    >>> law = ji.CustomJitter(triangle, support=(-0.1, 0.1), breakpoints=[0.0])
+    >>> round(float(law.pdf(0.0)), 6), round(float(law.std), 6)  # normalised to unit area
+    (10.0, 0.040825)
     """
 
     _density: Callable[[NDArray[np.float64]], ArrayLike]
@@ -960,6 +995,13 @@ class JitterFamily(abc.ABC):
         For every parameter a *closed* interval ``[lo, hi]`` of admissible values, suitable
         for ``scipy.optimize`` (``hi`` may be ``inf``). Scale parameters have a small positive
         floor (``1e-12`` by default) instead of the excluded value 0.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> fam = ji.UniformFamily()
+    >>> isinstance(fam, ji.JitterFamily), fam.law([0.05]).support
+    (True, (-0.05, 0.05))
     """
 
     param_names: ClassVar[tuple[str, ...]]
@@ -1103,6 +1145,13 @@ class UniformFamily(JitterFamily):
     a_min : float
         Lower bound on ``a``, a small positive floor excluding 0; default ``1e-12``.
         Lower it if time is measured in units where the jitter is that small.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> fam = ji.UniformFamily()
+    >>> fam.law([0.05]).support
+    (-0.05, 0.05)
     """
 
     a_max: float | None = None
@@ -1137,6 +1186,13 @@ class GaussianFamily(JitterFamily):
         Upper bound on ``sigma`` (``None``: unbounded).
     sigma_min : float
         Lower bound, a small positive floor excluding 0; default ``1e-12``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> fam = ji.GaussianFamily()
+    >>> fam.law([0.01])
+    Gaussian(sigma=0.01)
     """
 
     sigma_max: float | None = None
@@ -1175,6 +1231,14 @@ class SumOfUniformsFamily(JitterFamily):
         Upper bound on ``a`` (``None``: unbounded). A natural choice is ``T/2``.
     a_min : float
         Lower bound on ``a``, a small positive floor excluding 0; default ``1e-12``.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> fam = ji.SumOfUniformsFamily()
+    >>> law = fam.law([2.0, 0.3])
+    >>> law.support, round(float(law.std), 6)
+    ((-0.3, 0.3), 0.1)
     """
 
     n_max: float = 20.0

@@ -161,6 +161,20 @@ class JitterMeasurement:
         The IEEE 1057 slope-regression jitter std the search started from (for comparison).
     T : float
         The nominal sampling interval (s).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> rng = np.random.default_rng(0)
+    >>> T, N, f = 1e-3, 200, 123.0
+    >>> t = np.arange(N) * T + 50e-6 * rng.standard_normal(N)  # 50 us rms jitter
+    >>> y = np.sin(2 * np.pi * f * t) + 1e-2 * rng.standard_normal(N)
+    >>> m = ji.measure_jitter(y, T, frequency=f, laws=["gaussian"])
+    >>> isinstance(m, ji.JitterMeasurement), round(m.frequency, 1)
+    (True, 123.0)
+    >>> bool(abs(m.jitter_std - 50e-6) < 4 * m.jitter_std_stderr)
+    True
     """
 
     jitter_std: float

@@ -150,6 +150,16 @@ class JitteredAutocovariance:
         gamma(0..M0-1): r_v(0) and the lags where the jitter can reverse the order of samples.
     weights, ratios : ndarray of complex
         gamma(m) = Re sum_j weights_j ratios_j^(m - M0) for m >= M0; ratios_j = exp(p_j T).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> H = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 2.0]))
+    >>> gamma = ji.jittered_autocovariance(H, ji.Uniform(0.02), T=0.1)
+    >>> isinstance(gamma, ji.JitteredAutocovariance), gamma.T
+    (True, 0.1)
+    >>> round(float(gamma.sequence(1)[0]), 6)  # r_v(0) = 1 / (2 * 2)
+    0.25
     """
 
     T: float
@@ -225,6 +235,14 @@ def jittered_autocovariance(
     Returns
     -------
     JitteredAutocovariance
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> H = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 2.0]))
+    >>> gamma = ji.jittered_autocovariance(H, ji.Uniform(0.02), T=0.1)
+    >>> gamma.sequence(3).round(4).tolist()
+    [0.25, 0.2048, 0.1677]
     """
     if not isinstance(noise, NoiseModel):
         raise TypeError(f"noise must be a NoiseModel; got {type(noise).__name__}")
@@ -390,6 +408,17 @@ class SampleCovariance:
         The diagonal part: Var s_k + sigma_w^2 (gamma(0) is added by the Toeplitz part).
     gamma : JitteredAutocovariance or None
         The coloured noise; None for white noise only (the OE structure).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.zoh_input([1.0, -1.0] * 20, T=0.1)
+    >>> S = ji.sample_covariance(G, u, ji.Uniform(0.02), T=0.1, N=40, noise_std=0.01)
+    >>> r = np.ones(40)
+    >>> bool(np.allclose(S.dense() @ S.solve(r), r))
+    True
     """
 
     d: FloatArray
@@ -657,6 +686,16 @@ def sample_covariance(
     Returns
     -------
     SampleCovariance
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.zoh_input([1.0, -1.0] * 20, T=0.1)
+    >>> S = ji.sample_covariance(G, u, ji.Uniform(0.02), T=0.1, N=40, noise_std=0.01)
+    >>> S.N, S.dense().shape, bool(np.allclose(S.dense(), S.dense().T))
+    (40, (40, 40), True)
     """
     if noise_model is not None and not isinstance(noise_model, NoiseModel):
         raise TypeError(
@@ -700,6 +739,18 @@ def coloured_dft_covariance(
     Returns
     -------
     ndarray of complex, shape (len(f), len(psi))
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.zoh_input([1.0, -1.0] * 20, T=0.1)
+    >>> H = ji.NoiseModel(ji.TransferFunction([0.1], [1.0, 2.0]))
+    >>> f = np.array([0.25, 0.5])
+    >>> R = ji.coloured_dft_covariance(G, u, ji.Uniform(0.02), 0.1, 40, f, 0.01, noise_model=H)
+    >>> R.shape, bool(np.allclose(R, R.conj().T)), bool(np.all(R.diagonal().real > 0))
+    ((2, 2), True, True)
     """
     cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
     return cov.dft(T, f, psi, sign=1.0)
@@ -732,6 +783,19 @@ def coloured_dft_pseudo_covariance(
     Returns
     -------
     ndarray of complex, shape (len(f), len(psi))
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> u = ji.zoh_input([1.0, -1.0] * 20, T=0.1)
+    >>> H = ji.NoiseModel(ji.TransferFunction([0.1], [1.0, 2.0]))
+    >>> f = np.array([0.25, 0.5])
+    >>> law = ji.Uniform(0.02)
+    >>> C = ji.coloured_dft_pseudo_covariance(G, u, law, 0.1, 40, f, 0.01, noise_model=H)
+    >>> C.shape, bool(np.allclose(C, C.T))
+    ((2, 2), True)
     """
     cov = sample_covariance(system, u, jitter, T, N, noise_std, noise_model)
     return cov.dft(T, f, psi, sign=-1.0)

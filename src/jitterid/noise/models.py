@@ -76,6 +76,15 @@ class NoiseModel:
     -----
     Autocovariance (N1) and spectrum (N2) of the module docstring. Example: H = b / (s + c)
     gives an Ornstein-Uhlenbeck process, r_v(t) = lambda b^2 / (2 c) exp(-c |t|).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> H = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 2.0]), intensity=4.0)
+    >>> round(float(H.variance), 6)  # lambda b^2 / (2 c) for H = b / (s + c)
+    1.0
+    >>> H.autocovariance([0.0, 0.5]).round(6).tolist()
+    [1.0, 0.367879]
     """
 
     tf: TransferFunction
@@ -197,6 +206,13 @@ class NoiseStructure(abc.ABC):
 
     Subclasses define ``param_names``, ``bounds``, ``model(params) -> NoiseModel`` and
     ``starts(T, scale)``: a few starting points for a noise level ``scale`` (std of v).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> noise = ji.RationalNoise(0, 1)
+    >>> isinstance(noise, ji.NoiseStructure), noise.bounds
+    (True, ((0.0, inf), (1e-09, inf)))
     """
 
     param_names: tuple[str, ...]
@@ -258,6 +274,15 @@ class RationalNoise(NoiseStructure):
         Numerator order m (>= 0), below ``den_order``.
     den_order : int, optional
         Denominator order n (>= 1).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> noise = ji.RationalNoise(0, 1)
+    >>> noise.param_names
+    ('hb0', 'ha0')
+    >>> round(float(noise.model([1.0, 2.0]).variance), 6)
+    0.25
     """
 
     num_order: int = 0
@@ -360,6 +385,14 @@ class KnownNoise(NoiseStructure):
     ----------
     noise_model : NoiseModel
         The known noise model.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> H = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 2.0]))
+    >>> known = ji.KnownNoise(H)
+    >>> known.param_names, known.model([]) is H
+    ((), True)
     """
 
     noise_model: NoiseModel

@@ -78,6 +78,14 @@ class Signal(abc.ABC):
     start, end : float
         s(t) is zero before ``start``; evaluating at or after ``end`` is an error (an input
         that ends). ``-inf`` and ``inf`` for a signal defined everywhere.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> s = ji.SineWave().signal([2.0, 0.0, 0.25, 0.0])
+    >>> isinstance(s, ji.Signal), s(np.array([0.0, 1.0])).round(6).tolist()
+    (True, [0.0, 2.0])
     """
 
     breaks: FloatArray
@@ -238,6 +246,13 @@ class Model(abc.ABC):
     :meth:`signal` and :meth:`initial_points`, and may declare ``gain_params`` (parameters in
     which s is linear: the scaling of the data maps them exactly, and each start gets its
     least-squares gain) and :attr:`uses_input`.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> model = ji.RationalModel(0, 1)
+    >>> isinstance(model, ji.Model), model.param_names, model.uses_input
+    (True, ('b0', 'a0'), True)
     """
 
     param_names: tuple[str, ...]

@@ -32,6 +32,15 @@ class ModelStructure(Model):
     ordinary output-error fit that initialises every estimator (paper, Section 4.5). Its
     signal (:meth:`signal`) is the exact response of G_theta to the input, whose moments the
     fast modal path computes (:mod:`jitterid.moments.modal`).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> model = ji.RationalModel(0, 1)
+    >>> isinstance(model, ji.ModelStructure), model.param_names
+    (True, ('b0', 'a0'))
+    >>> model.system([2.0, 2.0]).den.tolist()
+    [1.0, 2.0]
     """
 
     uses_input = True
@@ -300,6 +309,15 @@ class KnownSystem(ModelStructure):
     ----------
     tf : TransferFunction
         The known system.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> model = ji.KnownSystem(ji.TransferFunction([1.0], [1.0, 2.0]))
+    >>> model.param_names
+    ()
+    >>> model.system([]).den.tolist()
+    [1.0, 2.0]
     """
 
     tf: TransferFunction

@@ -290,6 +290,14 @@ class Response(Signal):
     rate : float
         The fastest rate (1/s) at which s varies between breaks: max |pole| and 2 pi f of
         the input's sinusoids. Quadrature panels are kept shorter than about 1 / rate.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> s = ji.Response(ji.TransferFunction([2.0], [1.0, 2.0]), ji.zoh_input([1.0] * 40, T=0.1))
+    >>> s(np.array([0.0, 3.0])).round(4).tolist()
+    [0.0, 0.9975]
     """
 
     system: TransferFunction

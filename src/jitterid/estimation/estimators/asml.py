@@ -44,7 +44,19 @@ def _value_gradient_information(
 @register
 @dataclass(frozen=True)
 class AsML(Estimator):
-    """Asymptotic ML (22): (Y - mu)^H R^{-1} (Y - mu) + ln det R."""
+    """Asymptotic ML (22): (Y - mu)^H R^{-1} (Y - mu) + ln det R.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.AsML()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
+    """
 
     name = "asml"
     rank = 3
@@ -104,7 +116,19 @@ class AsML(Estimator):
 @register
 @dataclass(frozen=True)
 class AsMLDiag(Estimator):
-    """Reduced asymptotic ML (23): sum_f |Y - mu|^2 / R(f, f) + ln R(f, f)."""
+    """Reduced asymptotic ML (23): sum_f |Y - mu|^2 / R(f, f) + ln R(f, f).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.AsMLDiag()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
+    """
 
     name = "asml-diag"
     rank = 4

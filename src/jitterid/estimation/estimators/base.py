@@ -147,6 +147,13 @@ class Estimator:
     the delta-method covariance). The coloured-noise form (``coloured_noise = True``) is
     :meth:`bj_residuals` and :meth:`bj_jacobian`, or :meth:`bj_objective_gradient`, and
     :meth:`bj_objective`, :meth:`bj_grad_y`.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> est = ji.BCLS()
+    >>> isinstance(est, ji.Estimator), est.ignores_jitter, ji.LS().ignores_jitter
+    (True, False, True)
     """
 
     name: ClassVar[str]

@@ -14,7 +14,19 @@ __all__ = ["ML"]
 @register
 @dataclass(frozen=True)
 class ML(Estimator):
-    """The exact likelihood (notes 4), at the Cramer-Rao bound."""
+    """The exact likelihood (notes 4), at the Cramer-Rao bound.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.ML()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
+    """
 
     name = "ml"
     rank = 6

@@ -23,7 +23,19 @@ __all__ = ["GaussianCriterion"]
 @dataclass(frozen=True)
 class GaussianCriterion(Estimator):
     """The exact real Gaussian criterion (notes 3); ``oim`` is its inverse observed
-    information as a (pseudo) likelihood."""
+    information as a (pseudo) likelihood.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.GaussianCriterion()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
+    """
 
     name = "gaussian"
     rank = 5

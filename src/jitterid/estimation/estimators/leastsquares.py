@@ -45,7 +45,19 @@ class _DFTResidual(Estimator):
 @register
 @dataclass(frozen=True)
 class LS(_DFTResidual):
-    """Ordinary least squares (8): ignores the jitter (biased at high frequencies)."""
+    """Ordinary least squares (8): ignores the jitter (biased at high frequencies).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.LS()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.NoJitter(), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
+    """
 
     name = "ls"
     rank = 0
@@ -57,7 +69,19 @@ class LS(_DFTResidual):
 @register
 @dataclass(frozen=True)
 class BCLS(_DFTResidual):
-    """Bias-compensated least squares (14): the residual to the jittered mean mu_Y."""
+    """Bias-compensated least squares (14): the residual to the jittered mean mu_Y.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.BCLS()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
+    """
 
     name = "bcls"
     rank = 1

@@ -33,6 +33,17 @@ class WBCLS(Estimator):
     ----------
     refreeze : int, optional
         Number of times the weighting is re-frozen at the new estimate (>= 0).
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> u = ji.telegraph_input(10.0, rng=1)
+    >>> G = ji.TransferFunction([2.0], [1.0, 2.0])
+    >>> data = ji.simulate(G, u, ji.Uniform(0.05), T=0.1, N=100, noise_std=0.01, rng=2)
+    >>> est = ji.WBCLS()
+    >>> res = ji.fit(data, ji.RationalModel(0, 1), ji.Uniform(0.05), method=est)
+    >>> res.success, res.x.round(1).tolist()
+    (True, [2.0, 2.0])
     """
 
     name = "wbcls"
