@@ -106,36 +106,8 @@ def _escape_bars(line: str) -> str:
     return "".join(p if i % 2 else p.replace("|", r"\|") for i, p in enumerate(parts))
 
 
-_SECTION_RULE = re.compile(r"^\s*-{3,}\s*$")
-_SECTIONS = {
-    "Parameters",
-    "Returns",
-    "Yields",
-    "Raises",
-    "Warns",
-    "Warnings",
-    "See Also",
-    "Notes",
-    "References",
-    "Examples",
-    "Attributes",
-    "Methods",
-    "Other Parameters",
-    "Receives",
-}
-
-
 def _escape_docstring(app, what, name, obj, options, lines):
     lines[:] = [_escape_bars(line) for line in lines]
-    # A numpydoc section title ("Examples" over "--------") needs a blank line before it;
-    # without one reST reads "Unexpected section title" (e.g. expected_dft's Returns).
-    i = 2
-    while i < len(lines):
-        title = lines[i - 1].strip()
-        if _SECTION_RULE.match(lines[i]) and title in _SECTIONS and lines[i - 2].strip():
-            lines.insert(i - 1, "")
-            i += 1
-        i += 1
 
 
 def setup(app):

@@ -256,6 +256,7 @@ def expected_dft(
     Returns
     -------
     ndarray of complex, same length as ``f``
+
     Examples
     --------
     >>> import numpy as np
