@@ -18,7 +18,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import finite, real_array
 from ..inputs import Input, Multisine, PiecewiseConstant
-from .model import DelayedSignal, Signal
+from ..jitter.laws import JitterLaw
+from .model import DelayedSignal, MomentPass, Signal
+from .tones import ToneSignal, _ToneMap
 
 __all__ = ["Response", "TransferFunction"]
 
@@ -335,6 +337,78 @@ class Response(Signal):
             What ``t_max`` is, for the error message.
         """
         self.u.check_covers(t_max, what)
+
+    def jitter_moments(
+        self,
+        jitter: JitterLaw,
+        T: float,
+        N: int,
+        *,
+        variance: bool = True,
+        gradient: bool = False,
+        scale: float | None = None,
+        higher: bool = False,
+    ) -> MomentPass | None:
+        """Closed-form jittered moments of the steady-state response to a multisine.
+
+        The steady-state response to a :class:`~jitterid.inputs.Multisine` is a sum of
+        tones, Im(A e^{i phi} G(i w) e^{i w t}) per input tone, so its moments are the
+        closed forms (S1)-(S2) of :class:`jitterid.systems.tones.ToneSignal`: O(N H^2) with
+        no quadrature over the jitter, where the node route costs O(N) panels of the
+        fastest of the poles and tones.
+
+        Parameters
+        ----------
+        jitter : JitterLaw
+            The jitter law.
+        T : float
+            Nominal sampling interval (s).
+        N : int
+            Number of samples.
+        variance : bool
+            Whether to compute Var_k.
+        gradient : bool
+            Ignored: parameter derivatives are not given here (the caller differences the
+            moments).
+        scale : float, optional
+            The jitter family's scale a (tau = a xi), for dm_k/da and dVar_k/da.
+        higher : bool
+            Third and fourth moments asked for: not in closed form (returns None).
+
+        Returns
+        -------
+        MomentPass or None
+            None for any other input (a switched-on multisine, a piecewise-constant
+            input: the modal or node routes apply) or with ``higher``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import jitterid as ji
+        >>> u = ji.Multisine([0.1], [1.0], end=100.0, steady_state=True)
+        >>> sig = ji.TransferFunction([1.0], [1.0, 1.0]).response(u)
+        >>> mp = sig.jitter_moments(ji.Uniform(0.2), 1.0, 5)
+        >>> mp.mean.shape, bool(np.all(mp.var >= 0))
+        ((5,), True)
+        """
+        u = self.u
+        if not (isinstance(u, Multisine) and u.steady_state) or higher:
+            return None
+        assert u.phases is not None
+        w = 2 * np.pi * np.asarray(u.freqs, dtype=float)
+        a = u.amplitudes * np.exp(1j * u.phases) * self.system.frequency_response(u.freqs)
+        H = w.size
+        tones = _ToneMap(
+            c=0.0,
+            a=np.asarray(a, dtype=complex),
+            w=w,
+            dc=np.zeros(0),
+            da=np.zeros((0, H), dtype=complex),
+            dw=np.zeros((0, H)),
+        )
+        return ToneSignal(tones).jitter_moments(
+            jitter, T, N, variance=variance, gradient=False, scale=scale
+        )
 
     @property
     def _switch_states(self) -> ComplexArray:
