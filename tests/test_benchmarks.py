@@ -173,3 +173,14 @@ def test_jitter_meter_adctoolbox_column(tmp_path):
     assert peers.adctoolbox_jitter(y, 1.0, 1.1234) == pytest.approx(
         theirs * 0.1234 / 1.1234, rel=2e-3
     )
+
+
+def test_multisine_benchmark_runs_at_small_n():
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_multisine.py"), "--sizes", "200", "--methods", "bcls"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout
+    assert "CONVERGED / CONVERGED" in out, out
