@@ -203,6 +203,21 @@ def _law_derivative(
     return dmean, dvar + 2 * dmean * (dmean - mean)
 
 
+def _differenced(
+    problem: Problem, x: FloatArray, i: int, *, variance: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """(dm, dVar) in parameter ``i`` by central differences of the moments
+    (:mod:`jitterid.finite_diff`): the declared route where no closed form is given."""
+    n = problem.data.N
+
+    def stacked(v: FloatArray) -> FloatArray:
+        mv = moments(problem, v)
+        return np.concatenate([mv.mean, mv.var]) if variance else mv.mean
+
+    g = finite_diff.derivative(stacked, x, i, problem.bounds[i], rel=_CD_REL)
+    return g[:n], (g[n:] if variance else None)
+
+
 def moment_derivatives(
     problem: Problem, x: FloatArray
 ) -> tuple[SampleMoments, FloatArray, FloatArray, FloatArray]:
@@ -275,25 +290,13 @@ def moment_derivatives(
             assert mp.dvar is not None
             dm[nj : nj + ns], dv[nj : nj + ns] = mp.dmean, mp.dvar
         elif ns:  # declared missing: central differences of the moments (finite_diff)
-
-            def both(v: FloatArray) -> FloatArray:
-                mv = moments(problem, v)
-                return np.concatenate([mv.mean, mv.var])
-
             for i in range(nj, nj + ns):
-                g = finite_diff.derivative(both, x, i, problem.bounds[i], rel=_CD_REL)
-                dm[i], dv[i] = g[: d.N], g[d.N :]
+                dm[i], dv[i] = _differenced(problem, x, i, variance=True)
     if delay is not None and _modal_path(sig):  # the modal rows hold zeros for the delay
-        i = nj + delay
-
-        def both_(v: FloatArray) -> FloatArray:
-            mv = moments(problem, v)
-            return np.concatenate([mv.mean, mv.var if need_var else mv.mean[:0]])
-
-        g = finite_diff.derivative(both_, x, i, problem.bounds[i], rel=_CD_REL)
-        dm[i] = g[: d.N]
-        if need_var:
-            dv[i] = g[d.N :]
+        dmi, dvi = _differenced(problem, x, nj + delay, variance=need_var)
+        dm[nj + delay] = dmi
+        if dvi is not None:
+            dv[nj + delay] = dvi
     shape = [i for i in range(nj) if not (analytic_scale and i == scale)]
     grad = (
         problem.jitter.pdf_gradient(x[:nj].tolist(), np.zeros(0))  # type: ignore[union-attr]
