@@ -184,3 +184,31 @@ def test_multisine_benchmark_runs_at_small_n():
         timeout=600,
     ).stdout
     assert "CONVERGED / CONVERGED" in out, out
+
+
+def test_reproduce_benchmark_runs_at_one_realization():
+    """Table 2 with the paper's three estimators, shared and --no-share, one realization."""
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(BENCH / "bench_reproduce.py"),
+            "--target",
+            "table2-paper",
+            "--runs",
+            "1",
+            "--workers",
+            "1",
+            "--no-share",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout
+    assert "jitterid run " in out, out
+    assert "1 realizations (table2 1 case(s)), 1 worker(s)" in out, out
+    assert "estimates identical in both runs; 0 bound rows computed only without sharing" in out
+    assert "no-share / shared: wall x" in out
+    for m in ("ls", "bcls", "asml-diag"):
+        assert f"table2        {m:<10}" in out, out
+    assert "gaussian" not in out

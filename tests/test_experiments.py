@@ -58,6 +58,9 @@ methods = ["ls", "bcls"]
 """)
 
 
+TINY_CASES = parse_experiment(copy.deepcopy(TINY), "tiny.toml").cases
+
+
 def tiny(**changes):
     return dataclasses.replace(parse_experiment(copy.deepcopy(TINY), "tiny.toml"), **changes)
 
@@ -124,6 +127,8 @@ def test_table1_cases_are_the_papers_six_laws():
         ("cases.0.law", {"kind": "uniform", "a": 3.5}, "input.margin"),  # input too short
         ("inputs", {}, "inputs"),
         ("estimators.crb", "yes", "estimators.crb"),
+        ("estimators.crb_runs", 4, "estimators.crb_runs"),  # without crb = true
+        ("estimators.crb_runs", 0, "estimators.crb_runs"),
     ],
 )
 def test_a_bad_definition_fails_naming_the_key(path, value, named):
@@ -354,7 +359,7 @@ def test_reproduce_table2_runs_end_to_end(tmp_path):
     assert len(rows) == 8 * 6
     assert {r["method"] for r in rows} == {"ls", "bcls", "asml-diag", "gaussian", "ml", "crb"}
     report = (tmp_path / "table2.md").read_text()
-    assert "| CRB | √(mean bound) |" in report
+    assert "| CRB | √(mean bound), first 8 inputs |" in report
     assert report.count("std / √CRB, here") == 5
     assert "jitterid reproduce table2 --runs 8" in report
     for method, label in [("ls", "LS"), ("bcls", "BCLS"), ("asml-diag", "AsML")]:
@@ -450,3 +455,74 @@ def test_bound_row_is_the_crb_of_the_realizations_input():
     np.testing.assert_allclose(row.stderr["sigma"], np.sqrt(g @ bound[:2, :2] @ g), rtol=1e-5)
     assert row.success
     assert row.status == "BOUND"
+
+
+# ------------------------------------------------------------------ sharing (issue 13)
+def bound_tiny(**changes):
+    """TINY with the bound on, the first two realizations storing it, and the estimators
+    that start from the BCLS stage."""
+    data = copy.deepcopy(TINY)
+    data["estimators"] = {
+        "methods": ["ls", "bcls", "asml-diag", "gaussian"],
+        "crb": True,
+        "crb_runs": 2,
+    }
+    return dataclasses.replace(parse_experiment(data, "tiny.toml"), **changes)
+
+
+def test_sharing_gives_the_numbers_of_fits_from_scratch():
+    """One BCLS search shared by the methods of a realization gives, bit for bit, what each
+    method finds searching from scratch (``share=False``: its own BCLS stage); only the
+    bound rows differ, present on every realization without sharing."""
+    exp = bound_tiny(runs=3)
+    for ci in range(len(exp.cases)):
+        for r in (0, 2):
+            stream = runner_mod.seed_stream(exp.seed, ci, r)
+            shared, _ = realize(exp, ci, r, stream, share=True)
+            alone, _ = realize(exp, ci, r, stream, share=False)
+            by = {e.method: e for e in alone}
+            assert [e.method for e in alone] == [*exp.methods, "crb"]
+            assert [e.method for e in shared] == [*exp.methods, *(["crb"] if r < 2 else [])]
+            for e in shared:
+                assert e.same_numbers(by[e.method]), (e, by[e.method])
+
+
+def test_crb_runs_averages_the_bounds_of_the_first_realizations(tmp_path):
+    """With crb_runs = 2 the store holds the bound of realizations 0 and 1 only, and the
+    report's row is sqrt(mean over those two inputs of diag(crb)): each bound recomputed
+    here with jitterid.crb on the input rebuilt from the realization's seed stream (the
+    per-input bounds averaged, not the inverse of an averaged Fisher information). Adding
+    realizations (--resume) does not move it; the definition's fingerprint ignores
+    crb_runs, so a store written with the bound on every realization is resumed."""
+    from jitterid.experiments.report import bound_roots
+
+    exp = bound_tiny(runs=3, cases=TINY_CASES[:1])
+    run_experiment(exp, tmp_path, workers=1, progress=False)
+    with Store(store_path(exp, tmp_path), exp, resume=True) as store:
+        rows = store.estimates()
+    assert sorted(e.realization for e in rows if e.method == "crb") == [0, 1]
+    bounds = []
+    for r in (0, 1):
+        rng = np.random.default_rng(runner_mod.seed_stream(exp.seed, 0, r))
+        u = exp.input.build(exp.duration, rng)
+        bounds.append(
+            ji.crb(ji.PolePairGain(), ji.Uniform(0.5), u, 1.0, 48, 0.01, [6.25, -1.5, 2.0])
+        )
+    want = np.sqrt(np.mean([np.diag(b) for b in bounds], axis=0))
+    got = bound_roots(exp, rows)["u"]
+    np.testing.assert_allclose([got[p] for p in ("k0", "pr", "pi")], want, rtol=1e-12)
+    # the inverse of the mean Fisher information is smaller (Jensen): not what is reported
+    pooled = np.sqrt(np.diag(np.linalg.inv(np.mean([np.linalg.inv(b) for b in bounds], axis=0))))
+    assert np.all(pooled <= want * (1 + 1e-12))
+    assert np.any(pooled < want * (1 - 1e-4))
+    more = dataclasses.replace(exp, runs=4)
+    run_experiment(more, tmp_path, workers=1, progress=False, resume=True)
+    with Store(store_path(more, tmp_path), more, resume=True) as store:
+        rows4 = store.estimates()
+    assert bound_roots(more, rows4) == bound_roots(exp, rows)
+    assert "| CRB | √(mean bound), first 2 inputs |" in markdown_report(more, rows4, "cmd")
+    every = dataclasses.replace(exp, crb_runs=None)
+    assert every.fingerprint() == exp.fingerprint()
+    assert every.bound_runs() == 3
+    assert exp.bound_runs() == 2
+    assert dataclasses.replace(exp, crb=False).bound_runs() == 0

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from jitterid.cli import main
 from jitterid.experiments import load_experiment
-from jitterid.experiments.runner import run_experiment, store_path
+from jitterid.experiments.runner import dask_client, run_experiment, store_path
 from jitterid.experiments.store import Store
 
 DEFINITION = """
@@ -108,6 +108,20 @@ def test_a_dask_cluster_on_loopback_gives_the_in_process_numbers(definition, ref
             ]
         )
     assert_same(stored(definition, tmp_path), reference)
+
+
+def test_one_client_for_several_runs_gives_the_in_process_numbers(definition, reference, tmp_path):
+    """`reproduce all` sends its tables to one cluster (dask_client): each run on it gives
+    the in-process numbers, and so does --no-share."""
+    exp = load_experiment(definition)
+    with dask_client(2) as client:
+        assert client is not None
+        for out in ("a", "b"):
+            run_experiment(exp, tmp_path / out, progress=False, client=client)
+    for out in ("a", "b"):
+        assert_same(stored(definition, tmp_path / out), reference)
+    run_cli(["run", str(definition), "--workers", "1", "--no-share", "--out", str(tmp_path / "c")])
+    assert_same(stored(definition, tmp_path / "c"), reference)
 
 
 def count_done(db):

@@ -5,8 +5,9 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -21,10 +22,13 @@ from ..experiments import (
 from ..experiments.bj import spectra_figure
 from ..experiments.loader import MAX_RUNS
 from ..experiments.report import markdown_report
-from ..experiments.runner import run_experiment, store_path
+from ..experiments.runner import dask_client, run_experiment, store_path
 from ..experiments.store import Store, StoreError
 from ..io import atomic_write
 from . import main
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
 
 __all__ = ["reproduce", "run"]
 
@@ -80,6 +84,13 @@ def _common(f: Callable[..., Any]) -> Callable[..., Any]:
             "missing realizations (after a kill, or to add --runs).",
         ),
         click.option("--no-progress", is_flag=True, help="Hide the progress bar."),
+        click.option(
+            "--no-share",
+            is_flag=True,
+            help="Fit every estimator from scratch (no BCLS stage shared within a "
+            "realization) and store the Cramer-Rao bound of every realization, not of the "
+            "first crb_runs: the same tables, slower (for benchmarks and checks).",
+        ),
     ]
     for opt in reversed(opts):
         f = opt(f)
@@ -93,6 +104,8 @@ class _Options:
     scheduler: str | None
     resume: bool
     progress: bool
+    share: bool = True
+    client: Client | None = None  # one Dask client for every table of the command
 
 
 def _study(exp: Experiment, opt: _Options, command: str) -> Store:
@@ -105,6 +118,8 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
             scheduler=opt.scheduler,
             resume=opt.resume,
             progress=opt.progress,
+            share=opt.share,
+            client=opt.client,
         )
     except StoreError as exc:
         raise click.ClickException(str(exc)) from None
@@ -152,6 +167,7 @@ def _options(
     scheduler: str | None,
     resume: bool,
     no_progress: bool,
+    no_share: bool = False,
 ) -> _Options:
     return _Options(
         out if out is not None else default_out,
@@ -159,6 +175,7 @@ def _options(
         scheduler,
         resume,
         not no_progress,
+        not no_share,
     )
 
 
@@ -182,6 +199,7 @@ def reproduce(
     out: Path | None,
     resume: bool,
     no_progress: bool,
+    no_share: bool,
     print_toml: bool,
 ) -> None:
     """Reproduce the paper's Tables 1-3 and Figures 1-5 (TARGET, or 'all').
@@ -198,31 +216,48 @@ def reproduce(
         click.echo(packaged_path(target).read_text(encoding="utf-8"), nl=False)
         return
     _check_scheduler(scheduler)
-    opt = _options(out, Path("out/reproduction"), workers, scheduler, resume, no_progress)
+    opt = _options(out, Path("out/reproduction"), workers, scheduler, resume, no_progress, no_share)
     todo = [*PAPER_EXPERIMENTS, *FIGURES] if target == "all" else [target]
     try:
-        for item in todo:
-            if item in PAPER_EXPERIMENTS:
-                exp = _packaged(item, runs)
-                _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
-            elif item in STUDIES:
-                exp = _packaged(item, runs)
-                with _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)) as store:
-                    path = spectra_figure(opt.out, exp, store.estimates(exp.runs))
-                click.echo(f"{item} spectra -> {path}")
-            elif item == "fig5":
-                exp = _packaged("table2", runs)
-                with _table2_results(exp, opt, target) as store:
-                    path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
-                click.echo(f"fig5 -> {path}")
-            else:
-                click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
-        if any(t in FIGURES for t in todo):
-            _write_figure_index(opt.out)
+        with ExitStack() as stack:
+            if target == "all":  # the tables share one cluster: its start-up is paid once
+                opt = _with_client(opt, stack)
+            _targets(todo, opt, target, runs)
     except StoreError as exc:
         raise click.ClickException(str(exc)) from None
     except OSError as exc:  # a figure or index that cannot be written
         raise click.ClickException(f"cannot write into {opt.out}: {exc}") from None
+
+
+def _with_client(opt: _Options, stack: ExitStack) -> _Options:
+    """``opt`` with a Dask client for all its tables (unchanged for one local worker)."""
+    try:
+        client = stack.enter_context(dask_client(opt.workers, opt.scheduler))
+    except OSError as exc:  # an unreachable --scheduler
+        raise click.ClickException(f"cannot run the tables: {exc}") from None
+    return dataclasses.replace(opt, client=client)
+
+
+def _targets(todo: list[str], opt: _Options, target: str, runs: int | None) -> None:
+    """Run, report and draw each item of ``todo`` (tables, studies, figures) in order."""
+    for item in todo:
+        if item in PAPER_EXPERIMENTS:
+            exp = _packaged(item, runs)
+            _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)).close()
+        elif item in STUDIES:
+            exp = _packaged(item, runs)
+            with _study(exp, opt, _command(["reproduce", target], exp.runs, opt.out)) as store:
+                path = spectra_figure(opt.out, exp, store.estimates(exp.runs))
+            click.echo(f"{item} spectra -> {path}")
+        elif item == "fig5":
+            exp = _packaged("table2", runs)
+            with _table2_results(exp, opt, target) as store:
+                path = figures.figure5(opt.out, exp, store.estimates(exp.runs))
+            click.echo(f"fig5 -> {path}")
+        else:
+            click.echo(f"{item} -> {getattr(figures, 'figure' + item[-1])(opt.out)}")
+    if any(t in FIGURES for t in todo):
+        _write_figure_index(opt.out)
 
 
 def _check_scheduler(scheduler: str | None) -> None:
@@ -274,6 +309,7 @@ def run(
     out: Path | None,
     resume: bool,
     no_progress: bool,
+    no_share: bool,
 ) -> None:
     """Run the Monte Carlo study defined in EXPERIMENT (a TOML file).
 
@@ -287,5 +323,5 @@ def run(
     if runs is not None:
         exp = dataclasses.replace(exp, runs=runs)
     _check_scheduler(scheduler)
-    opt = _options(out, Path("out") / exp.name, workers, scheduler, resume, no_progress)
+    opt = _options(out, Path("out") / exp.name, workers, scheduler, resume, no_progress, no_share)
     _study(exp, opt, _command(["run", str(experiment)], exp.runs, opt.out)).close()

@@ -172,6 +172,7 @@ class Experiment:
     cases: tuple[Case, ...]
     methods: tuple[str, ...]
     crb: bool = False
+    crb_runs: int | None = None
     paper_table: int | None = None
     paper_labels: tuple[tuple[str, str], ...] = ()
     description: str = field(default="", compare=False)
@@ -188,6 +189,18 @@ class Experiment:
         cls, _ = FAMILIES[self.jitter_model]
         return cls(**dict(self.jitter_options))
 
+    def bound_runs(self) -> int:
+        """How many realizations of each case store the Cramer-Rao bound: the first
+        ``crb_runs`` (every one if None), at most ``runs``; 0 without ``crb``.
+
+        The bound depends on the realization's input, so the report's CRB row averages the
+        per-realization bounds (the diagonal of the inverse Fisher information of each input)
+        over these realizations; it does not invert an averaged Fisher information.
+        """
+        if not self.crb:
+            return 0
+        return self.runs if self.crb_runs is None else min(self.runs, self.crb_runs)
+
     @property
     def duration(self) -> float:
         """Length of each realization's input: N T + ``input.margin``."""
@@ -198,13 +211,24 @@ class Experiment:
         return dict(self.paper_labels).get(method, method)
 
     def fingerprint(self) -> str:
-        """Hash of everything that decides the numbers (not runs, titles or paper labels)."""
+        """Hash of everything that decides the numbers (not runs, titles or paper labels).
+
+        Like ``runs``, ``crb_runs`` only says how many realizations are computed or read (the
+        bound of realization r is the same whatever it is), so it is left out too."""
         core = dataclasses.replace(
-            self, runs=0, title="", paper_table=None, paper_labels=(), description="", source=""
+            self,
+            runs=0,
+            crb_runs=None,
+            title="",
+            paper_table=None,
+            paper_labels=(),
+            description="",
+            source="",
         )
         fields = dataclasses.asdict(core)
         if fields["noise"] is None:  # white-noise experiments keep their earlier fingerprint
             del fields["noise"]
+        del fields["crb_runs"]
         text = json.dumps(fields, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

@@ -139,7 +139,7 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         if top.has("noise")
         else None
     )
-    est = top.table("estimators", ("methods", "crb"))
+    est = top.table("estimators", ("methods", "crb", "crb_runs"))
     methods = _methods(est, jitter_model, system, noise is not None)
     _check_bj(est, methods, jitter_model, cases)
     crb = est.flag("crb", default=False)
@@ -157,6 +157,9 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
             "needs a known, positive noise_std (the bound is evaluated at the true noise); "
             "set sampling.noise_known = true and noise_std > 0, or crb = false",
         )
+    crb_runs = est.integer("crb_runs", minimum=1) if est.has("crb_runs") else None
+    if crb_runs is not None and not crb:
+        raise est.fail("crb_runs", "is how many realizations store the bound; it needs crb = true")
     paper_table, labels = _paper(top, methods)
     runs = ex.integer("runs", minimum=1)
     if runs > MAX_RUNS:
@@ -192,6 +195,7 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
         cases=cases,
         methods=methods,
         crb=crb,
+        crb_runs=crb_runs,
         paper_table=paper_table,
         paper_labels=labels,
         source=source,

@@ -74,11 +74,22 @@ def _values(e: Estimate, family: bool) -> dict[str, float]:
 
 
 def bound_roots(exp: Experiment, estimates: Sequence[Estimate]) -> dict[str, dict[str, float]]:
-    """sqrt(mean over realizations of the CRB diagonal) per case and parameter (``crb`` rows)."""
+    """sqrt(mean of the CRB diagonal over realizations) per case and parameter.
+
+    Each ``crb`` row is the bound of its realization's input (the inverse of that input's
+    Fisher information); the mean is over the bounds of realizations
+    ``0 .. exp.bound_runs() - 1`` (the first ``crb_runs``), whatever else the store holds,
+    so that the row does not depend on how the store was filled (``--no-share`` stores
+    every realization's bound). It is not the inverse of a mean Fisher information, which
+    would be smaller (Jensen): the per-input bound is what the estimators, each fitted to
+    one input, are compared with."""
     out: dict[str, dict[str, float]] = {}
+    last = exp.bound_runs()
     for case in exp.cases:
         rows = [
-            e for e in estimates if e.case_name == case.name and e.method == "crb" and e.success
+            e
+            for e in estimates
+            if e.case_name == case.name and e.method == "crb" and e.success and e.realization < last
         ]
         if rows:
             out[case.name] = {
@@ -181,7 +192,9 @@ def _case_block(
     ]
     if bound:
         lines.append(
-            "| CRB | √(mean bound) | " + " | ".join(_fmt(bound.get(p)) for p in names) + " |"
+            f"| CRB | √(mean bound), first {exp.bound_runs()} inputs | "
+            + " | ".join(_fmt(bound.get(p)) for p in names)
+            + " |"
         )
     flags: list[str] = []
     for m in exp.methods:

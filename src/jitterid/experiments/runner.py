@@ -15,10 +15,16 @@ what it sends back: use only a cluster you trust as you trust your own machine.
 
 Within a realization the BCLS search runs once and is shared by every method that starts
 from it (``fit(..., start=bcls_result)``, identical numbers to separate calls); the stored
-fit time of those methods excludes that shared stage. With ``crb = true`` each realization
-also stores a row of method ``crb``: the true parameters with, as ``stderr``, the square
+fit time of those methods excludes that shared stage. With ``crb = true`` the first
+:meth:`Experiment.bound_runs` realizations of each case (``crb_runs``, every one by default)
+also store a row of method ``crb``: the true parameters with, as ``stderr``, the square
 roots of the Cramer-Rao bound's diagonal for that realization's input (and, for a jitter
-family, the bound on sigma by the delta method).
+family, the bound on sigma by the delta method). The bound depends on the input, which each
+realization draws anew, so there is no single bound per case: the report averages these
+per-realization bounds (not their Fisher informations) over the realizations that have one.
+``share=False`` (:func:`realize`, :func:`run_experiment`, ``--no-share``) undoes both
+savings, every method searching from scratch and every realization storing its bound: the
+same numbers, at the cost before the sharing (for benchmarks and checks).
 """
 
 from __future__ import annotations
@@ -26,7 +32,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Iterable, Iterator
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -50,9 +56,17 @@ from .config import Experiment, split_method
 from .store import Estimate, Store
 
 if TYPE_CHECKING:
-    from dask.distributed import LocalCluster
+    from dask.distributed import Client, LocalCluster
 
-__all__ = ["RunSummary", "realize", "run_experiment", "seed_stream", "seed_streams", "store_path"]
+__all__ = [
+    "RunSummary",
+    "dask_client",
+    "realize",
+    "run_experiment",
+    "seed_stream",
+    "seed_streams",
+    "store_path",
+]
 
 Task = tuple[int, int, np.random.SeedSequence]  # (case index, realization, its stream)
 
@@ -85,7 +99,11 @@ def seed_stream(seed: int, case_index: int, realization: int) -> np.random.SeedS
 
 
 def realize(
-    exp: Experiment, case_index: int, realization: int, stream: np.random.SeedSequence
+    exp: Experiment,
+    case_index: int,
+    realization: int,
+    stream: np.random.SeedSequence,
+    share: bool = True,
 ) -> tuple[list[Estimate], float]:
     """Simulate one realization and fit every estimator to it.
 
@@ -97,6 +115,10 @@ def realize(
         Which case and which realization.
     stream : numpy.random.SeedSequence
         The realization's own stream (from :func:`seed_streams`).
+    share : bool
+        Default True: one BCLS search shared by the methods that start from it, and the
+        bound only on the first :meth:`Experiment.bound_runs` realizations. False: every
+        method searches from scratch and every realization gets the bound (same numbers).
 
     Returns
     -------
@@ -133,12 +155,12 @@ def realize(
                 m,
                 case.name,
                 realization,
-                shared,
+                shared if share else None,
                 exp.noise.structure() if exp.noise is not None and split_method(m)[0] else None,
             )
             for m in exp.methods
         ]
-        if exp.crb:
+        if exp.crb and (realization < exp.bound_runs() or not share):
             rows.append(_bound_row(exp, case_index, realization, u))
     return rows, time.perf_counter() - t0
 
@@ -170,14 +192,18 @@ def _fit_one(
     method: str,
     case_name: str,
     realization: int,
-    shared: dict[str, FitResult | Exception],
+    shared: dict[str, FitResult | Exception] | None,
     noise: NoiseStructure | None = None,
 ) -> Estimate:
+    """One method's fit as an Estimate; ``shared`` holds the realization's BCLS stage (None:
+    the method searches from scratch, its own BCLS stage included)."""
     t0 = time.perf_counter()
     prefix, criterion = split_method(method)  # "bj-gaussian": gaussian with the noise model
     try:
         if method == "ls":
             res = fit(data, model, jitter, method)
+        elif shared is None:
+            res = fit(data, model, jitter, criterion, noise=noise)
         else:
             # 'jbj-' methods fit a jitter family: their BCLS stage is not the known-law one.
             pre = _bcls_stage(
@@ -303,6 +329,8 @@ def run_experiment(
     scheduler: str | None = None,
     resume: bool = False,
     progress: bool = True,
+    share: bool = True,
+    client: Client | None = None,
 ) -> RunSummary:
     """Run the realizations of ``exp`` not yet in its store, committing each one at once.
 
@@ -323,6 +351,12 @@ def run_experiment(
         Continue a store that already holds results (only missing realizations are run).
     progress : bool
         Show a tqdm progress bar on stderr.
+    share : bool
+        See :func:`realize` (False: no shared BCLS stage, the bound on every realization).
+    client : dask.distributed.Client, optional
+        A client to send the realizations to instead of starting a cluster (``workers`` and
+        ``scheduler`` are then ignored): :func:`dask_client` opens one for several
+        experiments, so that they share its worker processes and pay their start-up once.
 
     Returns
     -------
@@ -357,7 +391,7 @@ def run_experiment(
             dynamic_ncols=True,
         )
         with bar:
-            for rows, elapsed in _execute(exp, tasks, todo, workers, scheduler):
+            for rows, elapsed in _execute(exp, tasks, todo, workers, scheduler, share, client):
                 store.add_realization(rows, elapsed)
                 bar.update(1)
     return RunSummary(store_path(exp, out), total, already, todo, time.perf_counter() - t0)
@@ -395,17 +429,15 @@ def local_cluster(workers: int) -> LocalCluster:
     )
 
 
-def _execute(
-    exp: Experiment, tasks: Iterable[Task], count: int, workers: int, scheduler: str | None
-) -> Iterator[tuple[list[Estimate], float]]:
-    """Results of the ``count`` ``tasks`` in completion order (a few per worker in flight)."""
-    if count <= 0:
-        return
+@contextmanager
+def dask_client(workers: int, scheduler: str | None = None) -> Iterator[Client | None]:
+    """A Dask client for :func:`run_experiment` ``(..., client=)``: connected to
+    ``scheduler``, or to a :func:`local_cluster` of ``workers`` processes; None (run in this
+    process) for one local worker."""
     if scheduler is None and workers == 1:
-        for ci, r, stream in tasks:
-            yield realize(exp, ci, r, stream)
+        yield None
         return
-    from dask.distributed import Client, as_completed
+    from dask.distributed import Client
 
     with ExitStack() as stack:
         if scheduler is not None:
@@ -416,19 +448,52 @@ def _execute(
                     f"cannot connect to the Dask scheduler {scheduler!r} ({exc}); check that it "
                     "runs and the address is right"
                 ) from None
-            n = max(len(client.scheduler_info().get("workers", {})), 1)
         else:
-            n = min(workers, count)
-            cluster = stack.enter_context(local_cluster(n))
+            cluster = stack.enter_context(local_cluster(workers))
             client = stack.enter_context(Client(cluster))
-        it = iter(tasks)
-        pending = as_completed()
-        for ci, r, stream in islice(it, 2 * n + 2):
-            pending.add(client.submit(realize, exp, ci, r, stream, pure=False))
-        for fut in pending:
-            result = fut.result()
-            fut.release()
-            nxt = next(it, None)
-            if nxt is not None:
-                pending.add(client.submit(realize, exp, *nxt, pure=False))
-            yield result
+        yield client
+
+
+def _execute(
+    exp: Experiment,
+    tasks: Iterable[Task],
+    count: int,
+    workers: int,
+    scheduler: str | None,
+    share: bool = True,
+    client: Client | None = None,
+) -> Iterator[tuple[list[Estimate], float]]:
+    """Results of the ``count`` ``tasks`` in completion order (a few per worker in flight)."""
+    if count <= 0:
+        return
+    if client is None and scheduler is None and workers == 1:
+        for ci, r, stream in tasks:
+            yield realize(exp, ci, r, stream, share)
+        return
+    with ExitStack() as stack:
+        if client is None:
+            # a local cluster no larger than the work (a remote one is what it is)
+            n = workers if scheduler is not None else min(workers, count)
+            client = stack.enter_context(dask_client(n, scheduler))
+        assert client is not None
+        yield from _submit(client, exp, tasks, share)
+
+
+def _submit(
+    client: Client, exp: Experiment, tasks: Iterable[Task], share: bool
+) -> Iterator[tuple[list[Estimate], float]]:
+    """The tasks on ``client``'s workers, a few per worker in flight, in completion order."""
+    from dask.distributed import as_completed
+
+    n = max(len(client.scheduler_info().get("workers", {})), 1)
+    it = iter(tasks)
+    pending = as_completed()
+    for ci, r, stream in islice(it, 2 * n + 2):
+        pending.add(client.submit(realize, exp, ci, r, stream, share, pure=False))
+    for fut in pending:
+        result = fut.result()
+        fut.release()
+        nxt = next(it, None)
+        if nxt is not None:
+            pending.add(client.submit(realize, exp, *nxt, share, pure=False))
+        yield result
