@@ -254,7 +254,7 @@ def test_runs_are_drawn_lazily_so_a_huge_run_count_starts_at_once(tmp_path, monk
 
     calls = []
 
-    def fake(exp, ci, r, stream):
+    def fake(exp, ci, r, stream, share=True):
         calls.append(r)
         if len(calls) == 3:
             raise Stop
