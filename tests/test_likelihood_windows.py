@@ -109,3 +109,55 @@ def test_observed_information_is_exact_for_tones(family):
     # and its diagonal to the rule's accuracy
     np.testing.assert_allclose(Mn[:, 1:], Jn[:, 1:], atol=2e-4)
     assert Mn[0, 0] == pytest.approx(Jn[0, 0], rel=2e-3)
+
+
+# Responses of LTI systems to switching inputs: relative degree 2 (PolePairGain) and 1 (a
+# zero: s' jumps at every switch), a slow and a fast pole, small and large noise, three laws.
+SWITCHING = [
+    (ji.PolePairGain(), [6.25, -1.5, 2.0], ji.Uniform(0.5), 0.01),
+    (ji.PolePairGain(), [6.25, -1.5, 2.0], ji.Gaussian(0.2), 1e-3),
+    (ji.RationalModel(1, 2), [1.0, 3.0, 2.0, 4.0], ji.SumOfUniforms(2, 0.4), 0.01),
+    (ji.RationalModel(0, 1), [8.0, 8.0], ji.Uniform(0.3), 3e-3),
+    (ji.RationalModel(1, 2), [0.5, 0.2, 0.6, 0.3], ji.Uniform(0.5), 0.05),
+    # a delay moves the law (the pieces are built for it stretched about its mean)
+    (ji.Delayed(ji.PolePairGain()), [6.25, -1.5, 2.0, 0.7], ji.Uniform(0.5), 0.01),
+    (ji.PolePairGain(), [6.25, -1.5, 2.0], ji.Shifted(ji.Uniform(0.3), 0.2), 0.01),
+]
+
+
+def _switching_record(model, theta, law, noise, N=150, seed=4):
+    rng = np.random.default_rng(seed)
+    u = ji.telegraph_input(N * T + 2, rng)
+    data = ji.simulate(model.system(theta), u, law, T, N, noise, rng)
+    return u, data.y
+
+
+@pytest.mark.parametrize(("model", "theta", "law", "noise"), SWITCHING, ids=lambda v: str(v)[:14])
+def test_windowed_rule_on_switching_inputs_matches_a_four_times_finer_full_rule(
+    model, theta, law, noise
+):
+    """The windowed rule is used for switching inputs too (where the full rule would have
+    more than 32 panels per sample); its pieces are cut at the switches. Referee: the full
+    rule with the panels quartered and twice the nodes, at the design point and at a noise
+    std 0.8 of the design's (the lowest before the rule is re-designed) with the signal moved
+    by a fraction of a noise std."""
+    u, y = _switching_record(model, theta, law, noise)
+    lik = ExactLikelihood(model, law, u, T, y.size, None, window=True)
+    fine = ExactLikelihood(model, law, u, T, y.size, None, window=False, panel=1.0, order=16)
+    x = np.r_[theta, noise]
+    np.testing.assert_allclose(lik.logpdf(x, y), fine.logpdf(x, y), rtol=0, atol=1e-8)
+    moved = np.r_[np.asarray(theta) * (1 + 2e-4), 0.81 * noise]
+    a = lik.logpdf(moved, y)
+    assert lik._design is not None and lik._design[1] == noise  # not re-designed
+    np.testing.assert_allclose(a, fine.logpdf(moved, y), rtol=0, atol=1e-8)
+
+
+def test_windowed_rule_is_chosen_for_a_switching_input_steep_against_the_noise():
+    model, theta, law, noise = SWITCHING[0]
+    u, y = _switching_record(model, theta, law, noise, N=50)
+    lik = ExactLikelihood(model, law, u, T, y.size, noise)
+    lik.design(theta)
+    assert lik._design is not None  # windowed (the full rule: ~220 nodes per sample)
+    quiet = ExactLikelihood(model, law, u, T, y.size, 1.0)
+    quiet.design(theta)
+    assert quiet._design is None  # flat against the noise: the full rule

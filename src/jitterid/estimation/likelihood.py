@@ -20,18 +20,29 @@ is smooth in theta; :meth:`ExactLikelihood.design` re-designs it (``fit`` does s
 optimum and re-optimises if the value moved). Cost: O(N + TV(s) / sigma_v) signal
 evaluations, TV the total variation of s.
 
-Windows. Where that full rule would have more than ``_WINDOW_FROM`` panels per sample (a
-smooth signal, steep relative to the noise: a sine record with small noise) and the signal
-has no breaks, each sample gets its own rule (:func:`_window_panels`): the slope grid's
-cells inside its jitter window are halved until the panel criterion holds, with the
-tighter bound |s'| <= |s'(mid)| + 1.25 rate S |t - mid|, and every piece on which the
-integrand cannot reach e^-24 of the sample's largest piece is dropped on the way. The
-pieces left surround the instants where s(t) comes within ~8 sigma_v of y_k, so the cost
-is O(N) whatever sigma_v (tests: against the full rule with the panels quartered and
-twice the order, within 1e-8 in each ln p(y_k)). The windows depend on y and on the
-parameters where they were designed; the rule is re-designed at any parameter whose
-signal moved by more than one noise std at a piece's midpoint (a window that missed the
-peak would underestimate p(y_k) grossly).
+Windows (the adaptive rule). Where that full rule would have more than ``_WINDOW_FROM``
+panels per sample (a signal steep relative to the noise: a sine record with small noise, or
+the response to a switching input at the paper's noise levels), each sample gets its own
+rule (:func:`_window_panels`): the slope grid's cells inside its jitter window (cut at the
+input's switches) are halved until the panel criterion holds, with the tighter bound
+|s'| <= |s'(mid)| + 1.25 rate S |t - mid|, and every piece on which the integrand cannot
+reach e^-24 of the sample's largest piece is dropped on the way. The pieces left surround
+the instants where s(t) comes within ~8 sigma_v of y_k, so the cost is O(N) whatever
+sigma_v. Each piece gets as many Gauss-Legendre nodes as its span (the change of
+(y - s) / sigma_v over it) and its slack (how far below the sample's best piece it lies)
+require for an error below ~3e-11 of p(y_k) (:func:`_piece_orders`: 3 to 12 nodes, ~90 per
+sample on the paper's Table 2 against ~220 for the full rule). Tests: against the full rule
+with the panels quartered and twice the order, within 1e-8 in each ln p(y_k), on steep and
+flat signals, smooth and switching. The windows depend on y and on the parameters where
+they were designed; the rule is re-designed at any parameter whose signal moved by more than
+half a noise std at a piece's midpoint, or whose noise std left [0.8, 1.25] of the design's
+(a window that missed the peak would underestimate p(y_k) grossly); the last designs are
+kept for a return (a check at a start far off, then back at the estimate).
+
+Memory. The nodes of a rule are kept between evaluations up to ``NODE_BUDGET``; a larger
+rule (a long record) is made again chunk by chunk (``_CHUNK`` samples) at each evaluation
+from its pieces (~30 bytes each) or its cuts, and every evaluation, score and information
+streams through the chunks: the memory is bounded independently of N (:class:`_Rule`).
 
 With posterior weights pi_j = w_j N(y; s_j, sigma_v^2) / p(y) (sum 1 per sample), the score is
 
@@ -72,7 +83,8 @@ only m_k and w_k, cannot beat:
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import functools
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,21 +115,30 @@ DEFAULT_ORDER = 8  # Gauss-Legendre nodes per panel
 DEFAULT_PANEL = 4.0  # panel length <= DEFAULT_PANEL * sigma_v / local max |s'|
 _SLOPE_SAFETY = 1.25
 _PANEL_BUDGET = 20_000_000  # refuse rules with more panels (memory and time)
-_CHUNK = 2048  # samples per node chunk
+_CHUNK = 1024  # samples per node chunk
+NODE_BUDGET = 8_000_000  # nodes kept in memory between evaluations (~0.4 GB); more: streamed
 _Y_STEP = 0.5  # y-grid spacing of (L3) in units of sigma_v
 _Y_TAIL = 9.0  # y-grid margin in units of sigma_v
 _LOG_SQRT_2PI = 0.5 * np.log(2 * np.pi)
-_WINDOW_FROM = 32.0  # windowed rule when the full rule has more panels per sample
+_WINDOW_FROM = 12.0  # windowed rule when the full rule has more panels per sample (there
+#                     the windowed rule has fewer nodes: ~90 per sample against 8 per panel)
 _WINDOW_CUT = 24.0  # drop pieces below e^-24 of the sample's largest (ln p to ~1e-10)
 _WINDOW_MARGIN = 1.0  # ... with the distance |y - s| shortened by this many sigma
 _WINDOW_ROUNDS = 48  # halvings at most
 _WINDOW_FLOOR = 1e-12  # ... and no piece shorter than this times T
 _WINDOW_PDF = 0.6  # no piece longer than this many jitter std's
 _WINDOW_SIGMA_STEP = 0.25  # a noise std below this fraction of the design's is refused
+_WINDOW_SIGMA_REDESIGN = 0.8  # ... below this fraction (or above its inverse): re-designed
+_SPARE_DESIGNS = 2  # earlier windowed designs kept (a check far off, then back)
 _WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby scales)
 _WINDOW_EXTRA_ORDER = 4  # Gauss-Legendre nodes per piece: order + this (pieces span 4 sigma
 #                          of the Gaussian factor by a tight slope bound; near an extremum of
 #                          s the exponent is quartic in t, where 8 nodes give ~1e-7)
+_ORDER_SPANS = np.array([0.5, 1.0, 2.0, 3.0, 4.0])  # _piece_orders' table: spans (rows),
+_ORDER_SLACKS = np.array([0.0, 4.0, 8.0, 16.0, 20.0])  # slacks (columns), nodes
+_ORDER_TABLE = np.array(
+    [[5, 4, 4, 3, 3], [6, 5, 5, 4, 3], [8, 7, 6, 5, 3], [10, 8, 7, 6, 4], [11, 9, 8, 7, 5]]
+)
 _SCORE_STEP = 1e-7  # relative forward step of the differenced scores (finite_diff.forward)
 _FISHER_STEP = 1e-4  # relative central step of (L3) (finite_diff.central_pair)
 FISHER_SCALE_STEP = 0.05  # ... or at most this fraction of a parameter's natural scale
@@ -189,13 +210,15 @@ class _NodeSignal:
     dx/dp = e^{p dt} (dt X_j + dX_j/dp) + u_j (dt e^{p dt} / p - expm1(p dt) / p^2).
     """
 
-    def __init__(self, sig: Signal, t: FloatArray) -> None:
+    def __init__(self, sig: Signal, t: FloatArray, segment: NDArray[np.intp] | None = None) -> None:
         self.t = t
         if t.size:
             sig.check_covers(float(np.max(t)), "the last quadrature node")
         self.u = u = sig.u if isinstance(sig, Response) else None
         if isinstance(u, PiecewiseConstant):
-            j = np.searchsorted(u.times, t, side="right") - 1
+            # the input's segment of each instant (given: the windowed rule's pieces lie
+            # between switches, so it is found once per piece)
+            j = np.searchsorted(u.times, t, side="right") - 1 if segment is None else segment
             self.inside = j >= 0
             self.seg = np.clip(j, 0, u.levels.size - 1)
             self.level = np.where(self.inside, u.levels[self.seg], 0.0)
@@ -324,6 +347,16 @@ def _slope_profile(signal: Signal, span: tuple[float, float]) -> _SlopeProfile |
     inner = np.clip(grid, a + h, b - h)
     slope = np.abs(signal(inner + h) - signal(inner - h)) / (2 * h)
     cell = np.maximum(slope[:-1], slope[1:])
+    # |s'| on either side of every break inside a cell (s' may jump there, and a pulse
+    # shorter than a cell would be missed by the grid alone)
+    br = np.asarray(signal.breaks, dtype=float)
+    br = br[(br > a + 2 * h) & (br < b - 2 * h)]
+    if br.size:
+        at = np.clip(np.searchsorted(grid, br, side="right") - 1, 0, cell.size - 1)
+        for side in (-1.0, 1.0):
+            near = br + side * 2 * h
+            sl = np.abs(signal(near + h) - signal(near - h)) / (2 * h)
+            np.maximum.at(cell, at, sl)
     pad = np.r_[0.0, 0.0, cell, 0.0, 0.0]
     local = _SLOPE_SAFETY * np.max(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
     return _SlopeProfile(grid, local)
@@ -341,6 +374,16 @@ def _panel_cuts(profile: _SlopeProfile | None, sigma: float, panel: float) -> Fl
             "fewer samples"
         )
     return np.interp(np.arange(1.0, np.floor(cum[-1]) + 1), cum, profile.grid)
+
+
+def _value_and_slope(signal: Signal, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """s(t) and s'(t): from one pass of the modal form for an LTI response to a
+    piecewise-constant input, else the signal and :func:`_slope_at`."""
+    nodes = _NodeSignal(signal, t)
+    if nodes.analytic:
+        s, _, ds = nodes.gradient(signal, None, None, slope=True)  # type: ignore[misc]
+        return s, ds
+    return signal(t), _slope_at(signal, t)
 
 
 def _slope_at(signal: Signal, t: FloatArray) -> FloatArray:
@@ -363,7 +406,7 @@ def _window_panels(
     profile: _SlopeProfile,
     density: JitterLaw,
     reach: JitterLaw | _Stretched | None = None,
-) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray, FloatArray, FloatArray]:
     """The panels of the windowed rule (module doc, "Windows").
 
     Each sample's pieces ``pch`` (the slope grid's cells inside its window, cut at the
@@ -377,7 +420,9 @@ def _window_panels(
     rule changes with the jitter parameters only where a piece's depth or the support's
     edges do. With ``reach`` (a wider law), a piece is kept by that law's pdf and compared
     with the best piece under ``density``: the pieces then serve both. Returns (owner, a,
-    b) sorted by owner and time."""
+    b, slack, span) sorted by owner and time: slack the ln of the sample's best piece's lower
+    bound less this piece's upper bound, span the bound on the change of (y - s) / sigma over
+    the piece (:func:`_piece_orders`; -inf and inf for a piece left open)."""
     wide = density if reach is None else reach
     lo, hi = density.support
     rlo, rhi = wide.support
@@ -386,7 +431,7 @@ def _window_panels(
     n = pch.k1 - pch.k0
     yk_all = y[pch.k0 : pch.k1]
     best_done = np.full(n, -np.inf)
-    out_o, out_a, out_b = [], [], []
+    out_o, out_a, out_b, out_u, out_r = [], [], [], [], []
     with np.errstate(divide="ignore"):
         for _ in range(_WINDOW_ROUNDS):
             if owner.size == 0:
@@ -396,10 +441,11 @@ def _window_panels(
             # |s'| <= |s'(mid)| + kappa |t - mid| with kappa = 1.25 rate S (a band-limited
             # signal's |s''| <= rate max|s'|): much tighter than S where s is flat
             kappa = _SLOPE_SAFETY * signal.rate * Sp
-            sl = np.abs(_slope_at(signal, mid))
+            s_mid, sl = _value_and_slope(signal, mid)
+            sl = np.abs(sl)
             S = np.minimum(Sp, sl + kappa * half)
             dev = np.minimum(Sp * half, sl * half + 0.5 * kappa * half**2)
-            d = np.abs(yk_all[owner] - signal(mid))
+            d = np.abs(yk_all[owner] - s_mid)
             dlo = np.maximum((d - dev) / sigma - _WINDOW_MARGIN, 0.0)
             dhi = (d + dev) / sigma
             base = (pch.k0 + owner) * T
@@ -418,6 +464,8 @@ def _window_panels(
                 out_o.append(owner[done])
                 out_a.append(a[done])
                 out_b.append(b[done])
+                out_u.append(upper[done])
+                out_r.append((2 * half * S / sigma)[done])
             split = keep & ~done
             o, lo_, mi, hi_ = owner[split], a[split], mid[split], b[split]
             owner = np.concatenate([o, o])
@@ -427,9 +475,13 @@ def _window_panels(
         out_o.append(owner)
         out_a.append(a)
         out_b.append(b)
+        out_u.append(np.zeros(owner.size) + np.inf)
+        out_r.append(np.zeros(owner.size) + np.inf)
     o, aa, bb = np.concatenate(out_o), np.concatenate(out_a), np.concatenate(out_b)
+    slack = best_done[o] - np.concatenate(out_u)
+    span = np.concatenate(out_r)
     order = np.lexsort((aa, o))
-    return o[order], aa[order], bb[order]
+    return o[order], aa[order], bb[order], slack[order], span[order]
 
 
 @dataclass(frozen=True, eq=False)
@@ -444,7 +496,6 @@ class _Nodes:
     starts: NDArray[np.int64]
     signal: _NodeSignal
     logrule: FloatArray | None = None  # ln of the weights without the pdf (shape families)
-    probe: tuple[FloatArray, FloatArray] | None = None  # windowed: piece midpoints, design s
 
 
 def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
@@ -553,32 +604,136 @@ def _has_slope(sig: Signal, analytic: bool) -> bool:
 
 @dataclass(frozen=True, eq=False)
 class _Pieces:
-    """The windowed rule's pieces of samples k0..k1-1 (before the law's support cuts them)
-    and the design signal at their midpoints (the re-design test)."""
+    """The windowed rule's pieces of samples k0..k1-1 (before the law's support cuts them),
+    the Gauss-Legendre nodes of each (:func:`_piece_orders`) and the design signal at their
+    midpoints (the re-design test)."""
 
     k0: int
     k1: int
-    owner: NDArray[np.int64]
+    owner: NDArray[np.int32]
     a: FloatArray
     b: FloatArray
-    probe: tuple[FloatArray, FloatArray]
+    nodes: NDArray[np.int8]
+    probe: FloatArray
+
+    @property
+    def mid(self) -> FloatArray:
+        return 0.5 * (self.a + self.b)
+
+
+def _piece_orders(slack: FloatArray, span: FloatArray, order: int, top: int) -> NDArray[np.int8]:
+    """Gauss-Legendre nodes per windowed piece, from its span (the bound on the change of
+    (y - s) / sigma over it, at the design's noise std) and its slack (how far, in ln, the
+    bound on its integrand lies below the sample's best piece).
+
+    ``_ORDER_TABLE`` holds the fewest nodes whose error on the Gaussian factor, centred
+    anywhere outside the slack, is below 3e-11 of the sample's p (computed for spans 0.5,
+    1, 2, 3, 4 and slacks 0, 4, 8, 16, 20); a piece takes the entry of the next larger span
+    (its span stretched by 1 / ``_WINDOW_SIGMA_REDESIGN``: the noise std may fall that far
+    before the rule is re-designed) and smaller slack, plus one node (an extremum of s makes
+    the exponent quartic) and ``order - DEFAULT_ORDER``, within [3, ``top``] (tests: the
+    rule against one with the panels quartered and twice the nodes)."""
+    r = np.searchsorted(_ORDER_SPANS, span / _WINDOW_SIGMA_REDESIGN, side="left")
+    c = np.searchsorted(_ORDER_SLACKS, slack, side="right") - 1
+    inside = r < _ORDER_SPANS.size
+    n = np.where(
+        inside,
+        _ORDER_TABLE[np.minimum(r, _ORDER_SPANS.size - 1), np.maximum(c, 0)]
+        + 1
+        + order
+        - DEFAULT_ORDER,
+        top,
+    )
+    return np.clip(n, 3, top).astype(np.int8)
 
 
 class _Stretched:
-    """The law of ``factor * tau``: the windowed rule's pieces are built for it, so that
-    they serve every scale of a family between 1 / 2 and 1 of it."""
+    """The law of ``m + factor * (tau - m)``, m the law's mean: the windowed rule's pieces
+    are built for it, so that they serve every scale of a family between 1 / 2 and 1 of it
+    (about the mean: a law shifted by a delay stays inside)."""
 
     def __init__(self, law: JitterLaw, factor: float) -> None:
         self.law, self.factor = law, factor
+        self.centre = m = float(law.mean)
         lo, hi = law.support
-        self.support = (lo * factor, hi * factor)
+        self.support = (m + (lo - m) * factor, m + (hi - m) * factor)
         self.std = float(law.std) * factor
 
     def breakpoints(self) -> FloatArray:
-        return np.asarray(self.law.breakpoints(), dtype=float) * self.factor
+        bp = np.asarray(self.law.breakpoints(), dtype=float)
+        return self.centre + (bp - self.centre) * self.factor
 
     def pdf(self, tau: ArrayLike) -> FloatArray:
-        return np.asarray(self.law.pdf(np.asarray(tau, dtype=float) / self.factor)) / self.factor
+        tau = np.asarray(tau, dtype=float)
+        inner = self.centre + (tau - self.centre) / self.factor
+        return np.asarray(self.law.pdf(inner)) / self.factor
+
+
+class _Rule:
+    """The quadrature nodes of every sample under one jitter law, chunk by chunk.
+
+    Kept in memory after the first pass while they total at most ``budget`` nodes; beyond
+    that (long records) they are made again, chunk by chunk, at every pass, from what the
+    rule is built on (the windowed rule's ``pieces``, or the full rule's cuts), so that the
+    memory of an evaluation is bounded independently of N."""
+
+    def __init__(
+        self, make: Callable[[], Iterator[_Nodes]], pieces: Sequence[_Pieces], budget: int
+    ) -> None:
+        self._make, self.pieces, self._budget = make, pieces, budget
+        self._kept: list[_Nodes] | None = None
+
+    @property
+    def streamed(self) -> bool:
+        """Whether the nodes are re-made at each pass (more than ``budget`` of them)."""
+        return self._kept is None
+
+    def __iter__(self) -> Iterator[_Nodes]:
+        if self._kept is not None:
+            yield from self._kept
+            return
+        kept: list[_Nodes] | None = []
+        total = 0
+        for nd in self._make():
+            if kept is not None:
+                total += nd.t.size
+                if total <= self._budget:
+                    kept.append(nd)
+                else:
+                    kept = None
+            yield nd
+        if kept is not None:
+            self._kept = kept
+
+
+@functools.cache
+def _legendre_table(top: int) -> tuple[FloatArray, FloatArray]:
+    """Gauss-Legendre nodes and weights on [-1, 1] for 0..top nodes: row n holds the n-node
+    rule in its first n columns (zeros after)."""
+    xg, wg = np.zeros((top + 1, top)), np.zeros((top + 1, top))
+    for n in range(1, top + 1):
+        xg[n, :n], wg[n, :n] = np.polynomial.legendre.leggauss(n)
+    return xg, wg
+
+
+_Held = tuple[tuple[float, float, float], list[_Pieces]]  # pieces kept for nearby scales
+
+
+def _fits(rule: _Rule, design: tuple[Signal, float] | None, sig: Signal, sigma: float) -> bool:
+    """Whether a windowed rule designed at ``design`` (signal, noise std) serves ``sig`` and
+    ``sigma``: the noise std within a factor ``_WINDOW_SIGMA_REDESIGN`` of the design's
+    (below, the pieces would be too long; above, the windows too narrow) and the signal
+    moved by at most ``_WINDOW_MARGIN / 2`` noise std's at every piece's midpoint."""
+    if design is None:
+        return False
+    d_sigma = design[1]
+    if not _WINDOW_SIGMA_REDESIGN * d_sigma <= sigma <= d_sigma / _WINDOW_SIGMA_REDESIGN:
+        return False
+    limit = 0.5 * _WINDOW_MARGIN * d_sigma
+    return all(
+        np.max(np.abs(_NodeSignal(sig, pc.mid)(sig) - pc.probe), initial=0.0) <= limit
+        for pc in rule.pieces
+    )
 
 
 # ---------------------------------------------------------------------------- the likelihood
@@ -609,6 +764,10 @@ class ExactLikelihood:
         rule would have more than ``_WINDOW_FROM`` panels per sample).
     noise_floor : float or None
         Lower bound of an estimated noise std (``SampledData.resolution``); default 1e-12.
+    node_budget : int
+        Most quadrature nodes kept in memory between evaluations (default
+        ``NODE_BUDGET``, ~50 bytes each); a rule with more is made again chunk by chunk at
+        every evaluation (streamed), so that memory stays bounded whatever N.
 
     Attributes
     ----------
@@ -646,15 +805,17 @@ class ExactLikelihood:
     panel: float = DEFAULT_PANEL
     window: bool | None = None
     noise_floor: float | None = None
+    node_budget: int = NODE_BUDGET
     layout: ParamLayout = field(init=False, repr=False)
     _cuts: FloatArray | None = field(init=False, default=None, repr=False)
     _profile: _SlopeProfile | None = field(init=False, default=None, repr=False)
     _design: tuple[Signal, float] | None = field(init=False, default=None, repr=False)
     _window_y: FloatArray | None = field(init=False, default=None, repr=False)
-    _pieces: tuple[tuple[float, float, float], list[_Pieces]] | None = field(
-        init=False, default=None, repr=False
-    )
-    _cache: dict[tuple[float, ...], list[_Nodes]] = field(init=False, default_factory=dict)
+    _pieces: _Held | None = field(init=False, default=None, repr=False)
+    _cache: dict[tuple[float, ...], _Rule] = field(init=False, default_factory=dict)
+    _spares: list[
+        tuple[tuple[Signal, float] | None, _Held | None, dict[tuple[float, ...], _Rule]]
+    ] = field(init=False, default_factory=list, repr=False)
 
     def __post_init__(self) -> None:
         self.structure = as_structure(self.structure)
@@ -741,8 +902,7 @@ class ExactLikelihood:
         else:
             self._cuts = _panel_cuts(profile, sigma, self.panel)
             check_likelihood(self, law, sig)  # the rule's memory, before any node is built
-        self._pieces = None
-        self._cache.clear()
+        self._cache, self._pieces, self._spares = {}, None, []
 
     def _windowed(
         self,
@@ -756,8 +916,8 @@ class ExactLikelihood:
         rule would have more than ``_WINDOW_FROM`` panels per sample."""
         if self.window is not None:
             return bool(self.window) and profile is not None
-        if profile is None or np.asarray(sig.breaks).size:
-            return False  # switching inputs keep the full rule (its graded cuts)
+        if profile is None:
+            return False
         lo, hi = law.support
         per_sample = (
             profile.cumulative()[-1] / (self.panel * sigma) * (hi - lo) / (span[1] - span[0])
@@ -771,12 +931,14 @@ class ExactLikelihood:
         sig: Signal,
         y: FloatArray | None = None,
         sigma: float | None = None,
-    ) -> list[_Nodes]:
+    ) -> _Rule:
         """The rule at ``x``: windowed around the samples ``y`` where the design says so
         (``y = None`` asks for the full rule: the Fisher information's y-grid). A windowed
         rule is re-designed at ``x`` when the signal there has moved from the design's by
         more than ``_WINDOW_MARGIN / 2`` noise std's at a piece's midpoint, or the noise std
-        ``sigma`` fell below half the design's (its windows would be too coarse); below
+        ``sigma`` left [0.8, 1.25] of the design's (:func:`_fits`); the last
+        ``_SPARE_DESIGNS`` designs are kept and taken back where they fit (a check at a
+        start far off, then back at the estimate, re-designs once, not twice); below
         ``_WINDOW_SIGMA_STEP`` of it the point is refused (ValueError: the search's step is
         rejected and shortened), so that one trial step towards noise_std = 0 does not
         re-design the rule for a vanishing noise."""
@@ -787,21 +949,19 @@ class ExactLikelihood:
                 if self._cuts is None:
                     self._cuts = _panel_cuts(self._profile, self._design[1], self.panel)
                     check_likelihood(self, law, sig)
-                return list(self._make_nodes(law, sig))
+                return self._rule(law, sig, None)
             if self._window_y is None or not np.array_equal(self._window_y, y):
-                self._cache.clear()
-                self._pieces = None
+                self._cache, self._pieces, self._spares = {}, None, []
                 self._window_y = np.array(y, dtype=float)
         key = (*x[: self.n_jitter], law.mean)  # a delay shifts the law (Delayed)
+        windowed = self._design is not None and y is not None
         if key not in self._cache:
             if len(self._cache) > 16:
-                self._cache.clear()
-            if self._design is not None and y is not None:
-                self._cache[key] = list(self._make_windowed(law, sig, y))
-            else:
-                self._cache[key] = list(self._make_nodes(law, sig))
-        nodes = self._cache[key]
-        if self._design is not None and y is not None and sigma is not None:
+                self._cache = {}
+            self._cache[key] = self._rule(law, sig, y if windowed else None)
+        rule = self._cache[key]
+        if windowed and sigma is not None:
+            assert self._design is not None
             d_sigma = self._design[1]
             if sigma < _WINDOW_SIGMA_STEP * d_sigma:
                 raise ValueError(
@@ -809,18 +969,32 @@ class ExactLikelihood:
                     f"rule's design ({d_sigma:.3g}); a search takes a shorter step (re-design "
                     "the rule there to evaluate it: design(x))"
                 )
-            moved = sigma < 0.5 * d_sigma or any(
-                nd.probe is not None
-                and np.max(np.abs(sig(nd.probe[0]) - nd.probe[1]), initial=0.0)
-                > 0.5 * _WINDOW_MARGIN * d_sigma
-                for nd in nodes
-            )
-            if moved:
-                self._design = (sig, sigma)
-                self._cache.clear()
-                self._pieces = None
-                nodes = self._cache[key] = list(self._make_windowed(law, sig, y))
-        return nodes
+            if not _fits(rule, self._design, sig, sigma):
+                current = (self._design, self._pieces, self._cache)
+                spare = next(
+                    (
+                        sp
+                        for sp in self._spares
+                        if key in sp[2] and _fits(sp[2][key], sp[0], sig, sigma)
+                    ),
+                    None,
+                )
+                self._spares = [current, *(sp for sp in self._spares if sp is not spare)]
+                del self._spares[_SPARE_DESIGNS:]
+                if spare is not None:  # back at an earlier design (e.g. after a check far off)
+                    self._design, self._pieces, self._cache = spare
+                    rule = self._cache[key]
+                else:
+                    self._design, self._pieces, self._cache = (sig, sigma), None, {}
+                    rule = self._cache[key] = self._rule(law, sig, y)
+        return rule
+
+    def _rule(self, law: JitterLaw, sig: Signal, y: FloatArray | None) -> _Rule:
+        """The rule under ``law``: windowed around ``y`` (its pieces made now), or full."""
+        if y is None:
+            return _Rule(lambda: self._make_nodes(law, sig), (), self.node_budget)
+        pieces = self._window_pieces(law, sig, y)
+        return _Rule(lambda: self._make_windowed(law, sig, pieces), pieces, self.node_budget)
 
     def _window_pieces(self, law: JitterLaw, sig: Signal, y: FloatArray) -> list[_Pieces]:
         """The windowed rule's pieces for ``law``: kept from the last build where that was
@@ -846,34 +1020,53 @@ class ExactLikelihood:
         knots = np.unique(np.asarray(build.breakpoints(), dtype=float))
         fixed = np.union1d(np.asarray(sig.breaks, dtype=float), self._profile.grid)
         pieces = []
+        top = min(self.order + _WINDOW_EXTRA_ORDER, 127)  # int8 node counts
         for pch in jitter_panels(law, self.T, self.N, fixed, knots, chunk=_CHUNK):
-            o, a, b = _window_panels(
+            o, a, b, slack, span = _window_panels(
                 pch, self.T, y, design_sig, design_sigma, self.panel, self._profile, law, build
             )
-            mid = 0.5 * (a + b)
-            pieces.append(_Pieces(pch.k0, pch.k1, o, a, b, (mid, design_sig(mid))))
+            pieces.append(
+                _Pieces(
+                    pch.k0,
+                    pch.k1,
+                    o.astype(np.int32),
+                    a,
+                    b,
+                    _piece_orders(slack, span, self.order, top),
+                    design_sig(0.5 * (a + b)),
+                )
+            )
         blo, bhi = build.support
         self._pieces = ((float(blo), float(bhi), float(build.std)), pieces) if simple else None
         return pieces
 
-    def _make_windowed(self, law: JitterLaw, sig: Signal, y: FloatArray) -> Iterator[_Nodes]:
-        """The windowed rule (module doc): its pieces (:meth:`_window_pieces`) cut to the
-        law's support, with ``order + _WINDOW_EXTRA_ORDER`` Gauss-Legendre nodes each."""
+    def _make_windowed(
+        self, law: JitterLaw, sig: Signal, pieces: list[_Pieces]
+    ) -> Iterator[_Nodes]:
+        """The windowed rule's nodes (module doc): its pieces (:meth:`_window_pieces`) cut to
+        the law's support, with :func:`_piece_orders` Gauss-Legendre nodes each."""
         sig.check_covers((self.N - 1) * self.T + law.support[1], "the last jittered instant")
         lo, hi = law.support
         split = bool(self._weight_params()) and hi > lo
         clip = rule_frame(law)[2]
-        order = self.order + _WINDOW_EXTRA_ORDER
-        xg, wg = np.polynomial.legendre.leggauss(order)
-        for pc in self._window_pieces(law, sig, y):
+        for pc in pieces:
             base = (pc.k0 + pc.owner) * self.T
             a, b = np.maximum(pc.a, base + lo), np.minimum(pc.b, base + hi)
             live = b > a
-            o, a, b = pc.owner[live], a[live], b[live]
+            o, a, b, n = pc.owner[live], a[live], b[live], pc.nodes[live]
             half, mid = 0.5 * (b - a), 0.5 * (a + b)
-            t = (mid[:, None] + half[:, None] * xg[None, :]).ravel()
-            owner = np.repeat(o, order)
-            gw = (half[:, None] * wg[None, :]).ravel()
+            # each piece's n nodes in a row (ragged): piece index and position of each node
+            n = n.astype(np.intp)
+            piece = np.repeat(np.arange(n.size), n)
+            pos = np.arange(piece.size) - np.repeat(np.cumsum(n) - n, n)
+            nn = n[piece]
+            xg, wg = _legendre_table(min(self.order + _WINDOW_EXTRA_ORDER, 127))
+            t = mid[piece] + half[piece] * xg[nn, pos]
+            gw = half[piece] * wg[nn, pos]
+            owner = o[piece]
+            segment = None
+            if isinstance(sig, Response) and isinstance(sig.u, PiecewiseConstant):
+                segment = (np.searchsorted(sig.u.times, mid, side="right") - 1)[piece]
             tau = t - (pc.k0 + owner) * self.T
             w = gw * _density(law, np.clip(tau, *clip))
             keep = w > 0
@@ -893,9 +1086,8 @@ class ExactLikelihood:
                 np.log(w[keep]),
                 owner,
                 starts,
-                _NodeSignal(sig, tk),
+                _NodeSignal(sig, tk, None if segment is None else segment[keep]),
                 logrule,
-                pc.probe,
             )
 
     def _make_nodes(self, law: JitterLaw, sig: Signal) -> Iterator[_Nodes]:
@@ -935,11 +1127,10 @@ class ExactLikelihood:
                 ch.k0, ch.k1, t, np.log(w[keep]), owner, starts, _NodeSignal(sig, t), logrule
             )
 
-    def _evals(self, x: FloatArray, y: FloatArray) -> list[_Eval]:
+    def _evals(self, x: FloatArray, y: FloatArray) -> Iterator[_Eval]:
         law, sig, sigma = self.split(x)
-        return [
-            _evaluate(nd, nd.signal(sig), y, sigma) for nd in self._nodes(x, law, sig, y, sigma)
-        ]
+        for nd in self._nodes(x, law, sig, y, sigma):
+            yield _evaluate(nd, nd.signal(sig), y, sigma)
 
     def _data(self, y: ArrayLike) -> FloatArray:
         y = real_array(y, "y", ndim=1)
@@ -1118,13 +1309,12 @@ class ExactLikelihood:
         ns = len(self.model.param_names)
         noise = self.noise_std is None
         nodes = self._nodes(x, law, sig, y, sigma)
-        analytic = nodes[0].signal.analytic
+        analytic = _NodeSignal(sig, np.zeros(0)).analytic
         scale = self._scale_index(_has_slope(sig, analytic))
         # parameters whose score comes from ds at the nodes: the scale, then the system
         inner = ([scale] if scale is not None else []) + list(range(nj, nj + ns))
         dX: NDArray[np.complex128] | None = None
         logp, G, C = np.empty(self.N), np.empty((self.N, p)), np.zeros((p, p))
-        kept: list[tuple[_Nodes, FloatArray, _Eval]] = []
         dmodal = None
         if ns and analytic:
             assert isinstance(self.u, PiecewiseConstant)
@@ -1143,6 +1333,12 @@ class ExactLikelihood:
         if dmodal is None and not own_gradient:
             differenced += [i for i in range(nj, nj + ns) if i != delay]
         fwd = {i: finite_diff.forward(x, i, self.bounds[i], _SCORE_STEP) for i in differenced}
+        # The shape (n) by differences of ln p with the weights alone moved: the pdf of the
+        # shifted law at the same nodes (the derivative of the integral: the rule's panels
+        # end at the law's knots, which move by O(h), where the pdf is continuous).
+        shapes = [
+            (i, self.split(fwd[i][0])[0], fwd[i][1]) for i in self._weight_params() if i in fwd
+        ]
         for nd in nodes:
             if analytic and (dmodal is not None or not ns):
                 s, D, ds = nd.signal.gradient(sig, dmodal, dX, slope=True)  # type: ignore[misc]
@@ -1178,9 +1374,18 @@ class ExactLikelihood:
                 tau = nd.t - (nd.k0 + nd.owner) * self.T
                 D = np.vstack([ds * (tau / x[scale]), D])
             ev = _evaluate(nd, s, y, sigma)
-            kept.append((nd, s, ev))
             rows = slice(nd.k0, nd.k1)
             logp[rows] = ev.logp
+            if shapes:  # the shape (n): ln p with the weights alone moved (below)
+                tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, *law.support)
+                rule = nd.logrule
+                with np.errstate(divide="ignore"):
+                    if rule is None:
+                        rule = nd.logw - np.log(_density(law, tau))
+                    for i, law_i, h in shapes:
+                        logw = rule + np.log(_density(law_i, tau))
+                        moved = _evaluate(nd, s, y, sigma, logw).logp
+                        G[rows, i] = (moved - ev.logp) / h
             if closed:
                 lo, hi = law.support
                 tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
@@ -1214,26 +1419,10 @@ class ExactLikelihood:
                     C[gn, -1] += cross
                     C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
-        # The shape (n) by differences of ln p with the weights alone moved: the pdf of the
-        # shifted law at the same nodes (the derivative of the integral: the rule's panels
-        # end at the law's knots, which move by O(h), where the pdf is continuous).
         moving = [i for i in range(nj) if i in fwd and i not in self._weight_params()]
         for i in moving:  # parameters that may move the support: new nodes
             xi, h = fwd[i]
             G[:, i] = (self.logpdf(xi, y) - logp) / h
-        shapes = [(i, *fwd[i]) for i in self._weight_params() if i in fwd]
-        if shapes:
-            lo, hi = law.support
-            with np.errstate(divide="ignore"):
-                for nd, s, ev in kept:
-                    tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
-                    rule = nd.logrule
-                    if rule is None:
-                        rule = nd.logw - np.log(_density(law, tau))
-                    for i, xi, h in shapes:
-                        logw = rule + np.log(_density(self.split(xi)[0], tau))
-                        moved = _evaluate(nd, s, y, sigma, logw).logp
-                        G[nd.k0 : nd.k1, i] = (moved - ev.logp) / h
         return logp, G, G.T @ G + C
 
     def maximise(
@@ -1329,12 +1518,16 @@ class ExactLikelihood:
                 h = min(h, FISHER_SCALE_STEP * float(sc[i]))
             xp, xm, steps[i] = finite_diff.central_pair(x, i, self.bounds[i], _FISHER_STEP, h=h)
             variants += [xp, xm]
-        per_variant = []
-        for xv in variants:
+
+        def chunks(xv: FloatArray) -> Iterator[tuple[_Nodes, FloatArray, float]]:
             lv, tv, sv = self.split(xv)
-            per_variant.append([(nd, nd.signal(tv), sv) for nd in self._nodes(xv, lv, tv)])
+            for nd in self._nodes(xv, lv, tv):
+                yield nd, nd.signal(tv), sv
+
         info = np.zeros((p, p))
-        for c, (nd0, s0, _) in enumerate(per_variant[0]):
+        # the variants' rules chunk by chunk, side by side (same chunks of samples)
+        for per_variant in zip(*(chunks(xv) for xv in variants), strict=True):
+            nd0, s0, _ = per_variant[0]
             for k in range(nd0.k1 - nd0.k0):
                 j0, j1 = _segment(nd0, k)
                 ys = s0[j0:j1][nd0.logw[j0:j1] > -np.inf]
@@ -1343,8 +1536,7 @@ class ExactLikelihood:
                 grid = np.linspace(lo, hi, ny)
                 dy = grid[1] - grid[0]
                 logs = []
-                for variant in per_variant:
-                    nd, s, sv = variant[c]
+                for nd, s, sv in per_variant:
                     a, b = _segment(nd, k)
                     z = nd.logw[a:b] - 0.5 * ((grid[:, None] - s[a:b]) / sv) ** 2
                     top = np.max(z, axis=1)

@@ -172,5 +172,4 @@ def run_ml(
         status = FitStatus.MAX_EVALUATIONS
     if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
-    lik._cache.clear()  # the nodes (MBs) are rebuilt from the kept design if cov is asked for
     return x, cost, status, msg, nfev
