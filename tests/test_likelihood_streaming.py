@@ -54,7 +54,8 @@ def test_streamed_rule_gives_the_kept_rules_values_scores_and_information(
     streamed = ExactLikelihood(model, jitter, u, T, y.size, None, window=window, node_budget=0)
     for lik in (kept, streamed):
         lik.logpdf(x, y)  # designs the rule, makes (and keeps, or not) the nodes
-    assert streamed._cache and all(r.streamed for r in streamed._cache.values())
+    assert streamed._cache
+    assert all(r.streamed for r in streamed._cache.values())
     assert all(not r.streamed for r in kept._cache.values())
     np.testing.assert_allclose(streamed.logpdf(x, y), kept.logpdf(x, y), rtol=0, atol=1e-10)
     (la, ga), (lb, gb) = streamed.scores(x, y), kept.scores(x, y)
