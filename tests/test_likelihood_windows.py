@@ -162,3 +162,28 @@ def test_windowed_rule_is_chosen_for_a_switching_input_steep_against_the_noise()
     quiet = ExactLikelihood(model, law, u, T, y.size, 1.0)
     quiet.design(theta)
     assert quiet._design is None  # flat against the noise: the full rule
+
+
+def test_a_model_far_from_the_data_gets_the_full_rule_and_a_smooth_search():
+    """Jitter ten samples wide, at a BCLS local optimum (residuals of ~50 noise std's): the
+    integrands are far Gaussian tails, where windows would be re-designed at every step of
+    a search (it ended without converging, 200 evaluations); the full rule, frozen, is used
+    there and the search converges to the point the full rule alone reaches."""
+    G = ji.TransferFunction([6.25], [1.0, 3.0, 6.25])
+    law = ji.Uniform(5.0)
+    rng = np.random.default_rng(10)
+    u = ji.telegraph_input(215.0, rng)
+    d = ji.simulate(G, u, law, 1.0, 200, 0.01, rng)
+    x0 = np.array([0.03106281, -0.02090309, 0.25741053])  # where BCLS stops
+    full = ExactLikelihood(ji.PolePairGain(), law, u, 1.0, 200, 0.01, window=False)
+    auto = ExactLikelihood(ji.PolePairGain(), law, u, 1.0, 200, 0.01)
+    xa, la, ok, msg, _ = auto.maximise(d.y, x0)
+    assert np.isfinite(la)
+    assert ok, msg
+    assert not auto.windowed
+    xf, lf, _, _, _ = full.maximise(d.y, x0)
+    np.testing.assert_allclose(xa, xf, rtol=1e-9)
+    assert la == pytest.approx(lf, rel=1e-12)
+    near = ExactLikelihood(ji.PolePairGain(), law, u, 1.0, 200, 0.01)
+    near.logpdf([6.25, -1.5, 2.0], d.y)
+    assert near.windowed  # at the truth: windows

@@ -270,6 +270,10 @@ class PostContext:
     # parameters without an error bar by design, not for want of information (Box-Jenkins:
     # the pole of a noise model at its white limit, on which the criterion does not depend)
     exempt: tuple[int, ...] = ()
+    # the criterion's per-sample terms over a leading part of the record (the exact
+    # likelihood's -2 ln p_k over its first SCREEN_SAMPLES samples), for a cheap first look
+    # at points far from the estimate on a long record (None: every point in full)
+    screen: Callable[[FloatArray], FloatArray] | None = None
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
@@ -482,6 +486,19 @@ def _structure_starts(ctx: PostContext) -> list[tuple[FloatArray, str]]:
     return out
 
 
+SCREEN_SAMPLES = 20_000  # the screen's leading samples (PostContext.screen)
+_SCREEN_Z = 8.0  # a start this many standard errors worse on them is not evaluated in full
+
+
+def _clearly_worse(d: FloatArray) -> bool:
+    """Whether per-sample criterion differences (start minus estimate) over the screen's
+    samples say the start is worse by more than ``_SCREEN_Z`` standard errors of their sum:
+    a start that beats the estimate over the whole record would do so on a leading part
+    too, up to that noise. Otherwise the start is evaluated in full."""
+    total = float(np.sum(d))
+    return bool(np.isfinite(total) and total > _SCREEN_Z * np.sqrt(d.size) * float(np.std(d)))
+
+
 def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
     best, which = ctx.cost, ""
     candidates = [
@@ -489,8 +506,11 @@ def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
         for x0 in ctx.starts()
     ]
     candidates += _structure_starts(ctx)
+    base = None if ctx.screen is None else ctx.screen(ctx.x)
     for x0, label in candidates:
         try:
+            if base is not None and _clearly_worse(ctx.screen(x0) - base):  # type: ignore[misc]
+                continue
             v = ctx.objective(x0)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError):
             continue

@@ -332,9 +332,9 @@ def _ml_covariance(
 
     The Hessian of V = -2 ln L is twice the exact observed information (L5) where the
     signal gives its second derivatives (one evaluation); else the Jacobian of its analytic
-    gradient (the scores (L2)), by central differences (2 p score evaluations), where every
-    parameter's score is analytic; else (a jitter shape differenced inside the score)
-    second differences of V (2 p^2 evaluations)."""
+    gradient (the scores (L2)), by one-sided differences from the score at the estimate (p
+    score evaluations), where every parameter's score is analytic; else (a jitter shape
+    differenced inside the score) second differences of V (2 p^2 evaluations)."""
     lik = problem.likelihood
     assert lik is not None
     if lik.exact_information(x):  # (L5) in closed form: no differences at all
@@ -345,9 +345,15 @@ def _ml_covariance(
         def grad(z: FloatArray) -> FloatArray:
             return -2 * lik.scores(embed(z), y)[1].sum(axis=0)[idx]
 
+        # one-sided differences from the score at x (the likelihood remembers the pass that
+        # gave the natural scale): p + 0 passes over the nodes instead of 2 p, O(h) with h at
+        # most 5 % of a standard error (the score is linear to ~1e-3 over that)
+        g0 = grad(z0)
         H = np.empty((z0.size, z0.size))
         for i in range(z0.size):
-            H[:, i] = finite_diff.derivative(grad, z0, i, (-np.inf, np.inf), h=float(hz[i]))
+            zi = z0.copy()
+            zi[i] += hz[i]
+            H[:, i] = (grad(zi) - g0) / hz[i]
         H = 0.5 * (H + H.T)
     else:
         H = finite_diff.hessian(lambda z: problem.objective(embed(z)), z0, hz)  # of V

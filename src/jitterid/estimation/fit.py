@@ -12,7 +12,7 @@ respect the bounds.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import partial
 
 import numpy as np
@@ -29,7 +29,14 @@ from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from . import jacobians as _jacobians
 from .boxjenkins import fit_bj
-from .checks import PostContext, Scaling, check_arguments, check_data, post_checks
+from .checks import (
+    SCREEN_SAMPLES,
+    PostContext,
+    Scaling,
+    check_arguments,
+    check_data,
+    post_checks,
+)
 from .covariance import covariance, noise_variance_ml
 from .estimators import Estimator, as_estimator
 from .ml import run_ml
@@ -145,6 +152,18 @@ def _run(
         status = FitStatus.NOT_FINITE
     problem.release()
     return x, cost, status, msg, nfev
+
+
+def _screen(problem: Problem) -> Callable[[FloatArray], FloatArray] | None:
+    """The exact likelihood's -2 ln p_k over the first ``SCREEN_SAMPLES`` samples, for the
+    checks' first look at far points (``PostContext.screen``), on records of at least four
+    times as many samples (None otherwise, and for the other criteria)."""
+    lik = problem.likelihood
+    if problem.method != "ml" or lik is None or lik.N < 4 * SCREEN_SAMPLES:
+        return None
+    head = lik.leading(SCREEN_SAMPLES)
+    y = problem.data.y[:SCREEN_SAMPLES]
+    return lambda v: -2 * head.logpdf(v, y)
 
 
 def fit(
@@ -504,6 +523,7 @@ def _fit(
             starts=default_starts,
             cov_error=cov_error,
             known_variance=known_variance,
+            screen=_screen(problem),
         ),
         status,
         msg,

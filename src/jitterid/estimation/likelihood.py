@@ -129,6 +129,7 @@ _WINDOW_FLOOR = 1e-12  # ... and no piece shorter than this times T
 _WINDOW_PDF = 0.6  # no piece longer than this many jitter std's
 _WINDOW_SIGMA_STEP = 0.25  # a noise std below this fraction of the design's is refused
 _WINDOW_SIGMA_REDESIGN = 0.8  # ... below this fraction (or above its inverse): re-designed
+_FAR, _FAR_FRACTION = 10.0, 0.25  # the windowed rule gives way to the full one (_far)
 _SPARE_DESIGNS = 2  # earlier windowed designs kept (a check far off, then back)
 _WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby scales)
 _WINDOW_EXTRA_ORDER = 4  # Gauss-Legendre nodes per piece: order + this (pieces span 4 sigma
@@ -719,6 +720,18 @@ def _legendre_table(top: int) -> tuple[FloatArray, FloatArray]:
 _Held = tuple[tuple[float, float, float], list[_Pieces]]  # pieces kept for nearby scales
 
 
+def _far(pieces: Sequence[_Pieces], y: FloatArray, sigma: float) -> bool:
+    """Whether in more than ``_FAR_FRACTION`` of the samples no windowed piece comes within
+    ``_FAR`` noise std's of y_k (at its midpoint, at the design)."""
+    far = total = 0
+    for pc in pieces:
+        d = np.abs(y[pc.k0 + pc.owner] - pc.probe) / sigma
+        starts = np.flatnonzero(np.r_[True, pc.owner[1:] != pc.owner[:-1]])
+        far += int(np.count_nonzero(np.minimum.reduceat(d, starts) > _FAR))
+        total += starts.size
+    return far > _FAR_FRACTION * max(total, 1)
+
+
 def _fits(rule: _Rule, design: tuple[Signal, float] | None, sig: Signal, sigma: float) -> bool:
     """Whether a windowed rule designed at ``design`` (signal, noise std) serves ``sig`` and
     ``sigma``: the noise std within a factor ``_WINDOW_SIGMA_REDESIGN`` of the design's
@@ -761,7 +774,9 @@ class ExactLikelihood:
         Panel length at most ``panel * sigma_v / |s'|`` (default 4; see the module doc).
     window : bool or None
         The windowed rule (module doc): True, False, or None (default: where the full
-        rule would have more than ``_WINDOW_FROM`` panels per sample).
+        rule would have more than ``_WINDOW_FROM`` panels per sample). Where the model is
+        far from the data (a quarter of the samples more than 10 noise std's from it), the
+        full rule is used instead.
     noise_floor : float or None
         Lower bound of an estimated noise std (``SampledData.resolution``); default 1e-12.
     node_budget : int
@@ -813,6 +828,9 @@ class ExactLikelihood:
     _window_y: FloatArray | None = field(init=False, default=None, repr=False)
     _pieces: _Held | None = field(init=False, default=None, repr=False)
     _cache: dict[tuple[float, ...], _Rule] = field(init=False, default_factory=dict)
+    _memo: tuple[bytes, bool, FloatArray, tuple[FloatArray, FloatArray, FloatArray]] | None = field(
+        init=False, default=None, repr=False
+    )
     _spares: list[
         tuple[tuple[Signal, float] | None, _Held | None, dict[tuple[float, ...], _Rule]]
     ] = field(init=False, default_factory=list, repr=False)
@@ -853,6 +871,38 @@ class ExactLikelihood:
         """The model (a known system is wrapped in a KnownSystem)."""
         assert isinstance(self.structure, Model)
         return self.structure
+
+    @property
+    def windowed(self) -> bool:
+        """Whether the rule designed is the windowed one (module doc, "Windows"): it is
+        re-designed wherever it no longer fits, so it needs no re-design at an optimum."""
+        return self._design is not None
+
+    def leading(self, n: int) -> ExactLikelihood:
+        """The likelihood of the first ``n`` samples alone, with the same model and options
+        (a cheap screen of points far from an estimate: :mod:`jitterid.estimation.checks`).
+
+        Parameters
+        ----------
+        n : int
+            Number of leading samples, 1 <= n <= N.
+        """
+        n = count(n, "n", minimum=1)
+        if n > self.N:
+            raise ValueError(f"n must be at most N = {self.N}; got {n}")
+        return ExactLikelihood(
+            self.structure,
+            self.jitter,
+            self.u,
+            self.T,
+            n,
+            self.noise_std,
+            order=self.order,
+            panel=self.panel,
+            window=self.window,
+            noise_floor=self.noise_floor,
+            node_budget=self.node_budget,
+        )
 
     @property
     def n_jitter(self) -> int:
@@ -902,7 +952,7 @@ class ExactLikelihood:
         else:
             self._cuts = _panel_cuts(profile, sigma, self.panel)
             check_likelihood(self, law, sig)  # the rule's memory, before any node is built
-        self._cache, self._pieces, self._spares = {}, None, []
+        self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
 
     def _windowed(
         self,
@@ -951,7 +1001,7 @@ class ExactLikelihood:
                     check_likelihood(self, law, sig)
                 return self._rule(law, sig, None)
             if self._window_y is None or not np.array_equal(self._window_y, y):
-                self._cache, self._pieces, self._spares = {}, None, []
+                self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
                 self._window_y = np.array(y, dtype=float)
         key = (*x[: self.n_jitter], law.mean)  # a delay shifts the law (Delayed)
         windowed = self._design is not None and y is not None
@@ -960,7 +1010,7 @@ class ExactLikelihood:
                 self._cache = {}
             self._cache[key] = self._rule(law, sig, y if windowed else None)
         rule = self._cache[key]
-        if windowed and sigma is not None:
+        if windowed and self._design is not None and sigma is not None:
             assert self._design is not None
             d_sigma = self._design[1]
             if sigma < _WINDOW_SIGMA_STEP * d_sigma:
@@ -970,6 +1020,7 @@ class ExactLikelihood:
                     "the rule there to evaluate it: design(x))"
                 )
             if not _fits(rule, self._design, sig, sigma):
+                self._memo = None  # a value remembered under another rule
                 current = (self._design, self._pieces, self._cache)
                 spare = next(
                     (
@@ -979,7 +1030,10 @@ class ExactLikelihood:
                     ),
                     None,
                 )
-                self._spares = [current, *(sp for sp in self._spares if sp is not spare)]
+                # kept only while small (a long record's pieces are ~30 bytes each)
+                small = sum(pc.owner.size for pc in rule.pieces) <= self.node_budget // 4
+                rest = [sp for sp in self._spares if sp is not spare]
+                self._spares = ([current] if small else []) + rest
                 del self._spares[_SPARE_DESIGNS:]
                 if spare is not None:  # back at an earlier design (e.g. after a check far off)
                     self._design, self._pieces, self._cache = spare
@@ -994,6 +1048,16 @@ class ExactLikelihood:
         if y is None:
             return _Rule(lambda: self._make_nodes(law, sig), (), self.node_budget)
         pieces = self._window_pieces(law, sig, y)
+        assert self._design is not None
+        if _far(pieces, y, self._design[1]):
+            # the model far from the data (residuals of many noise std's): the integrands
+            # are their Gaussian factors' far tails, where the windows would move with every
+            # step of a search; the full rule, frozen, keeps the criterion smooth there
+            sigma = self._design[1]
+            self._design, self._pieces, self._spares, self._memo = None, None, [], None
+            self._cuts = _panel_cuts(self._profile, sigma, self.panel)
+            check_likelihood(self, law, sig)
+            return _Rule(lambda: self._make_nodes(law, sig), (), self.node_budget)
         return _Rule(lambda: self._make_windowed(law, sig, pieces), pieces, self.node_budget)
 
     def _window_pieces(self, law: JitterLaw, sig: Signal, y: FloatArray) -> list[_Pieces]:
@@ -1288,6 +1352,24 @@ class ExactLikelihood:
         return fam.pdf_gradient(x[: self.n_jitter].tolist(), np.zeros(0)) is not None
 
     def _terms(
+        self, x: FloatArray, y: FloatArray, *, information: bool
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`_compute_terms`, remembered for the last point: the search's last
+        evaluation, the covariance's scale and its score at the estimate are one pass (a
+        pass over a long record's nodes costs seconds). The arrays are shared: read only."""
+        key, memo = x.tobytes(), self._memo
+        if (
+            memo is not None
+            and memo[0] == key
+            and (memo[1] or not information)
+            and (memo[2] is y or np.array_equal(memo[2], y))
+        ):
+            return memo[3]
+        out = self._compute_terms(x, y, information=information)
+        self._memo = (key, information, y, out)
+        return out
+
+    def _compute_terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """ln p per sample, per-sample scores and (optionally) the observed information.

@@ -116,12 +116,15 @@ def _ml_start(problem: Problem, x0: FloatArray) -> tuple[list[tuple[float, Float
 def _search(
     problem: Problem, x0: FloatArray, max_nfev: int
 ) -> tuple[FloatArray, float, bool, str, int]:
-    """Maximise the exact likelihood from x0; the quadrature rule, designed at the start, is
-    re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6."""
+    """Maximise the exact likelihood from x0; the full quadrature rule, designed at the start,
+    is re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6
+    (the windowed rule re-designs itself wherever it stops fitting)."""
     lik, y = problem.likelihood, problem.data.y
     assert lik is not None
     x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev, 2))
     for _ in range(3):
+        if lik.windowed:  # re-designed wherever it stopped fitting: valid at x already
+            break
         lik.design(x)
         fresh = lik.loglik(x, y)
         nfev += 1
