@@ -52,7 +52,8 @@ class _ToneMap:
     dc: FloatArray  # (P,)
     da: ComplexArray  # (P, H)
     dw: FloatArray  # (P, H)
-    d2a: dict[tuple[int, int, int], complex] | None = None  # nonzero d^2 a_h entries
+    # d^2 a_h: its nonzero entries {(i, j, h): value}, or dense, shape (P, P, H)
+    d2a: dict[tuple[int, int, int], complex] | ComplexArray | None = None
 
 
 class ToneSignal(Signal):
@@ -84,7 +85,7 @@ class ToneSignal(Signal):
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         tt = np.asarray(t, dtype=float)
-        c, s = self._cos_sin(tt.ravel())
+        c, s = self._cos_sin(tt if tt.ndim == 1 else tt.ravel())  # the same t: the memo holds
         a = self.tones.a
         # Im(a e^{i w t}) = Re(a) sin(w t) + Im(a) cos(w t)
         out = self.tones.c + a.real @ s + a.imag @ c
@@ -103,8 +104,9 @@ class ToneSignal(Signal):
         c, s = self._cos_sin(t)
         # d Im(a_h e^{i w_h t}) = Im((da_h + i t a_h dw_h) e^{i w_h t})
         out = tn.dc[:, None] + tn.da.real @ s + tn.da.imag @ c
-        b = tn.dw * tn.a[None, :]  # i t b e^{iwt}: Im = t (Re b cos - Im b sin)
-        out += t[None, :] * (b.real @ c - b.imag @ s)
+        if np.any(tn.dw):  # no frequency parameter (an LTI response): no t-weighted term
+            b = tn.dw * tn.a[None, :]  # i t b e^{iwt}: Im = t (Re b cos - Im b sin)
+            out += t[None, :] * (b.real @ c - b.imag @ s)
         return np.asarray(out, dtype=float)
 
     def slope(self, t: FloatArray) -> FloatArray:
@@ -147,9 +149,11 @@ class ToneSignal(Signal):
                 dsl[f_] += dw * re_az - t * w * dw * im_az
                 for g_ in fs:
                     hess[f_, g_] -= t**2 * dw * tn.dw[g_, h] * im_az
-        if tn.d2a is not None:
+        if isinstance(tn.d2a, dict):
             for (i, j, h), v in tn.d2a.items():
                 hess[i, j] += v.real * sin_[h] + v.imag * cos_[h]
+        elif tn.d2a is not None:
+            hess += tn.d2a.real @ sin_ + tn.d2a.imag @ cos_
         curv = -(tn.w**2 * tn.a.real) @ sin_ - (tn.w**2 * tn.a.imag) @ cos_
         return hess, dsl, np.asarray(curv, dtype=float)
 
