@@ -65,31 +65,50 @@ class ToneSignal(Signal):
         self.rate = float(max(np.max(np.abs(tones.w)), 1e-300))
         self.breaks = np.zeros(0)
         self.start, self.end = -np.inf, np.inf
-        self._memo: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        self._memo: tuple[FloatArray, FloatArray] | None = None
 
     def _phasors(self, t: FloatArray) -> ComplexArray:
         return np.exp(1j * self.tones.w[:, None] * t[None, :])  # (H, n)
 
-    def _cos_sin(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """cos(w_h t), sin(w_h t), shape (H, n): real arithmetic (numpy's complex exp is
-        several times slower). The last pair is kept with its ``t`` (the likelihood asks
-        for s, its gradient, slope and second derivatives at the same nodes in turn)."""
+    def _basis(self, t: FloatArray) -> FloatArray:
+        """[cos(w_h t); sin(w_h t)], shape (2H, n): real arithmetic (numpy's complex exp is
+        several times slower), one array so that any Im(q z) or Re(q z), z = e^{i w t}, is
+        one matrix product (:meth:`_im`). The last basis is kept with its ``t`` (the
+        likelihood asks for s, its gradient, slope and second derivatives at the same nodes
+        in turn)."""
         held = self._memo
         if held is not None and held[0] is t:
-            return held[1], held[2]
+            return held[1]
+        H = self.tones.w.size
         arg = self.tones.w[:, None] * t[None, :]
-        c, s = np.cos(arg), np.sin(arg)
+        cs = np.empty((2 * H, t.size))
+        np.cos(arg, out=cs[:H])
+        np.sin(arg, out=cs[H:])
         if t.size >= 64:
-            self._memo = (t, c, s)
-        return c, s
+            self._memo = (t, cs)
+        return cs
+
+    def _cos_sin(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """cos(w_h t), sin(w_h t), shape (H, n) each (views of :meth:`_basis`)."""
+        cs = self._basis(t)
+        H = self.tones.w.size
+        return cs[:H], cs[H:]
+
+    def _im(self, q: ComplexArray, t: FloatArray) -> FloatArray:
+        """Im(sum_h q_h e^{i w_h t}) for coefficients ``q`` of shape (..., H): shape (..., n).
+        Im(q z) = Im q cos + Re q sin."""
+        coef = np.concatenate([q.imag, q.real], axis=-1)
+        out = coef.reshape(-1, coef.shape[-1]) @ self._basis(t)
+        return np.asarray(out.reshape(*q.shape[:-1], t.size), dtype=float)
+
+    def _re(self, q: ComplexArray, t: FloatArray) -> FloatArray:
+        """Re(sum_h q_h e^{i w_h t}), as :meth:`_im`: Re(q z) = Re q cos - Im q sin."""
+        return self._im(1j * np.asarray(q), t)
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         tt = np.asarray(t, dtype=float)
-        c, s = self._cos_sin(tt if tt.ndim == 1 else tt.ravel())  # the same t: the memo holds
-        a = self.tones.a
-        # Im(a e^{i w t}) = Re(a) sin(w t) + Im(a) cos(w t)
-        out = self.tones.c + a.real @ s + a.imag @ c
-        return np.asarray(out, dtype=float).reshape(tt.shape)
+        flat = tt if tt.ndim == 1 else tt.ravel()  # the same t: the memo holds
+        return (self.tones.c + self._im(self.tones.a, flat)).reshape(tt.shape)
 
     @property
     def has_gradient(self) -> bool:
@@ -101,19 +120,14 @@ class ToneSignal(Signal):
 
     def gradient(self, t: FloatArray) -> FloatArray:
         tn = self.tones
-        c, s = self._cos_sin(t)
         # d Im(a_h e^{i w_h t}) = Im((da_h + i t a_h dw_h) e^{i w_h t})
-        out = tn.dc[:, None] + tn.da.real @ s + tn.da.imag @ c
+        out = tn.dc[:, None] + self._im(tn.da, t)
         if np.any(tn.dw):  # no frequency parameter (an LTI response): no t-weighted term
-            b = tn.dw * tn.a[None, :]  # i t b e^{iwt}: Im = t (Re b cos - Im b sin)
-            out += t[None, :] * (b.real @ c - b.imag @ s)
-        return np.asarray(out, dtype=float)
+            out += t[None, :] * self._re(tn.dw * tn.a[None, :], t)
+        return out
 
     def slope(self, t: FloatArray) -> FloatArray:
-        tn = self.tones
-        c, s = self._cos_sin(t)
-        b = tn.w * tn.a  # Im(i w a e^{iwt}) = Re(w a) cos - Im(w a) sin
-        return np.asarray(b.real @ c - b.imag @ s, dtype=float)
+        return self._re(self.tones.w * self.tones.a, t)  # Im(i w a z) = Re(w a z)
 
     def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """d^2 s / dtheta^2, d s'/dtheta and s'' in closed form, in real arithmetic over the
@@ -121,6 +135,12 @@ class ToneSignal(Signal):
         (da dw^T + dw da^T) z - t^2 a dw dw^T z) (d2a nonzero only in the polar form: a = A
         e^{i phi}), ds' = Im(i (dw a + w da) z - t w a dw z), s'' = Im(-w^2 a z)."""
         tn = self.tones
+        curv = self._im(-(tn.w**2) * tn.a, t)
+        if not np.any(tn.dw) and not isinstance(tn.d2a, dict):
+            # amplitudes only (an LTI response): d^2 s = Im(d2a z), ds' = Re(w da z)
+            P, H = tn.da.shape
+            hss = np.zeros((P, P, t.size)) if tn.d2a is None else self._im(tn.d2a, t)
+            return hss, self._re(tn.w * tn.da, t), curv
         cos_, sin_ = self._cos_sin(t)
         P, H = tn.da.shape
         n = t.size
@@ -153,9 +173,8 @@ class ToneSignal(Signal):
             for (i, j, h), v in tn.d2a.items():
                 hess[i, j] += v.real * sin_[h] + v.imag * cos_[h]
         elif tn.d2a is not None:
-            hess += tn.d2a.real @ sin_ + tn.d2a.imag @ cos_
-        curv = -(tn.w**2 * tn.a.real) @ sin_ - (tn.w**2 * tn.a.imag) @ cos_
-        return hess, dsl, np.asarray(curv, dtype=float)
+            hess += self._im(tn.d2a, t)
+        return hess, dsl, curv
 
     def jitter_moments(
         self,
