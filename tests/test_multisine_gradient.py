@@ -242,3 +242,54 @@ def test_ml_monte_carlo_one_tone():
 @pytest.mark.slow
 def test_ml_monte_carlo_one_tone_long():
     _monte_carlo(200, 1000, 12)
+
+
+# ------------------------------------------------------------------------ the shared bases
+def test_responses_to_one_input_share_their_bases():
+    u = ji.Multisine([0.05, 0.31], [1.0, 0.3], end=1e9, steady_state=True)
+    model = ji.RationalModel(0, 1)
+    t = np.linspace(0.0, 50.0, 500)
+    a, b = model.signal([2.0, 1.0], u), model.signal([3.0, 0.5], u)
+    sa = a(t)
+    kept = u.__dict__["_tone_bases"]
+    assert len(kept._held) == 1
+    np.testing.assert_allclose(
+        b(t),
+        ji.TransferFunction([3.0], [1.0, 0.5])
+        .response(u)
+        ._multisine(t, *ji.TransferFunction([3.0], [1.0, 0.5])._modal),
+        atol=1e-13,
+    )
+    w = 2 * np.pi * np.array([0.05, 0.31])
+    ref = np.vstack([np.cos(w[:, None] * t), np.sin(w[:, None] * t)])
+    np.testing.assert_array_equal(kept.basis(t), ref)
+    t += 1.0  # changed in place: not the kept basis
+    np.testing.assert_allclose(model.signal([2.0, 1.0], u)(t), a(t.copy()), atol=1e-13)
+    assert not np.allclose(a(t), sa)
+    del t, a, b  # the instants and the signals that keep their last ones
+    assert len(kept._held) == 0  # dropped with its instants
+
+
+def test_shared_bases_pickle_empty_and_refuse_other_frequencies():
+    import pickle
+
+    from jitterid.systems.tones import ToneBases, ToneSignal
+
+    u = ji.Multisine([0.13], [1.0], end=1e9, steady_state=True)
+    t = np.linspace(0.0, 9.0, 100)
+    s = ji.RationalModel(0, 1).signal([2.0, 1.0], u)
+    s(t)
+    back = pickle.loads(pickle.dumps(u))
+    assert back.__dict__["_tone_bases"]._held == {}
+    np.testing.assert_allclose(ji.RationalModel(0, 1).signal([2.0, 1.0], back)(t), s(t), atol=0)
+    with pytest.raises(ValueError, match="bases"):
+        ToneSignal(s._tones.tones, ToneBases(np.array([1.0])))
+
+
+def test_a_signals_own_basis_follows_instants_changed_in_place():
+    s = ji.MultiTone([0.1]).signal([1.0, 0.3, 0.0])
+    t = np.linspace(0.0, 9.0, 100)
+    before = s(t)
+    t += 1.0
+    assert not np.allclose(s(t), before)
+    np.testing.assert_allclose(s(t), s(t.copy()), atol=0)

@@ -20,7 +20,7 @@ from .._checks import finite, real_array
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterLaw
 from .model import DelayedSignal, MomentPass, Signal
-from .tones import ToneSignal, _ToneMap
+from .tones import ToneBases, ToneSignal, _ToneMap
 
 __all__ = ["CoefficientDerivatives", "Response", "TransferFunction"]
 
@@ -516,11 +516,16 @@ class Response(Signal):
         g = np.polyval(num, s) / den_s
         phasor = u.amplitudes * np.exp(1j * u.phases)
         a = np.asarray(phasor * g, dtype=complex)
+        bases = u.__dict__.get("_tone_bases")  # shared by the responses to this input
+        if bases is None:
+            bases = ToneBases(w)
+            object.__setattr__(u, "_tone_bases", bases)
         dv = self.derivatives
         H = w.size
         if dv is None:
             return ToneSignal(
-                _ToneMap(0.0, a, w, np.zeros(0), np.zeros((0, H), complex), np.zeros((0, H)))
+                _ToneMap(0.0, a, w, np.zeros(0), np.zeros((0, H), complex), np.zeros((0, H))),
+                bases,
             )
         n, P = den.size, dv.n_params
         if dv.dnum.shape[1] != n:
@@ -547,7 +552,7 @@ class Response(Signal):
             if d2a is not None:
                 d2a[k, :] = d2a[:, k] = -s * da
                 d2a[k, k] = s * s * a
-        return ToneSignal(_ToneMap(0.0, a, w, np.zeros(P), da, np.zeros((P, H)), d2a))
+        return ToneSignal(_ToneMap(0.0, a, w, np.zeros(P), da, np.zeros((P, H)), d2a), bases)
 
     @property
     def has_gradient(self) -> bool:
