@@ -293,3 +293,23 @@ def test_a_signals_own_basis_follows_instants_changed_in_place():
     t += 1.0
     assert not np.allclose(s(t), before)
     np.testing.assert_allclose(s(t), s(t.copy()), atol=0)
+
+
+@pytest.mark.parametrize(("model", "x"), [CASES[1], CASES[3], CASES[5]])
+def test_closed_form_moment_derivatives_against_differences(model, x):
+    """dm_k and dVar_k of the tones' (S1)-(S2) with the structure's da (the delay's row
+    through the jitter-equivalent frame) against central differences of m_k and Var_k."""
+    law0 = ji.Uniform(0.3)
+
+    def moments(v, gradient=False):
+        law, sig = model.signal(np.asarray(v, float), U).jitter_equivalent(law0)
+        return sig.jitter_moments(law, 1.0, 80, gradient=gradient)
+
+    mp = moments(x, gradient=True)
+    for i in range(len(x)):
+        dm = _five_point(
+            lambda d, i=i: moments(np.asarray(x) + d * np.eye(len(x))[i]).mean, 0, 1e-3
+        )
+        dv = _five_point(lambda d, i=i: moments(np.asarray(x) + d * np.eye(len(x))[i]).var, 0, 1e-3)
+        np.testing.assert_allclose(mp.dmean[i], dm, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(mp.dvar[i], dv, rtol=0, atol=1e-9)

@@ -471,8 +471,9 @@ class Response(Signal):
         variance : bool
             Whether to compute Var_k.
         gradient : bool
-            Ignored: parameter derivatives are not given here (the caller differences the
-            moments).
+            Also the parameter derivatives dm_k, dVar_k, in closed form where the response
+            has its structure's :attr:`derivatives` (:attr:`has_gradient`); otherwise left
+            None (the caller differences the moments).
         scale : float, optional
             The jitter family's scale a (tau = a xi), for dm_k/da and dVar_k/da.
         higher : bool
