@@ -177,13 +177,23 @@ def test_jitter_meter_adctoolbox_column(tmp_path):
 
 def test_multisine_benchmark_runs_at_small_n():
     out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_multisine.py"), "--sizes", "200", "--methods", "bcls"],
+        [
+            sys.executable,
+            str(BENCH / "bench_multisine.py"),
+            "--sizes",
+            "200",
+            "--methods",
+            "bcls",
+            "ml",
+        ],
         capture_output=True,
         text=True,
         check=True,
         timeout=600,
     ).stdout
-    assert "CONVERGED / CONVERGED" in out, out
+    rows = [line for line in out.splitlines() if line.strip().startswith("200 ")]
+    assert [row.split()[1] for row in rows] == ["bcls", "ml"], out
+    assert all(row.endswith("CONVERGED / CONVERGED") for row in rows), out
 
 
 def test_reproduce_benchmark_runs_at_one_realization():

@@ -81,19 +81,26 @@ def _steps(
     return h, free
 
 
-def _natural_scale(problem: Problem, x: FloatArray) -> FloatArray | None:
-    """1 / sqrt of the diagonal of the information the search itself used (the exact
-    likelihood's observed information, a Newton criterion's expected Hessian of V ~ -2 ln L),
-    or None (least squares: H is analytic, no step needed)."""
+def _search_information(problem: Problem, x: FloatArray) -> FloatArray | None:
+    """The information the search itself used (the exact likelihood's observed information
+    :meth:`~jitterid.estimation.likelihood.ExactLikelihood.information`, a Newton
+    criterion's expected Hessian of V ~ -2 ln L), or None (least squares: H is analytic, no
+    step needed; or not computable at ``x``)."""
     try:
         if problem.method == "ml":
             assert problem.likelihood is not None
-            info = problem.likelihood._terms(x, problem.data.y, information=True)[2]
-        elif not problem.estimator.least_squares:
-            info = 0.5 * problem.objective_gradient(x)[2]
-        else:
-            return None
+            return problem.likelihood.information(x, problem.data.y)
+        if not problem.estimator.least_squares:
+            return 0.5 * np.asarray(problem.objective_gradient(x)[2], dtype=float)
     except (ValueError, np.linalg.LinAlgError):
+        return None
+    return None
+
+
+def _natural_scale(info: FloatArray | None) -> FloatArray | None:
+    """1 / sqrt of the diagonal of the search's information (:func:`_search_information`),
+    or None where there is none."""
+    if info is None:
         return None
     d = np.diag(np.asarray(info, dtype=float))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -136,7 +143,8 @@ def _covariance(
     cov = np.full((p, p), np.nan)
     if p == 0 or cov_type == "none":
         return cov
-    h, free = _steps(x, problem.bounds, _natural_scale(problem, x))
+    info = _search_information(problem, x)
+    h, free = _steps(x, problem.bounds, _natural_scale(info))
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov
@@ -149,7 +157,7 @@ def _covariance(
 
     z0, hz = x[idx], h[idx]
     if problem.method == "ml":
-        return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov)
+        return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov, info)
     bounds = problem.bounds
     G = _grad_y_jacobian(problem, x, idx, h)
     if problem.estimator.least_squares:
@@ -327,6 +335,7 @@ def _ml_covariance(
     hz: FloatArray,
     robust: bool,
     cov: FloatArray,
+    info: FloatArray | None = None,
 ) -> FloatArray:
     """Inverse observed information of the exact likelihood (or its Huber-White sandwich).
 
@@ -334,11 +343,15 @@ def _ml_covariance(
     signal gives its second derivatives (one evaluation); else the Jacobian of its analytic
     gradient (the scores (L2)), by one-sided differences from the score at the estimate (p
     score evaluations), where every parameter's score is analytic; else (a jitter shape
-    differenced inside the score) second differences of V (2 p^2 evaluations)."""
+    differenced inside the score) second differences of V (2 p^2 evaluations). ``info``:
+    the information at ``x`` already computed (:func:`_search_information`), used instead
+    of another evaluation."""
     lik = problem.likelihood
     assert lik is not None
     if lik.exact_information(x):  # (L5) in closed form: no differences at all
-        H = 2 * lik.information(x, problem.data.y)[np.ix_(idx, idx)]
+        if info is None:
+            info = lik.information(x, problem.data.y)
+        H = 2 * info[np.ix_(idx, idx)]
     elif lik.analytic_scores(x):
         y = problem.data.y
 

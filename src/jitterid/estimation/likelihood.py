@@ -59,8 +59,9 @@ and, with e_j = (y - s_j) / sigma_v and D_j = ds_j / dtheta, the observed inform
 second_derivatives`; the Gauss-Newton form without the last term otherwise),
 
 ds/dtheta at the (fixed) nodes from the modal form of the response, with the same
-exponentials as s (:class:`_NodeSignal`; forward differences of s for inputs that are not
-piecewise constant). A jitter family's scale a (the law of a xi) moves the nodes only:
+exponentials as s (:class:`_NodeSignal`); for other signals their own gradient where they
+have one (the steady-state response to a multisine, a tone model), else forward differences
+of s. A jitter family's scale a (the law of a xi) moves the nodes only:
 ds/da = (tau / a) s'(t), s' from the same modal form; its shape parameters (n) move the
 weights only: a forward difference of ln p with the shifted law's pdf at the same nodes, or,
 for a family with a closed-form dp/dtheta (``JitterFamily.pdf_gradient``),
@@ -1252,8 +1253,9 @@ class ExactLikelihood:
     def scores(self, x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """ln p(y_k | x), shape (N,), and the per-sample scores d ln p(y_k) / dx, shape (N, p).
 
-        System parameters by (L2) with ds/dtheta from the modal form (forward differences of
-        s, relative step 1e-7, for inputs that are not piecewise constant), noise std
+        System parameters by (L2) with ds/dtheta from the modal form, or the signal's own
+        gradient (a steady-state multisine response), else forward differences of s
+        (relative step 1e-7), noise std
         analytic, jitter-family parameters by forward differences of ln p (step 1e-7).
 
         Parameters
@@ -1443,13 +1445,7 @@ class ExactLikelihood:
                         ds = sig.slope(nd.t)
             if delay is not None:  # the nodes t_j = kT + tau0_j - delay move by -d delay
                 if not analytic:
-
-                    def later(v: FloatArray, t: FloatArray = nd.t) -> FloatArray:
-                        return sig(t + v[0])
-
-                    ds = finite_diff.derivative(
-                        later, np.zeros(1), 0, (-np.inf, np.inf), h=1e-6 * self.T
-                    )
+                    ds = _slope_at(sig, nd.t)  # the signal's own, or a central difference
                 D = D.copy()
                 D[delay - nj] = -ds
             if scale is not None:

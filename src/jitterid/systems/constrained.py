@@ -257,14 +257,48 @@ class Constrained(ModelStructure):
         n : int
             Length of the denominator's coefficient vector (order + 1).
         """
-        inner = self.structure
-        if not closed_form_applies(inner):
-            return None
-        out = inner.coefficient_jacobian(self.full(params), n)
+        out = self._inner_closed_form("coefficient_jacobian", params, n)
         if out is None:
             return None
         free = self._free  # type: ignore[attr-defined]
         return np.asarray(out[0])[free], np.asarray(out[1])[free]
+
+    def coefficient_hessian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The inner closed form's rows and columns of the free parameters (None where the
+        inner structure declares none).
+
+        Parameters
+        ----------
+        params : array_like
+            The free parameters, in :attr:`param_names` order.
+        n : int
+            Length of the denominator's coefficient vector (order + 1).
+
+        Examples
+        --------
+        >>> import jitterid as ji
+        >>> c = ji.Constrained(ji.PolePairGain(), fixed={"k0": 6.25})
+        >>> c.coefficient_hessian([-1.5, 2.0], 3)[1][:, :, 2].tolist()
+        [[2.0, 0.0], [0.0, 2.0]]
+        """
+        out = self._inner_closed_form("coefficient_hessian", params, n)
+        if out is None:
+            return None
+        keep = np.ix_(self._free, self._free)  # type: ignore[attr-defined]
+        return np.asarray(out[0])[keep], np.asarray(out[1])[keep]
+
+    def _inner_closed_form(
+        self, method: str, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The inner structure's closed form ``method`` at the full parameter vector, or None
+        where it declares none or it does not belong to its map (``closed_form_applies``)."""
+        inner = self.structure
+        if not closed_form_applies(inner, method):
+            return None
+        out: tuple[FloatArray, FloatArray] | None = getattr(inner, method)(self.full(params), n)
+        return out
 
     def starts(self, T: float) -> list[FloatArray]:
         """The inner default starts with the user's values put in, fixed parameters removed,

@@ -228,11 +228,23 @@ class DelayedSignal(Signal):
         return self.inner(np.asarray(t, dtype=float) - self.delay_s)
 
     @property
+    def has_gradient(self) -> bool:
+        return self.inner.has_gradient
+
+    @property
     def has_slope(self) -> bool:
         return self.inner.has_slope
 
+    def gradient(self, t: FloatArray) -> FloatArray | None:
+        # the inner signal's rows include the delay's, -inner'(t - delay_s): the derivative
+        # in its jitter-equivalent frame is the delayed signal's (jitterid.systems.tf.Response)
+        return self.inner.gradient(np.asarray(t, dtype=float) - self.delay_s)
+
     def slope(self, t: FloatArray) -> FloatArray | None:
         return self.inner.slope(np.asarray(t, dtype=float) - self.delay_s)
+
+    def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        return self.inner.second_derivatives(np.asarray(t, dtype=float) - self.delay_s)
 
     def jitter_equivalent(self, jitter: JitterLaw) -> tuple[JitterLaw, Signal]:
         law, sig = self.inner.jitter_equivalent(jitter)

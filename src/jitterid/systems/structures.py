@@ -12,8 +12,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
 from .._checks import count
+from ..inputs import Multisine
 from .model import Bounds, Model, Signal
-from .tf import TransferFunction
+from .tf import CoefficientDerivatives, TransferFunction
 
 if TYPE_CHECKING:
     from ..data import SampledData
@@ -94,7 +95,39 @@ class ModelStructure(Model):
                 f"{type(self).__name__} is driven by a known input: data.u must be given "
                 "(a PiecewiseConstant, telegraph_input, zoh_input or Multisine)"
             )
-        return self.system(params).response(u)
+        tf = self.system(params)
+        if isinstance(u, Multisine) and u.steady_state:  # closed-form parameter derivatives
+            return tf.response(u, self.derivatives(params, tf.den.size))
+        return tf.response(u)
+
+    def derivatives(self, params: ArrayLike, n: int) -> CoefficientDerivatives:
+        """d(num, den)/dtheta (:meth:`coefficient_derivatives`), their second derivatives
+        where :meth:`coefficient_hessian` gives them, and the delay's index: what the
+        response to a steady-state multisine needs for its closed-form parameter derivatives
+        (:class:`jitterid.systems.tf.Response`).
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        n : int
+            Length of the denominator's coefficient vector (order + 1).
+
+        Examples
+        --------
+        >>> import jitterid as ji
+        >>> d = ji.PolePairGain().derivatives([5.0, -1.0, 2.0], 3)
+        >>> d.dden.tolist(), d.d2den[1, 1].tolist()
+        ([[0.0, 0.0, 0.0], [0.0, -2.0, -2.0], [0.0, 0.0, 4.0]], [0.0, 0.0, 2.0])
+        """
+        dnum, dden = self.coefficient_derivatives(params, n)
+        second = (
+            self.coefficient_hessian(params, n)
+            if closed_form_applies(self, "coefficient_hessian")
+            else None
+        )
+        d2num, d2den = (None, None) if second is None else second
+        return CoefficientDerivatives(dnum, dden, d2num, d2den, self.delay_index)
 
     def initial_points(self, data: SampledData) -> list[FloatArray]:
         return self.starts(data.T)
@@ -113,6 +146,31 @@ class ModelStructure(Model):
             The structure's parameters, in :attr:`param_names` order.
         n : int
             Length of the denominator's coefficient vector (order + 1).
+        """
+        return None
+
+    def coefficient_hessian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """d^2(num, den)/dtheta^2 in closed form, shape (P, P, n) each (num padded to the
+        length n of the denominator), or None: this structure declares none (the response
+        to a steady-state multisine then gives no second derivatives, and the likelihood's
+        Newton matrix is Gauss-Newton). A subclass that maps its parameters otherwise must
+        override it.
+
+        Parameters
+        ----------
+        params : array_like
+            The structure's parameters, in :attr:`param_names` order.
+        n : int
+            Length of the denominator's coefficient vector (order + 1).
+
+        Examples
+        --------
+        >>> import jitterid as ji
+        >>> d2num, d2den = ji.RationalModel(0, 1).coefficient_hessian([2.0, 1.0], 2)
+        >>> d2den.shape, float(abs(d2den).max())
+        ((2, 2, 2), 0.0)
         """
         return None
 
@@ -150,12 +208,13 @@ def padded(c: ArrayLike, n: int) -> FloatArray:
     return np.r_[np.zeros(n - c.size), c]
 
 
-def closed_form_applies(structure: ModelStructure) -> bool:
-    """Whether ``structure.coefficient_jacobian`` belongs to its own ``system``: False when a
-    subclass redefines the parameter map below the class that wrote the closed form."""
+def closed_form_applies(structure: ModelStructure, method: str = "coefficient_jacobian") -> bool:
+    """Whether ``structure``'s closed form ``method`` (``coefficient_jacobian`` or
+    ``coefficient_hessian``) belongs to its own ``system``: False when a subclass redefines
+    the parameter map below the class that wrote the closed form."""
     mro = type(structure).__mro__
     system = next(k for k in mro if "system" in k.__dict__)
-    closed = next(k for k in mro if "coefficient_jacobian" in k.__dict__)
+    closed = next(k for k in mro if method in k.__dict__)
     return system is closed or not issubclass(system, closed)
 
 
@@ -210,6 +269,14 @@ class PolePairGain(ModelStructure):
         dden[1, n - 2 :] = (-2.0, 2.0 * pr)
         dden[2, n - 1] = 2.0 * pi
         return dnum, dden
+
+    def coefficient_hessian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
+        self._check(params)  # d^2 (pr^2 + pi^2) = 2 in pr and pi; the rest is linear
+        d2num, d2den = np.zeros((3, 3, n)), np.zeros((3, 3, n))
+        d2den[1, 1, n - 1] = d2den[2, 2, n - 1] = 2.0
+        return d2num, d2den
 
     def starts(self, T: float) -> list[FloatArray]:
         # Pole pairs spread over the band below Nyquist (1/(2T) Hz); k0 = |p|^2 (unit DC gain).
@@ -288,6 +355,14 @@ class RationalModel(ModelStructure):
         dnum[np.arange(nb), n - nb + np.arange(nb)] = 1.0
         dden[nb + np.arange(n - 1), 1 + np.arange(n - 1)] = 1.0
         return dnum, dden
+
+    def coefficient_hessian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
+        x = self._check(params)  # the identity map: no second derivative
+        if n != self.den_order + 1:
+            return None
+        return np.zeros((x.size, x.size, n)), np.zeros((x.size, x.size, n))
 
     def starts(self, T: float) -> list[FloatArray]:
         # Real poles spread below Nyquist, numerator giving unit DC gain.
@@ -427,6 +502,23 @@ class Delayed(ModelStructure):
             return None
         zero = np.zeros((1, n))  # the delay moves no coefficient
         return np.vstack([inner[0], zero]), np.vstack([inner[1], zero])
+
+    def coefficient_hessian(
+        self, params: ArrayLike, n: int
+    ) -> tuple[FloatArray, FloatArray] | None:
+        x = self._check(params)
+        inner = self.structure
+        out = (
+            inner.coefficient_hessian(x[:-1], n)
+            if closed_form_applies(inner, "coefficient_hessian")
+            else None
+        )
+        if out is None:
+            return None
+        P = x.size  # the delay's row and column are zero: it moves no coefficient
+        d2num, d2den = np.zeros((P, P, n)), np.zeros((P, P, n))
+        d2num[:-1, :-1], d2den[:-1, :-1] = out
+        return d2num, d2den
 
     def starts(self, T: float) -> list[FloatArray]:
         # The structure's starts times a few delays in [min, max]: the criterion in the delay

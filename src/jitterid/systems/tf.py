@@ -20,9 +20,9 @@ from .._checks import finite, real_array
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterLaw
 from .model import DelayedSignal, MomentPass, Signal
-from .tones import ToneSignal, _ToneMap
+from .tones import ToneBases, ToneSignal, _ToneMap
 
-__all__ = ["Response", "TransferFunction"]
+__all__ = ["CoefficientDerivatives", "Response", "TransferFunction"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -180,7 +180,7 @@ class TransferFunction:
         r = np.polyval(rem, p) / np.polyval(np.polyder(self.den), p) if p.size else p
         return d, np.asarray(r, complex), p
 
-    def response(self, u: Input) -> Signal:
+    def response(self, u: Input, derivatives: CoefficientDerivatives | None = None) -> Signal:
         """The exact output s(t) = (g * u)(t) to input ``u`` from rest: a :class:`Response`,
         or with a delay the undelayed system's :class:`Response` delayed
         (:class:`jitterid.systems.model.DelayedSignal`).
@@ -189,10 +189,23 @@ class TransferFunction:
         ----------
         u : Input
             The input, zero before it starts.
+        derivatives : CoefficientDerivatives, optional
+            d(num, den)/dtheta of the structure this system is a value of: the response to a
+            steady-state multisine then has its parameter derivatives in closed form
+            (:attr:`Response.derivatives`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import jitterid as ji
+        >>> u = ji.Multisine([0.1], [1.0], end=100.0, steady_state=True)
+        >>> s = ji.TransferFunction([1.0], [1.0, 1.0], delay_s=0.5).response(u)
+        >>> type(s).__name__, s.has_slope
+        ('DelayedSignal', True)
         """
         if self.delay_s:
-            return DelayedSignal(Response(self.undelayed, u), self.delay_s)
-        return Response(self, u)
+            return DelayedSignal(Response(self.undelayed, u, derivatives), self.delay_s)
+        return Response(self, u, derivatives)
 
     def _recursion(self, u: PiecewiseConstant) -> tuple[_Recursion, ComplexArray]:
         """The switch-time recursion over ``u`` for the poles with Im p >= 0, and its states.
@@ -274,17 +287,99 @@ class TransferFunction:
 
 
 @dataclass(frozen=True, eq=False)
+class CoefficientDerivatives:
+    """d(num, den)/dtheta of a model structure at one parameter vector (what
+    :meth:`jitterid.systems.structures.ModelStructure.coefficient_derivatives` and
+    ``coefficient_hessian`` give), for the closed-form parameter derivatives of a
+    :class:`Response` to a steady-state multisine.
+
+    Parameters
+    ----------
+    dnum, dden : ndarray, shape (P, n)
+        First derivatives of the numerator (padded to the length n of the denominator) and
+        the denominator's coefficients, highest power first, one row per parameter.
+    d2num, d2den : ndarray, shape (P, P, n), optional
+        Second derivatives; None where the structure gives none in closed form (the
+        response then has no second derivatives, :meth:`Response.second_derivatives`).
+    delay : int, optional
+        Index of the input-output delay among the parameters (:class:`jitterid.Delayed`;
+        its rows above are zero: a delay moves no coefficient), or None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import jitterid as ji
+    >>> from jitterid.systems.tf import CoefficientDerivatives
+    >>> d = CoefficientDerivatives(np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([[0.0, 0.0],
+    ...     [0.0, 1.0]]))
+    >>> d.n_params
+    2
+    """
+
+    dnum: FloatArray
+    dden: FloatArray
+    d2num: FloatArray | None = None
+    d2den: FloatArray | None = None
+    delay: int | None = None
+
+    def __post_init__(self) -> None:
+        dnum, dden = (np.asarray(v, dtype=float) for v in (self.dnum, self.dden))
+        if dnum.ndim != 2 or dnum.shape != dden.shape:
+            raise ValueError(
+                f"dnum and dden must be (P, n) arrays of one shape; got {dnum.shape}, {dden.shape}"
+            )
+        P, n = dnum.shape
+        object.__setattr__(self, "dnum", dnum)
+        object.__setattr__(self, "dden", dden)
+        if (self.d2num is None) != (self.d2den is None):
+            raise ValueError("d2num and d2den must both be given or both be None")
+        if self.d2num is not None:
+            d2num, d2den = (np.asarray(v, dtype=float) for v in (self.d2num, self.d2den))
+            if d2num.shape != (P, P, n) or d2den.shape != (P, P, n):
+                raise ValueError(
+                    f"d2num and d2den must have shape {(P, P, n)}; got {d2num.shape}, {d2den.shape}"
+                )
+            object.__setattr__(self, "d2num", d2num)
+            object.__setattr__(self, "d2den", d2den)
+        if self.delay is not None and not 0 <= int(self.delay) < P:
+            raise ValueError(f"delay must index one of the {P} parameters; got {self.delay!r}")
+
+    @property
+    def n_params(self) -> int:
+        """Number of parameters P."""
+        return int(self.dnum.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
 class Response(Signal):
     """The exact output s(t) of ``system`` to input ``u`` (at rest before ``u.start``): the
-    :class:`~jitterid.systems.model.Signal` of an LTI structure. Its parameter gradient is
-    not given here (the moments and the likelihood take it from the modal form).
+    :class:`~jitterid.systems.model.Signal` of an LTI structure.
 
     Call it with any array of instants (< ``end``) to get s(t), vectorised.
+
+    The steady-state response to a :class:`~jitterid.inputs.Multisine` is a sum of tones,
+
+        s(t) = sum_m Im(a_m e^{i w_m t}),   a_m = A_m e^{i phi_m} G(i w_m),
+
+    evaluated as one (:class:`jitterid.systems.tones.ToneSignal`): its slope s' and s'' are
+    closed forms, and so, given the structure's ``derivatives``, are its parameter
+    derivatives, da_m = A_m e^{i phi_m} dG(i w_m) with
+
+        dG = (dN - G dD) / D,   d^2 G_ij = (d^2 N_ij - dG_i dD_j - dG_j dD_i - G d^2 D_ij) / D
+
+    (N, D the numerator and denominator at s = i w_m); a delay d of the structure (the
+    undelayed response under the jitter moved by -d, ``DelayedSignal.jitter_equivalent``)
+    has da = -i w a, d^2 a / dd^2 = -w^2 a and d^2 a / dd dtheta = -i w da / dtheta. The
+    response to any other input gives no parameter gradient here (the moments and the
+    likelihood take it from the modal form, or difference it).
 
     Attributes
     ----------
     system : TransferFunction
     u : Input
+    derivatives : CoefficientDerivatives or None
+        d(num, den)/dtheta of the structure ``system`` is a value of (None: no parameters
+        known to this signal, :attr:`has_gradient` is False).
     end : float
         The input's end; evaluating at or past it raises ValueError.
     breaks : ndarray
@@ -304,6 +399,7 @@ class Response(Signal):
 
     system: TransferFunction
     u: Input
+    derivatives: CoefficientDerivatives | None = None
     start: float = field(init=False)
     end: float = field(init=False)
     breaks: FloatArray = field(init=False)
@@ -316,6 +412,13 @@ class Response(Signal):
             raise TypeError(
                 "u must be a jitterid input (PiecewiseConstant, telegraph_input, zoh_input, "
                 f"Multisine); got {type(self.u).__name__}"
+            )
+        if self.derivatives is not None and not isinstance(
+            self.derivatives, CoefficientDerivatives
+        ):
+            raise TypeError(
+                "derivatives must be a CoefficientDerivatives or None; got "
+                f"{type(self.derivatives).__name__}"
             )
         _, _, p = self.system._modal  # validates stability early
         rate = float(np.max(np.abs(p))) if p.size else 0.0
@@ -368,8 +471,9 @@ class Response(Signal):
         variance : bool
             Whether to compute Var_k.
         gradient : bool
-            Ignored: parameter derivatives are not given here (the caller differences the
-            moments).
+            Also the parameter derivatives dm_k, dVar_k, in closed form where the response
+            has its structure's :attr:`derivatives` (:attr:`has_gradient`); otherwise left
+            None (the caller differences the moments).
         scale : float, optional
             The jitter family's scale a (tau = a xi), for dm_k/da and dVar_k/da.
         higher : bool
@@ -391,24 +495,154 @@ class Response(Signal):
         >>> mp.mean.shape, bool(np.all(mp.var >= 0))
         ((5,), True)
         """
-        u = self.u
-        if not (isinstance(u, Multisine) and u.steady_state) or higher:
+        tones = self._tones
+        if tones is None or higher:
             return None
-        assert u.phases is not None
+        return tones.jitter_moments(
+            jitter, T, N, variance=variance, gradient=gradient and self.has_gradient, scale=scale
+        )
+
+    @cached_property
+    def _tones(self) -> ToneSignal | None:
+        """The steady-state response to a multisine as a sum of tones (class doc), with its
+        parameter derivatives where :attr:`derivatives` is given; None for any other input."""
+        u = self.u
+        if not (isinstance(u, Multisine) and u.steady_state):
+            return None
+        assert u.phases is not None  # filled in by Multisine.__post_init__
         w = 2 * np.pi * np.asarray(u.freqs, dtype=float)
-        a = u.amplitudes * np.exp(1j * u.phases) * self.system.frequency_response(u.freqs)
+        s = 1j * w
+        num, den = self.system.num, self.system.den
+        den_s = np.polyval(den, s)
+        g = np.polyval(num, s) / den_s
+        phasor = u.amplitudes * np.exp(1j * u.phases)
+        a = np.asarray(phasor * g, dtype=complex)
+        bases = u.__dict__.get("_tone_bases")  # shared by the responses to this input
+        if bases is None:
+            bases = ToneBases(w)
+            object.__setattr__(u, "_tone_bases", bases)
+        dv = self.derivatives
         H = w.size
-        tones = _ToneMap(
-            c=0.0,
-            a=np.asarray(a, dtype=complex),
-            w=w,
-            dc=np.zeros(0),
-            da=np.zeros((0, H), dtype=complex),
-            dw=np.zeros((0, H)),
-        )
-        return ToneSignal(tones).jitter_moments(
-            jitter, T, N, variance=variance, gradient=False, scale=scale
-        )
+        if dv is None:
+            return ToneSignal(
+                _ToneMap(0.0, a, w, np.zeros(0), np.zeros((0, H), complex), np.zeros((0, H))),
+                bases,
+            )
+        n, P = den.size, dv.n_params
+        if dv.dnum.shape[1] != n:
+            raise ValueError(
+                f"derivatives has {dv.dnum.shape[1]} coefficients per row; the system's "
+                f"denominator has {n}"
+            )
+        powers = s[None, :] ** np.arange(n - 1, -1, -1)[:, None]  # (n, H)
+        dN, dD = dv.dnum @ powers, dv.dden @ powers  # (P, H)
+        dG = (dN - g * dD) / den_s
+        da = phasor * dG
+        d2a = None
+        if dv.d2num is not None and dv.d2den is not None:
+            d2G = (
+                dv.d2num @ powers
+                - dG[:, None, :] * dD[None, :, :]
+                - dD[:, None, :] * dG[None, :, :]
+                - g * (dv.d2den @ powers)
+            ) / den_s
+            d2a = phasor * d2G
+        k = dv.delay
+        if k is not None:  # d/dd of a e^{-i w d}: the jitter-equivalent frame (class doc)
+            da[k] = -s * a
+            if d2a is not None:
+                d2a[k, :] = d2a[:, k] = -s * da
+                d2a[k, k] = s * s * a
+        return ToneSignal(_ToneMap(0.0, a, w, np.zeros(P), da, np.zeros((P, H)), d2a), bases)
+
+    @property
+    def has_gradient(self) -> bool:
+        """Whether :meth:`gradient` gives ds/dtheta in closed form: the steady-state response
+        to a multisine, given the structure's :attr:`derivatives`."""
+        return self.derivatives is not None and self._tones is not None
+
+    @property
+    def has_slope(self) -> bool:
+        """Whether :meth:`slope` gives ds/dt in closed form: the steady-state response to a
+        multisine."""
+        return self._tones is not None
+
+    def gradient(self, t: FloatArray) -> FloatArray | None:
+        """ds/dtheta at the instants ``t`` in closed form (class doc), shape (P, t.size), or
+        None (:attr:`has_gradient` is False).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import jitterid as ji
+        >>> u = ji.Multisine([0.1], [1.0], end=100.0, steady_state=True)
+        >>> s = ji.RationalModel(0, 1).signal([2.0, 1.0], u)
+        >>> s.gradient(np.array([0.0, 1.0])).shape
+        (2, 2)
+        """
+        tones = self._tones
+        if tones is None or self.derivatives is None:
+            return None
+        self._check_instants(t)
+        return tones.gradient(np.asarray(t, dtype=float))
+
+    def slope(self, t: FloatArray) -> FloatArray | None:
+        """ds/dt at the instants ``t`` in closed form, or None (:attr:`has_slope` is False).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import jitterid as ji
+        >>> u = ji.Multisine([0.25], [1.0], end=100.0, steady_state=True)
+        >>> s = ji.TransferFunction([1.0], [1.0, 1e6]).response(u)  # ~1e-6 sin(pi t / 2)
+        >>> (s.slope(np.array([0.0])) * 1e6 / (np.pi / 2)).round(4).tolist()
+        [1.0]
+        """
+        tones = self._tones
+        if tones is None:
+            return None
+        self._check_instants(t)
+        return tones.slope(np.asarray(t, dtype=float))
+
+    def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """(d^2 s / dtheta^2 shape (P, P, n), d s' / dtheta shape (P, n), s'' shape (n,)) in
+        closed form (class doc), or None: no gradient, or the structure gives no second
+        derivatives of its coefficients (``derivatives.d2num`` is None).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import jitterid as ji
+        >>> u = ji.Multisine([0.1], [1.0], end=100.0, steady_state=True)
+        >>> s = ji.RationalModel(0, 1).signal([2.0, 1.0], u)
+        >>> [a.shape for a in s.second_derivatives(np.array([0.0, 1.0, 2.0]))]
+        [(2, 2, 3), (2, 3), (3,)]
+        """
+        tones = self._tones
+        if tones is None or self.derivatives is None or self.derivatives.d2num is None:
+            return None
+        self._check_instants(t)
+        return tones.second_derivatives(np.asarray(t, dtype=float))
+
+    def _check_instants(self, t: ArrayLike) -> None:
+        t = np.asarray(t, dtype=float)
+        if t.size and float(np.max(t)) >= self.end:
+            self.u.check_covers(float(np.max(t)), "an evaluation instant")
 
     @property
     def _switch_states(self) -> ComplexArray:
@@ -418,8 +652,10 @@ class Response(Signal):
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         t = np.asarray(t, dtype=float)
-        if t.size and float(np.max(t)) >= self.end:
-            self.u.check_covers(float(np.max(t)), "an evaluation instant")
+        self._check_instants(t)
+        tones = self._tones
+        if tones is not None:  # the steady state: tones in real arithmetic (class doc)
+            return tones(t)
         d, r, p = self.system._modal
         if isinstance(self.u, PiecewiseConstant):
             return self._piecewise(t, d, r, p)

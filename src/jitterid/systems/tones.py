@@ -20,9 +20,11 @@ third and fourth moments (the exact covariance) take the generic quadrature path
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from functools import partial
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,6 +42,9 @@ __all__ = ["MultiTone", "SineWave", "ToneSignal"]
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 _FORMS = ("polar", "iq")
+# Bytes of [cos; sin] bases kept by one ToneBases (the likelihood's frozen rule over a long
+# record holds about as much in its nodes; past this the bases are computed, not kept).
+_BASES_BUDGET = 256 * 2**20
 
 
 @dataclass(frozen=True)
@@ -52,43 +57,133 @@ class _ToneMap:
     dc: FloatArray  # (P,)
     da: ComplexArray  # (P, H)
     dw: FloatArray  # (P, H)
-    d2a: dict[tuple[int, int, int], complex] | None = None  # nonzero d^2 a_h entries
+    # d^2 a_h: its nonzero entries {(i, j, h): value}, or dense, shape (P, P, H)
+    d2a: dict[tuple[int, int, int], complex] | ComplexArray | None = None
+
+
+class ToneBases:
+    """The bases [cos(w_h t); sin(w_h t)] of fixed angular frequencies ``w`` at arrays of
+    instants, kept while each array lives (a weak reference drops its basis with it), up to
+    ``_BASES_BUDGET`` bytes: the signals of one input at many parameter values (the
+    steady-state response to a multisine during a search over the likelihood's frozen
+    quadrature rule) are evaluated at the same node arrays, and cos and sin are most of
+    their cost. A kept basis is used only for the very array it was made for, unchanged
+    (its size, end points and sum are checked); pickling keeps none.
+
+    Parameters
+    ----------
+    w : ndarray, shape (H,)
+        Angular frequencies in rad/s.
+    last_only : bool, optional
+        Keep the last basis only (one signal's own: the likelihood asks for s, its gradient,
+        slope and second derivatives at the same nodes in turn).
+    """
+
+    def __init__(self, w: FloatArray, last_only: bool = False) -> None:
+        self.w = np.array(w, dtype=float)
+        self.last_only = bool(last_only)
+        self._held: dict[int, tuple[Any, tuple[float, ...], FloatArray]] = {}
+        self._bytes = 0
+
+    def __reduce__(self) -> tuple[type, tuple[FloatArray, bool]]:
+        return (ToneBases, (self.w, self.last_only))
+
+    def basis(self, t: FloatArray) -> FloatArray:
+        """[cos(w_h t); sin(w_h t)] at the instants ``t`` (1-D), shape (2H, n).
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Instants in s.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from jitterid.systems.tones import ToneBases
+        >>> ToneBases(np.array([np.pi])).basis(np.array([0.0, 0.5])).round(12).tolist()
+        [[1.0, 0.0], [0.0, 1.0]]
+        """
+        key = id(t)
+        held = self._held.get(key)
+        stamp = _stamp(t)
+        if held is not None and held[0]() is t and held[1] == stamp:
+            return held[2]
+        H = self.w.size  # real arithmetic: numpy's complex exp is several times slower
+        arg = self.w[:, None] * t[None, :]
+        cs = np.empty((2 * H, t.size))
+        np.cos(arg, out=cs[:H])
+        np.sin(arg, out=cs[H:])
+        if held is not None:
+            self._drop(key)
+        if self.last_only:
+            for k in list(self._held):
+                self._drop(k)
+        if t.size >= 64 and self._bytes + cs.nbytes <= _BASES_BUDGET:
+            ref = weakref.ref(t, partial(self._drop, key))
+            self._held[key] = (ref, stamp, cs)
+            self._bytes += cs.nbytes
+        return cs
+
+    def _drop(self, key: int, ref: Any = None) -> None:
+        held = self._held.get(key)
+        if held is not None and (ref is None or held[0] is ref):
+            del self._held[key]
+            self._bytes -= held[2].nbytes
+
+
+def _stamp(t: FloatArray) -> tuple[float, ...]:
+    """A check that an array of instants is unchanged: its size, end points and sum."""
+    if not t.size:
+        return (0.0,)
+    return (float(t.size), float(t[0]), float(t[-1]), float(np.sum(t)))
 
 
 class ToneSignal(Signal):
     """s(t) = c + sum_h Im(a_h exp(i w_h t)) at one parameter vector, with closed-form
-    gradient, slope and jittered moments."""
+    gradient, slope and jittered moments. ``bases``: a :class:`ToneBases` of the same
+    frequencies shared with other signals (the responses to one input); by default the
+    signal has its own, which keeps the last basis only."""
 
-    def __init__(self, tones: _ToneMap) -> None:
+    def __init__(self, tones: _ToneMap, bases: ToneBases | None = None) -> None:
         self.tones = tones
         self.rate = float(max(np.max(np.abs(tones.w)), 1e-300))
         self.breaks = np.zeros(0)
         self.start, self.end = -np.inf, np.inf
-        self._memo: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        if bases is not None and not np.array_equal(bases.w, tones.w):
+            raise ValueError("bases must be of the tones' own frequencies w")
+        self._bases = bases if bases is not None else ToneBases(tones.w, last_only=True)
 
     def _phasors(self, t: FloatArray) -> ComplexArray:
         return np.exp(1j * self.tones.w[:, None] * t[None, :])  # (H, n)
 
+    def _basis(self, t: FloatArray) -> FloatArray:
+        """[cos(w_h t); sin(w_h t)], shape (2H, n), one array so that any Im(q z) or
+        Re(q z), z = e^{i w t}, is one matrix product (:meth:`_im`): from the shared
+        :class:`ToneBases` where there is one, else from the signal's own, which keeps the
+        last."""
+        return self._bases.basis(t)
+
     def _cos_sin(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """cos(w_h t), sin(w_h t), shape (H, n): real arithmetic (numpy's complex exp is
-        several times slower). The last pair is kept with its ``t`` (the likelihood asks
-        for s, its gradient, slope and second derivatives at the same nodes in turn)."""
-        held = self._memo
-        if held is not None and held[0] is t:
-            return held[1], held[2]
-        arg = self.tones.w[:, None] * t[None, :]
-        c, s = np.cos(arg), np.sin(arg)
-        if t.size >= 64:
-            self._memo = (t, c, s)
-        return c, s
+        """cos(w_h t), sin(w_h t), shape (H, n) each (views of :meth:`_basis`)."""
+        cs = self._basis(t)
+        H = self.tones.w.size
+        return cs[:H], cs[H:]
+
+    def _im(self, q: ComplexArray, t: FloatArray) -> FloatArray:
+        """Im(sum_h q_h e^{i w_h t}) for coefficients ``q`` of shape (..., H): shape (..., n).
+        Im(q z) = Im q cos + Re q sin."""
+        coef = np.concatenate([q.imag, q.real], axis=-1)
+        out = coef.reshape(-1, coef.shape[-1]) @ self._basis(t)
+        return np.asarray(out.reshape(*q.shape[:-1], t.size), dtype=float)
+
+    def _re(self, q: ComplexArray, t: FloatArray) -> FloatArray:
+        """Re(sum_h q_h e^{i w_h t}), as :meth:`_im`: Re(q z) = Re q cos - Im q sin."""
+        return self._im(1j * np.asarray(q), t)
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         tt = np.asarray(t, dtype=float)
-        c, s = self._cos_sin(tt.ravel())
-        a = self.tones.a
-        # Im(a e^{i w t}) = Re(a) sin(w t) + Im(a) cos(w t)
-        out = self.tones.c + a.real @ s + a.imag @ c
-        return np.asarray(out, dtype=float).reshape(tt.shape)
+        flat = tt if tt.ndim == 1 else tt.ravel()  # the same t: the memo holds
+        return (self.tones.c + self._im(self.tones.a, flat)).reshape(tt.shape)
 
     @property
     def has_gradient(self) -> bool:
@@ -100,18 +195,14 @@ class ToneSignal(Signal):
 
     def gradient(self, t: FloatArray) -> FloatArray:
         tn = self.tones
-        c, s = self._cos_sin(t)
         # d Im(a_h e^{i w_h t}) = Im((da_h + i t a_h dw_h) e^{i w_h t})
-        out = tn.dc[:, None] + tn.da.real @ s + tn.da.imag @ c
-        b = tn.dw * tn.a[None, :]  # i t b e^{iwt}: Im = t (Re b cos - Im b sin)
-        out += t[None, :] * (b.real @ c - b.imag @ s)
-        return np.asarray(out, dtype=float)
+        out = tn.dc[:, None] + self._im(tn.da, t)
+        if np.any(tn.dw):  # no frequency parameter (an LTI response): no t-weighted term
+            out += t[None, :] * self._re(tn.dw * tn.a[None, :], t)
+        return out
 
     def slope(self, t: FloatArray) -> FloatArray:
-        tn = self.tones
-        c, s = self._cos_sin(t)
-        b = tn.w * tn.a  # Im(i w a e^{iwt}) = Re(w a) cos - Im(w a) sin
-        return np.asarray(b.real @ c - b.imag @ s, dtype=float)
+        return self._re(self.tones.w * self.tones.a, t)  # Im(i w a z) = Re(w a z)
 
     def second_derivatives(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """d^2 s / dtheta^2, d s'/dtheta and s'' in closed form, in real arithmetic over the
@@ -119,6 +210,12 @@ class ToneSignal(Signal):
         (da dw^T + dw da^T) z - t^2 a dw dw^T z) (d2a nonzero only in the polar form: a = A
         e^{i phi}), ds' = Im(i (dw a + w da) z - t w a dw z), s'' = Im(-w^2 a z)."""
         tn = self.tones
+        curv = self._im(-(tn.w**2) * tn.a, t)
+        if not np.any(tn.dw) and not isinstance(tn.d2a, dict):
+            # amplitudes only (an LTI response): d^2 s = Im(d2a z), ds' = Re(w da z)
+            P, H = tn.da.shape
+            hss = np.zeros((P, P, t.size)) if tn.d2a is None else self._im(tn.d2a, t)
+            return hss, self._re(tn.w * tn.da, t), curv
         cos_, sin_ = self._cos_sin(t)
         P, H = tn.da.shape
         n = t.size
@@ -147,11 +244,12 @@ class ToneSignal(Signal):
                 dsl[f_] += dw * re_az - t * w * dw * im_az
                 for g_ in fs:
                     hess[f_, g_] -= t**2 * dw * tn.dw[g_, h] * im_az
-        if tn.d2a is not None:
+        if isinstance(tn.d2a, dict):
             for (i, j, h), v in tn.d2a.items():
                 hess[i, j] += v.real * sin_[h] + v.imag * cos_[h]
-        curv = -(tn.w**2 * tn.a.real) @ sin_ - (tn.w**2 * tn.a.imag) @ cos_
-        return hess, dsl, np.asarray(curv, dtype=float)
+        elif tn.d2a is not None:
+            hess += self._im(tn.d2a, t)
+        return hess, dsl, curv
 
     def jitter_moments(
         self,
