@@ -73,9 +73,10 @@ def test_ml_whose_rule_cannot_fit_is_refused_before_the_first_stage(monkeypatch)
 
 
 def test_ml_is_refused_when_its_designed_rule_is_over_the_budget(monkeypatch):
-    # the lab setting: the lower bound up front (2.1e5 nodes, 43 MB) passes, the designed
-    # rule (3.6e5 nodes with the slope cuts, 72 MB) does not. (Every design is checked: a
-    # rule designed at a larger noise level may pass and be built first.)
+    # the lab setting: the lower bound up front (3 nodes per sample, 2 MB) passes, the
+    # designed (windowed) rule (1.6e5 nodes, one chunk of them streamed at 600 bytes each:
+    # ~100 MB) does not. (Every design is checked: a rule designed at a larger noise level
+    # may pass and be built first.)
     d = _lab(1000)
     monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "5.5e7")
     with pytest.raises(TooLargeError, match=r"exact likelihood of N = 1000 samples") as err:
@@ -143,3 +144,20 @@ def test_the_cli_refuses_in_one_line(tmp_path, monkeypatch):
     assert "Traceback" not in res.output
     assert "JITTERID_MEMORY_BUDGET" in res.output
     assert "internal error" not in res.output
+
+
+def test_a_rule_over_its_share_of_the_budget_is_streamed_not_refused(monkeypatch):
+    """Lab setting, N = 4000: 6.3e5 nodes, more than a quarter of a 200 MB budget holds
+    (2.5e5 at 200 bytes): the rule is made again chunk by chunk at each evaluation (one
+    chunk: ~100 MB), with the values of the rule kept in memory."""
+    d = _lab(4000)
+    x = np.array([4.0, 8.0, 6.0, 10.0, 8.0])
+    args = (ji.RationalModel(1, 3), ji.Gaussian(0.08), d.u, 0.5, 4000, 0.02)
+    monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "1e10")
+    kept = likelihood_module.ExactLikelihood(*args)
+    ref = kept.logpdf(x, d.y)
+    assert not any(r.streamed for r in kept._cache.values())
+    monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "2e8")
+    lik = likelihood_module.ExactLikelihood(*args)
+    np.testing.assert_allclose(lik.logpdf(x, d.y), ref, rtol=0, atol=1e-12)
+    assert all(r.streamed for r in lik._cache.values())

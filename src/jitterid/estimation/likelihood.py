@@ -100,7 +100,7 @@ from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
-from .resources import check_likelihood, check_mode_rate
+from .resources import check_likelihood, check_mode_rate, kept_nodes
 from .search import evaluator, newton_search
 
 __all__ = [
@@ -1046,8 +1046,10 @@ class ExactLikelihood:
 
     def _rule(self, law: JitterLaw, sig: Signal, y: FloatArray | None) -> _Rule:
         """The rule under ``law``: windowed around ``y`` (its pieces made now), or full."""
+        family = isinstance(self.jitter, JitterFamily)
+        budget = kept_nodes(self.node_budget, family)
         if y is None:
-            return _Rule(lambda: self._make_nodes(law, sig), (), self.node_budget)
+            return _Rule(lambda: self._make_nodes(law, sig), (), budget)
         pieces = self._window_pieces(law, sig, y)
         assert self._design is not None
         if _far(pieces, y, self._design[1]):
@@ -1058,8 +1060,11 @@ class ExactLikelihood:
             self._design, self._pieces, self._spares, self._memo = None, None, [], None
             self._cuts = _panel_cuts(self._profile, sigma, self.panel)
             check_likelihood(self, law, sig)
-            return _Rule(lambda: self._make_nodes(law, sig), (), self.node_budget)
-        return _Rule(lambda: self._make_windowed(law, sig, pieces), pieces, self.node_budget)
+            return _Rule(lambda: self._make_nodes(law, sig), (), budget)
+        n_pieces = sum(pc.owner.size for pc in pieces)
+        n_nodes = sum(float(np.sum(pc.nodes, dtype=float)) for pc in pieces)
+        check_likelihood(self, law, sig, n_nodes, n_pieces)
+        return _Rule(lambda: self._make_windowed(law, sig, pieces), pieces, budget)
 
     def _window_pieces(self, law: JitterLaw, sig: Signal, y: FloatArray) -> list[_Pieces]:
         """The windowed rule's pieces for ``law``: kept from the last build where that was

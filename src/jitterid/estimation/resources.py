@@ -12,14 +12,17 @@ Two estimates, each where its cost is known:
   (ls, bcls, wbcls, asml, asml-diag, gaussian; also the first stage of ml) keep O(1) arrays
   of N values per parameter (moments, their derivatives, residuals, Jacobian columns), so
   their memory is ``MOMENT_BYTES * N * (P + 1)``. For ``method="ml"`` it adds a lower
-  bound of the likelihood's rule (:func:`likelihood_nodes` with the input's switches and
-  the jitter law's own panels only, not yet the signal's slope cuts, which need the
-  fitted system), so a hopeless ML fit is refused before the first stage runs.
+  bound of the likelihood's rule (the fewer of :func:`likelihood_nodes` with the input's
+  switches and the jitter law's own panels only, and the windowed rule's least, 3 nodes per
+  sample), so a hopeless ML fit is refused before the first stage runs.
 * :func:`check_likelihood` (called by :class:`jitterid.estimation.likelihood.ExactLikelihood`
-  once its rule is designed, before the nodes are built): the exact likelihood keeps every
-  quadrature node of every sample, ``LIKELIHOOD_BYTES`` per node (more for a jitter family,
-  whose rules at several jitter values are cached), and the node count is known from the
-  rule's cuts (:func:`jitterid.moments.quadrature.panels_per_sample`).
+  once its rule is designed, before the nodes are built): the exact likelihood keeps its
+  nodes between evaluations up to :func:`kept_nodes` (``LIKELIHOOD_BYTES`` per node, more
+  for a jitter family, whose rules at several jitter values are cached, and at most
+  ``KEPT_FRACTION`` of the budget) and streams a larger rule chunk by chunk
+  (``STREAM_BYTES`` per node of a chunk); the node count is known from the full rule's
+  cuts (:func:`jitterid.moments.quadrature.panels_per_sample`) or the windowed rule's
+  pieces (``PIECE_BYTES`` each), :func:`likelihood_bytes`.
 
 The constants are measured (peak resident memory over the fit, minus that before it;
 ``benchmarks``-style runs on a 2-core machine, November 2026) and rounded up:
@@ -65,6 +68,13 @@ LIKELIHOOD_BYTES = 200.0
 LIKELIHOOD_FAMILY_BYTES = 800.0
 #: seconds per node of an ml fit with its covariance (4.5-7.6 us measured)
 LIKELIHOOD_SECONDS = 8e-6
+#: bytes per node of one chunk of a streamed evaluation (its temporaries; ~530 measured with
+#: tracemalloc on Table 2's setting, scores and information)
+STREAM_BYTES = 600.0
+#: bytes per piece of the windowed rule (ends, owner, node count, design value: 29)
+PIECE_BYTES = 32.0
+#: at most this fraction of the memory budget holds a rule's nodes between evaluations
+KEPT_FRACTION = 0.25
 #: Gauss-Legendre nodes per panel of the likelihood's rule (likelihood.DEFAULT_ORDER)
 _ORDER = 8
 
@@ -183,29 +193,54 @@ def check_fit(
     if method == "ml":
         law = _widest_law(jitter, data.T)
         if law is not None and isinstance(data.u, PiecewiseConstant):
-            nodes = likelihood_nodes(law, data.T, N, data.u.times, 0.0)
-            per = LIKELIHOOD_FAMILY_BYTES if n_jit else LIKELIHOOD_BYTES
-            need += per * nodes
+            # the full rule's panels without the slope cuts, or the windowed rule's least
+            # (one piece of 3 nodes per sample), whichever is fewer
+            nodes = min(likelihood_nodes(law, data.T, N, data.u.times, 0.0), 3.0 * N)
+            need += likelihood_bytes(nodes, N, bool(n_jit))
             seconds += LIKELIHOOD_SECONDS * nodes
             what += f" (at least {nodes:.3g} quadrature nodes for the exact likelihood)"
             fix = _ml_fix()
     _refuse(what, need, seconds, fix)
 
 
-def check_likelihood(lik: object, law: JitterLaw, resp: Signal) -> None:
-    """Refuse a designed likelihood rule (``lik``, an
-    :class:`~jitterid.estimation.likelihood.ExactLikelihood` whose slope cuts are set, for
-    the signal ``resp``) whose nodes would exceed the memory budget."""
-    cuts = lik._cuts  # type: ignore[attr-defined]
-    N, T = lik.N, lik.T  # type: ignore[attr-defined]
-    breaks = np.r_[resp.breaks, np.zeros(0) if cuts is None else cuts]
-    nodes = likelihood_nodes(law, T, N, breaks, resp.rate, lik.order)  # type: ignore[attr-defined]
-    family = isinstance(lik.jitter, JitterFamily)  # type: ignore[attr-defined]
+def kept_nodes(node_budget: int, family: bool) -> int:
+    """The most quadrature nodes a likelihood keeps between evaluations: its
+    ``node_budget``, and no more than ``KEPT_FRACTION`` of the memory budget holds; a rule
+    with more is streamed (made again chunk by chunk at each evaluation)."""
     per = LIKELIHOOD_FAMILY_BYTES if family else LIKELIHOOD_BYTES
+    return int(min(node_budget, KEPT_FRACTION * memory_budget() / per))
+
+
+def likelihood_bytes(
+    nodes: float, N: int, family: bool, pieces: float = 0.0, chunk: int = 1024
+) -> float:
+    """Memory of the exact likelihood with ``nodes`` quadrature nodes over N samples: the
+    nodes kept (at most :func:`kept_nodes` of them), one streamed chunk's temporaries, the
+    windowed rule's ``pieces``, and the per-sample outputs (ln p, scores)."""
+    per = LIKELIHOOD_FAMILY_BYTES if family else LIKELIHOOD_BYTES
+    kept = min(nodes, KEPT_FRACTION * memory_budget() / per)
+    chunk_nodes = nodes * min(1.0, chunk / max(N, 1))
+    return per * kept + STREAM_BYTES * chunk_nodes + PIECE_BYTES * pieces + 64.0 * N
+
+
+def check_likelihood(
+    lik: object, law: JitterLaw, resp: Signal, nodes: float | None = None, pieces: float = 0.0
+) -> None:
+    """Refuse a designed likelihood rule (``lik``, an
+    :class:`~jitterid.estimation.likelihood.ExactLikelihood`, for the signal ``resp``) whose
+    memory (:func:`likelihood_bytes`) would exceed the budget: the full rule from its slope
+    cuts, or the windowed rule from its ``nodes`` and ``pieces``."""
+    N, T = lik.N, lik.T  # type: ignore[attr-defined]
+    if nodes is None:
+        cuts = lik._cuts  # type: ignore[attr-defined]
+        breaks = np.r_[resp.breaks, np.zeros(0) if cuts is None else cuts]
+        nodes = likelihood_nodes(law, T, N, breaks, resp.rate, lik.order)  # type: ignore[attr-defined]
+        pieces = 0.125 * float(np.size(breaks))  # the cuts (8 bytes each)
+    family = isinstance(lik.jitter, JitterFamily)  # type: ignore[attr-defined]
     _refuse(
         f"the exact likelihood of N = {N} samples ({nodes:.3g} quadrature nodes, "
         f"{nodes / max(N, 1):.0f} per sample)",
-        per * nodes,
+        likelihood_bytes(nodes, N, family, pieces),
         LIKELIHOOD_SECONDS * nodes,
         _ml_fix(),
     )
