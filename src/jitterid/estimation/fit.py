@@ -23,6 +23,7 @@ from threadpoolctl import threadpool_limits
 from .._checks import real_array
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..moments.modal import clear_plans
 from ..noise.models import NoiseModel, NoiseStructure
 from ..systems.model import Model
 from ..systems.structures import ModelStructure, as_structure
@@ -39,7 +40,7 @@ from .checks import (
 )
 from .covariance import covariance, noise_variance_ml
 from .estimators import Estimator, as_estimator
-from .ml import run_ml
+from .ml import FREE_PLANS_FROM, run_ml
 from .problem import (
     Problem,
     default_frequencies,
@@ -536,6 +537,10 @@ def _fit(
         noise_rec = None if noise_rec is None else noise_rec * scaling.sy
         w = problem.weights_at
         problem.release()
+        if problem.likelihood is not None:  # its rule, before the next one is designed
+            problem.likelihood.release()
+            if data.N >= FREE_PLANS_FROM:  # and the moment plans of the checks (~0.5 GB)
+                clear_plans()
         problem = Problem(
             orig_data,
             structure,

@@ -879,6 +879,12 @@ class ExactLikelihood:
         re-designed wherever it no longer fits, so it needs no re-design at an optimum."""
         return self._design is not None
 
+    def release(self) -> None:
+        """Drop the rule (its design, pieces, nodes and remembered pass: hundreds of MB on a
+        long record); the next evaluation designs it afresh."""
+        self._cuts = self._design = self._profile = self._window_y = None
+        self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
+
     def leading(self, n: int) -> ExactLikelihood:
         """The likelihood of the first ``n`` samples alone, with the same model and options
         (a cheap screen of points far from an estimate: :mod:`jitterid.estimation.checks`).

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..jitter.laws import JitterFamily
+from ..moments.modal import clear_plans
 from .problem import Problem
 from .result import FitStatus
 
@@ -19,6 +20,8 @@ FloatArray = NDArray[np.float64]
 #: A jitter std below this fraction of another scored start's counts as zero jitter (where
 #: the likelihood, even in the scale, has a vanishing gradient).
 _DEGENERATE = 1e-3
+#: records from this many samples free the moment plans before the likelihood's search
+FREE_PLANS_FROM = 100_000
 
 
 def _residual_std(problem: Problem, x0: FloatArray) -> float:
@@ -148,6 +151,10 @@ def run_ml(
     """
     lik = problem.likelihood
     assert lik is not None
+    if problem.data.N >= FREE_PLANS_FROM:
+        # the moment stage's segment plans (~640 MB at N = 1e6) are not used by the
+        # likelihood; what needs the moments later (the checks' model mean) rebuilds them
+        clear_plans()
     starts, nfev = _ml_start(problem, x0)
     x, cost, ok, msg, n = _search(problem, starts[0][1], max_nfev - nfev)
     nfev += n
