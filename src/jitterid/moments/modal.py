@@ -61,7 +61,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import sparse
 
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import Gaussian, JitterLaw
@@ -861,30 +860,15 @@ class _PoleTable:
 def _table_sums(
     pc: PieceChunk, tabs: list[_PoleTable], std: StdTable
 ) -> list[tuple[ComplexArray, ComplexArray] | None]:
-    """sum G and sum H over each piece's standard panels for every factorised pole, as one
-    sparse (pieces x panel numbers) product: the counts of each panel number per piece
-    times the tables."""
-    cols = [(pt.G, pt.H) for pt in tabs if pt.G is not None and pt.H is not None]
-    if not cols:
-        return [None] * len(tabs)
-    npc, R = pc.row.size, std.mid.size
-    counts = sparse.csr_matrix(
-        (
-            np.ones(pc.sp_m.size),
-            pc.sp_m,
-            np.r_[0, np.cumsum(np.bincount(pc.sp_piece, minlength=npc))],
-        ),
-        shape=(npc, R),
-    )
-    sums = counts @ np.column_stack([c for pair in cols for c in pair])
+    """sum G and sum H over each piece's standard panels for every factorised pole: the
+    tables gathered at the panels' numbers and summed per piece (in panel order, as the
+    counts-times-tables product this replaces, without building a sparse matrix)."""
     out: list[tuple[ComplexArray, ComplexArray] | None] = []
-    j = 0
     for pt in tabs:
-        if pt.G is not None and pt.H is not None:
-            out.append((sums[:, 2 * j], sums[:, 2 * j + 1]))
-            j += 1
-        else:
+        if pt.G is None or pt.H is None:
             out.append(None)
+            continue
+        out.append((pt._gsum(pc, pt.G), pt._gsum(pc, pt.H)))
     return out
 
 

@@ -15,7 +15,6 @@ panels, so that memory stays bounded.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
@@ -68,12 +67,18 @@ def _relative_cuts(
     knots = np.asarray(law.breakpoints() if knots is None else knots, dtype=float)
     if limits is None:
         knots = np.unique(knots)
-    pieces = [knots[:1]]
-    for i, (a, b) in enumerate(itertools.pairwise(knots)):
-        lim = max_panel if limits is None else min(max_panel, float(limits[i]))
-        n = max(1, int(np.ceil((b - a) / lim)))
-        pieces.append(np.linspace(a, b, n + 1)[1:])
-    return np.concatenate(pieces)
+    if knots.size < 2:
+        return knots[:1].copy()
+    a, b = knots[:-1], knots[1:]
+    lim = np.full(a.size, max_panel) if limits is None else np.minimum(max_panel, limits[: a.size])
+    n = np.maximum(1, np.ceil((b - a) / lim)).astype(np.int64)
+    # np.linspace(a, b, n + 1)[1:] of every gap at once, with linspace's own arithmetic
+    # (j * step + a, the last point b exactly), so the edges are those of the loop it replaces
+    gap = np.repeat(np.arange(a.size), n)
+    j = np.arange(gap.size) - np.repeat(np.cumsum(n) - n, n) + 1.0
+    out = j * ((b - a) / n)[gap] + a[gap]
+    out[np.cumsum(n) - 1] = b
+    return np.concatenate([knots[:1], out])
 
 
 #: Zones of a Gaussian rule in units of sigma_b and the longest panel in each: the 5-point
