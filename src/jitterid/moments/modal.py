@@ -57,6 +57,7 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -168,8 +169,9 @@ class PieceChunk:
     cn_gw: FloatArray | None = None
     cn_tau: FloatArray | None = None
 
-    @property
+    @cached_property
     def nbytes(self) -> int:
+        # cached: the plan cache sums it over every kept chunk after each evaluation
         arrays = (
             self.row,
             self.owner,

@@ -184,6 +184,26 @@ def panel_layout(law: JitterLaw, poles: ArrayLike, order: int = DEFAULT_ORDER) -
     instead of ~1e6 panels per sample.
     """
     p = np.atleast_1d(np.asarray(poles, dtype=complex))
+    try:  # a law equal by value has the same rule (an unhashable law is not memoised)
+        key = (law, p.tobytes(), order)
+        got = _layouts.get(key)
+    except TypeError:
+        return _panel_layout(law, p, order)
+    if got is None:
+        got = _panel_layout(law, p, order)
+        if len(_layouts) >= _LAYOUTS_KEPT:
+            _layouts.clear()
+        _layouts[key] = got
+    return got
+
+
+#: panel_layout's last results: a search asks for the layout of each new law a few times
+#: (the plan's key, its construction and the plan cache's match)
+_LAYOUTS_KEPT = 16
+_layouts: dict[tuple[JitterLaw, bytes, int], Layout] = {}
+
+
+def _panel_layout(law: JitterLaw, p: NDArray[np.complex128], order: int) -> Layout:
     knots, scale, _ = rule_frame(law)
     width = float(knots[-1] - knots[0]) if knots.size > 1 else 0.0
     if width <= 0 or p.size == 0:
