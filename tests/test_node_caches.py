@@ -83,3 +83,28 @@ def test_table_sums_equal_the_counts_product() -> None:
     assert np.all(np.isfinite(mean))
     assert var is not None
     assert np.all(var >= 0)
+
+
+def test_panel_layout_memo_gives_the_computed_layout() -> None:
+    """The memoised layout of a law equals the one computed afresh for an equal law."""
+    from jitterid.moments.quadrature import _panel_layout, panel_layout
+
+    poles = np.array([-2.0, -300.0 + 40j, -300.0 - 40j])
+    for law in (SumOfUniforms(2.3, 0.4), ji.Gaussian(0.1), ji.Uniform(0.2)):
+        first = panel_layout(law, poles)
+        again = panel_layout(type(law)(**law.params), poles)
+        fresh = _panel_layout(law, np.asarray(poles, complex), 5)
+        for lay in (first, again):
+            assert lay.key == fresh.key
+            assert lay.rate == fresh.rate
+            assert np.array_equal(lay.grade, fresh.grade)
+
+
+def test_wide_window_density_in_one_evaluation() -> None:
+    """The moving-average density of a non-integer n takes both CDF ends from one spline
+    call: the values of two calls."""
+    law = SumOfUniforms(2.6, 0.3)
+    x = -np.abs(np.linspace(-0.31, 0.31, 257))
+    c = law.components[2]
+    two = (law._irwin_hall_cdf(x + c) - law._irwin_hall_cdf(x - c)) / (2.0 * c)
+    assert np.array_equal(law._window_mean(x), two)
