@@ -621,12 +621,12 @@ class SumOfUniforms(JitterLaw):
         m, b = self._m, self._b
         u = (x + m * b) / (2.0 * b)
         inside = (u >= 0.0) & (u <= m)
-        vals = self._spline(np.clip(u, 0.0, float(m)))
+        vals = self._spline(np.minimum(np.maximum(u, 0.0), float(m)))
         return np.where(inside, vals / (2.0 * b), 0.0)
 
     def _irwin_hall_cdf(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         m, b = self._m, self._b
-        u = np.clip((x + m * b) / (2.0 * b), 0.0, float(m))
+        u = np.minimum(np.maximum((x + m * b) / (2.0 * b), 0.0), float(m))
         return np.asarray(self._spline_cdf(u), dtype=float)
 
     def _window_mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:

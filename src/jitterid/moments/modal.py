@@ -113,7 +113,7 @@ class StdTable:
         half = 0.5 * np.diff(rel)
         mid = 0.5 * (rel[:-1] + rel[1:])
         hx = half[:, None] * x[None, :]
-        w = half[:, None] * wx[None, :] * law.pdf(np.clip(mid[:, None] + hx, lo, hi))
+        w = half[:, None] * wx[None, :] * law.pdf(np.minimum(np.maximum(mid[:, None] + hx, lo), hi))
         return cls(hx, w, mid)
 
 
@@ -259,7 +259,7 @@ def _pieces(
     piece = np.cumsum(change) - 1
     starts = np.flatnonzero(change)
     owner = pch.owner[starts]
-    first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    first = np.flatnonzero(np.concatenate(([True], owner[1:] != owner[:-1])))
     if first.size != pch.k1 - pch.k0:
         raise ValueError("every sample needs at least one quadrature node")
     row = run[starts]
@@ -280,7 +280,7 @@ def _pieces(
     tau = (t - ((pch.k0 + pch.owner[cut]) * T)[:, None]).ravel()
     gw = (half[:, None] * wx[None, :]).ravel()
     lo, hi = rule_frame(law)[2]
-    cn_w = gw * law.pdf(np.clip(tau, lo, hi))
+    cn_w = gw * law.pdf(np.minimum(np.maximum(tau, lo), hi))
     cn_piece = np.repeat(piece[cut], order)
     npieces = starts.size
     # Gather indices fit in 32 bits (chunks are small): half the memory of a kept plan.
@@ -382,7 +382,7 @@ class SegmentPlan:
 
     @property
     def key(self) -> bytes:
-        return np.r_[self.edges, np.nan, self.grade].tobytes()
+        return np.concatenate((self.edges, [np.nan], self.grade)).tobytes()
 
     def _same_rule(self, law: JitterLaw) -> bool:
         """Whether ``law`` has this plan's nodes: the same law, or a Gaussian of the same band

@@ -166,7 +166,7 @@ class Layout:
     @property
     def key(self) -> bytes:
         """Equal for layouts with the same rule (rates below the law's scale do not matter)."""
-        return np.r_[self.limit, self.grade].tobytes()
+        return np.concatenate(([self.limit], self.grade)).tobytes()
 
 
 def panel_layout(law: JitterLaw, poles: ArrayLike, order: int = DEFAULT_ORDER) -> Layout:
@@ -214,9 +214,9 @@ def _panel_layout(law: JitterLaw, p: NDArray[np.complex128], order: int) -> Layo
     L0 = min(width, scale) if scale > 0 else width
     mag, damp = np.abs(p), -p.real
     fast = (mag * L0 > _GRADE_FROM) & (damp >= _GRADE_DAMPING * mag)
-    rate = float(np.max(mag[~fast])) if np.any(~fast) else 0.0
+    rate = float(np.max(mag[~fast])) if not fast.all() else 0.0
     limit = min(L0, 1.0 / rate) if rate > 0 else L0
-    if not np.any(fast):
+    if not fast.any():
         return Layout(rate, np.zeros(0), limit)
     lam = 2.0 ** (np.ceil(2 * np.log2(float(np.max(mag[fast])))) / 2)
     a = 2.0 ** (np.floor(2 * np.log2(float(np.min(damp[fast])))) / 2)
@@ -255,7 +255,7 @@ def _window_cuts(
     )
     b_hi = np.searchsorted(breaks, g1, side="left")
     nb = np.maximum(b_hi - b_lo, 0)
-    offs = np.r_[0.0, grade]
+    offs = np.concatenate(([0.0], grade))
     total = int(nb.sum())
     if total:
         own = np.repeat(np.arange(n), nb)
@@ -268,10 +268,10 @@ def _window_cuts(
             order = np.lexsort((v, own))
             v, own = v[order], own[order]
         if v.size > 1:  # drop exact duplicates within a sample
-            keep = np.r_[True, (v[1:] != v[:-1]) | (own[1:] != own[:-1])]
+            keep = np.concatenate(([True], (v[1:] != v[:-1]) | (own[1:] != own[:-1])))
             v, own = v[keep], own[keep]
         # m: how many of the sample's standard edges lie below the cut (exactly, in absolute time)
-        m = np.clip(np.searchsorted(rel, v - kt[own]), 1, R1 - 1)
+        m = np.minimum(np.maximum(np.searchsorted(rel, v - kt[own]), 1), R1 - 1)
         m = np.where(grid[own, m - 1] >= v, m - 1, m)
         m = np.where((m < R1) & (grid[own, np.minimum(m, R1 - 1)] < v), m + 1, m)
         keep = grid[own, np.minimum(m, R1 - 1)] != v  # a cut on a standard edge adds nothing
