@@ -108,3 +108,20 @@ def test_wide_window_density_in_one_evaluation() -> None:
     c = law.components[2]
     two = (law._irwin_hall_cdf(x + c) - law._irwin_hall_cdf(x - c)) / (2.0 * c)
     assert np.array_equal(law._window_mean(x), two)
+
+
+def test_unique_skips_the_sort_only_when_already_unique() -> None:
+    """The switch times and knots skip np.unique's sort when they increase strictly; any
+    other array gets np.unique itself."""
+    from jitterid.moments.quadrature import _unique
+
+    rng = np.random.default_rng(11)
+    for a in (
+        np.sort(rng.uniform(0, 100, 50)),
+        rng.uniform(0, 100, 50),
+        np.repeat(np.arange(5.0), 2),
+        np.array([1.0]),
+        np.zeros(0),
+        np.array([0.0, np.nan, 1.0]),
+    ):
+        assert np.array_equal(_unique(a), np.unique(a), equal_nan=True)

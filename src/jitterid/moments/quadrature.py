@@ -50,6 +50,14 @@ class NodeChunk:
         return np.asarray(sums, dtype=np.float64)
 
 
+def _unique(a: FloatArray) -> FloatArray:
+    """np.unique of a 1-D array, without its sort when ``a`` already increases strictly
+    (the input's switch times and a law's knots, at every evaluation)."""
+    if a.ndim == 1 and (a.size < 2 or bool((a[1:] > a[:-1]).all())):
+        return a
+    return np.unique(a)
+
+
 @lru_cache(maxsize=64)
 def _gauss_legendre(order: int) -> tuple[FloatArray, FloatArray]:
     x, w = np.polynomial.legendre.leggauss(order)
@@ -66,7 +74,7 @@ def _relative_cuts(
     ``limits[i]`` between knots i and i + 1)."""
     knots = np.asarray(law.breakpoints() if knots is None else knots, dtype=float)
     if limits is None:
-        knots = np.unique(knots)
+        knots = _unique(knots)
     if knots.size < 2:
         return knots[:1].copy()
     a, b = knots[:-1], knots[1:]
@@ -356,7 +364,7 @@ def jitter_nodes(
     lo, hi = rule_frame(law)[2]
     grade = np.zeros(0) if grade is None else np.asarray(grade, dtype=float)
     x, wx = _gauss_legendre(order)
-    breaks = np.unique(np.asarray(breaks, dtype=float))
+    breaks = _unique(np.asarray(breaks, dtype=float))
     std_half = 0.5 * np.diff(rel)
     std_pdf = None
     if shared_pdf:
@@ -433,7 +441,7 @@ def jitter_panels(
     """The panels of :func:`jitter_nodes` (standard edges ``rel``), chunk by chunk."""
     del law  # the rule depends on the law through ``rel`` only
     grade = np.zeros(0) if grade is None else np.asarray(grade, dtype=float)
-    breaks = np.unique(np.asarray(breaks, dtype=float))
+    breaks = _unique(np.asarray(breaks, dtype=float))
     yield from _panels(rel, breaks, grade, T, N, _step(rel, breaks, grade, T, chunk))
 
 
