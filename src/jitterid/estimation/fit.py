@@ -18,9 +18,9 @@ from functools import partial
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
 
 from .._checks import real_array
+from .._threads import single_thread
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..moments.modal import clear_plans
@@ -269,7 +269,7 @@ def fit(
     """
     # Small complex BLAS calls (Cholesky, matmul) run ~100x slower multi-threaded here;
     # one thread is faster, and parallelism belongs to the Monte Carlo level.
-    with threadpool_limits(limits=1, user_api="blas"):
+    with single_thread("blas"):
         return _fit(
             data,
             system,

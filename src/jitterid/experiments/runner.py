@@ -39,10 +39,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from .. import finite_diff
+from .._threads import single_thread
 from ..estimation.bounds import crb
 from ..estimation.fit import fit
 from ..estimation.result import FitResult
@@ -130,7 +130,7 @@ def realize(
     t0 = time.perf_counter()
     case = exp.cases[case_index]
     rng = np.random.default_rng(stream)
-    with threadpool_limits(limits=1):
+    with single_thread():
         u = exp.input.build(exp.duration, rng)
         noise = exp.noise.true_model() if exp.noise is not None else None
         data = simulate(
@@ -280,7 +280,7 @@ def _bound_row(exp: Experiment, case_index: int, realization: int, u: Input) -> 
     jpar = dict(case.law.params) if family else {}
     names = [*jpar, *truth]
     x = np.array([*jpar.values(), *truth.values()], dtype=float)
-    with threadpool_limits(limits=1):
+    with single_thread():
         bound = crb(exp.system.model(), jitter, u, exp.T, exp.N, exp.noise_std, x)
     stderr = dict(zip(names, np.sqrt(np.diag(bound)).tolist(), strict=True))
     if family:

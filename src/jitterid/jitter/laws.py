@@ -29,6 +29,7 @@ import abc
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any, ClassVar
 
 import numpy as np
@@ -491,6 +492,21 @@ class Gaussian(JitterLaw):
         return {"sigma": self.sigma}
 
 
+@lru_cache(maxsize=64)
+def _cardinal_bspline(m: int) -> tuple[BSpline, BSpline]:
+    """The cardinal B-spline of degree m - 1 on knots 0..m and its antiderivative: the same
+    for every law with m equal uniforms, so built once per m (a search over (n, a) makes a
+    law at every step)."""
+    spline = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
+    return spline, spline.antiderivative()
+
+
+@lru_cache(maxsize=64)
+def _leggauss(q: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    x, w = leggauss(q)
+    return x, w
+
+
 @dataclass(frozen=True)
 class SumOfUniforms(JitterLaw):
     """The paper's jitter family (26), for real ``n`` in ``[0, 50]``.
@@ -558,6 +574,7 @@ class SumOfUniforms(JitterLaw):
     _c: float = field(init=False, repr=False, compare=False)
     _spline: BSpline = field(init=False, repr=False, compare=False)
     _spline_cdf: BSpline = field(init=False, repr=False, compare=False)
+    _knots: NDArray[np.float64] | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = _checks.positive(self.n, "n", allow_zero=True)
@@ -582,9 +599,10 @@ class SumOfUniforms(JitterLaw):
         object.__setattr__(self, "_m", m)
         object.__setattr__(self, "_b", b)
         object.__setattr__(self, "_c", c)
-        spline = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
+        spline, spline_cdf = _cardinal_bspline(m)
         object.__setattr__(self, "_spline", spline)
-        object.__setattr__(self, "_spline_cdf", spline.antiderivative())
+        object.__setattr__(self, "_spline_cdf", spline_cdf)
+        object.__setattr__(self, "_knots", None)
 
     @property
     def components(self) -> tuple[int, float, float]:
@@ -603,25 +621,27 @@ class SumOfUniforms(JitterLaw):
         m, b = self._m, self._b
         u = (x + m * b) / (2.0 * b)
         inside = (u >= 0.0) & (u <= m)
-        vals = self._spline(np.clip(u, 0.0, float(m)))
+        vals = self._spline(np.minimum(np.maximum(u, 0.0), float(m)))
         return np.where(inside, vals / (2.0 * b), 0.0)
 
     def _irwin_hall_cdf(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         m, b = self._m, self._b
-        u = np.clip((x + m * b) / (2.0 * b), 0.0, float(m))
+        u = np.minimum(np.maximum((x + m * b) / (2.0 * b), 0.0), float(m))
         return np.asarray(self._spline_cdf(u), dtype=float)
 
     def _window_mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """``(1 / 2c) int_{x-c}^{x+c} p_m(s) ds`` for a 1-D array ``x <= 0``."""
         m, b, c = self._m, self._b, self._c
         if c >= _WIDE_WINDOW * b:
-            return (self._irwin_hall_cdf(x + c) - self._irwin_hall_cdf(x - c)) / (2.0 * c)
+            # both ends in one spline evaluation (elementwise: the same values as two)
+            cdf = self._irwin_hall_cdf(np.concatenate([x + c, x - c]))
+            return (cdf[: x.size] - cdf[x.size :]) / (2.0 * c)
         # the only knot of p_m that can lie in [x - c, x + c] is the one nearest to x (c < b);
         # work with offsets from x so that tiny windows (c << |x|) lose no precision
         knot = -m * b + 2.0 * b * np.clip(np.round((x + m * b) / (2.0 * b)), 0, m)
         d = np.clip(knot - x, -c, c)
         q = m // 2 + 1  # Gauss-Legendre with q nodes is exact for degree 2q - 1 >= m - 1
-        g, w = leggauss(q)
+        g, w = _leggauss(q)
         total = np.zeros_like(x)
         for start, length in ((np.full_like(d, -c), c + d), (d, c - d)):
             half = 0.5 * length
@@ -661,6 +681,13 @@ class SumOfUniforms(JitterLaw):
         return (-self.a, self.a)
 
     def breakpoints(self) -> NDArray[np.float64]:
+        # computed once per law (the quadrature asks for them several times per evaluation)
+        if self._knots is None:
+            object.__setattr__(self, "_knots", self._breakpoints())
+        assert self._knots is not None
+        return self._knots.copy()
+
+    def _breakpoints(self) -> NDArray[np.float64]:
         m, b, c = self._m, self._b, self._c
         knots = -m * b + 2.0 * b * np.arange(m + 1.0)
         pts = np.concatenate([knots - c, knots + c]) if c > 0.0 else knots

@@ -57,11 +57,11 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import sparse
 
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import Gaussian, JitterLaw
@@ -113,7 +113,7 @@ class StdTable:
         half = 0.5 * np.diff(rel)
         mid = 0.5 * (rel[:-1] + rel[1:])
         hx = half[:, None] * x[None, :]
-        w = half[:, None] * wx[None, :] * law.pdf(np.clip(mid[:, None] + hx, lo, hi))
+        w = half[:, None] * wx[None, :] * law.pdf(np.minimum(np.maximum(mid[:, None] + hx, lo), hi))
         return cls(hx, w, mid)
 
 
@@ -169,8 +169,9 @@ class PieceChunk:
     cn_gw: FloatArray | None = None
     cn_tau: FloatArray | None = None
 
-    @property
+    @cached_property
     def nbytes(self) -> int:
+        # cached: the plan cache sums it over every kept chunk after each evaluation
         arrays = (
             self.row,
             self.owner,
@@ -258,7 +259,7 @@ def _pieces(
     piece = np.cumsum(change) - 1
     starts = np.flatnonzero(change)
     owner = pch.owner[starts]
-    first = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    first = np.flatnonzero(np.concatenate(([True], owner[1:] != owner[:-1])))
     if first.size != pch.k1 - pch.k0:
         raise ValueError("every sample needs at least one quadrature node")
     row = run[starts]
@@ -279,7 +280,7 @@ def _pieces(
     tau = (t - ((pch.k0 + pch.owner[cut]) * T)[:, None]).ravel()
     gw = (half[:, None] * wx[None, :]).ravel()
     lo, hi = rule_frame(law)[2]
-    cn_w = gw * law.pdf(np.clip(tau, lo, hi))
+    cn_w = gw * law.pdf(np.minimum(np.maximum(tau, lo), hi))
     cn_piece = np.repeat(piece[cut], order)
     npieces = starts.size
     # Gather indices fit in 32 bits (chunks are small): half the memory of a kept plan.
@@ -381,7 +382,7 @@ class SegmentPlan:
 
     @property
     def key(self) -> bytes:
-        return np.r_[self.edges, np.nan, self.grade].tobytes()
+        return np.concatenate((self.edges, [np.nan], self.grade)).tobytes()
 
     def _same_rule(self, law: JitterLaw) -> bool:
         """Whether ``law`` has this plan's nodes: the same law, or a Gaussian of the same band
@@ -861,30 +862,15 @@ class _PoleTable:
 def _table_sums(
     pc: PieceChunk, tabs: list[_PoleTable], std: StdTable
 ) -> list[tuple[ComplexArray, ComplexArray] | None]:
-    """sum G and sum H over each piece's standard panels for every factorised pole, as one
-    sparse (pieces x panel numbers) product: the counts of each panel number per piece
-    times the tables."""
-    cols = [(pt.G, pt.H) for pt in tabs if pt.G is not None and pt.H is not None]
-    if not cols:
-        return [None] * len(tabs)
-    npc, R = pc.row.size, std.mid.size
-    counts = sparse.csr_matrix(
-        (
-            np.ones(pc.sp_m.size),
-            pc.sp_m,
-            np.r_[0, np.cumsum(np.bincount(pc.sp_piece, minlength=npc))],
-        ),
-        shape=(npc, R),
-    )
-    sums = counts @ np.column_stack([c for pair in cols for c in pair])
+    """sum G and sum H over each piece's standard panels for every factorised pole: the
+    tables gathered at the panels' numbers and summed per piece (in panel order, as the
+    counts-times-tables product this replaces, without building a sparse matrix)."""
     out: list[tuple[ComplexArray, ComplexArray] | None] = []
-    j = 0
     for pt in tabs:
-        if pt.G is not None and pt.H is not None:
-            out.append((sums[:, 2 * j], sums[:, 2 * j + 1]))
-            j += 1
-        else:
+        if pt.G is None or pt.H is None:
             out.append(None)
+            continue
+        out.append((pt._gsum(pc, pt.G), pt._gsum(pc, pt.H)))
     return out
 
 

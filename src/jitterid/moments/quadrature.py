@@ -15,7 +15,6 @@ panels, so that memory stays bounded.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
@@ -51,6 +50,14 @@ class NodeChunk:
         return np.asarray(sums, dtype=np.float64)
 
 
+def _unique(a: FloatArray) -> FloatArray:
+    """np.unique of a 1-D array, without its sort when ``a`` already increases strictly
+    (the input's switch times and a law's knots, at every evaluation)."""
+    if a.ndim == 1 and (a.size < 2 or bool((a[1:] > a[:-1]).all())):
+        return a
+    return np.unique(a)
+
+
 @lru_cache(maxsize=64)
 def _gauss_legendre(order: int) -> tuple[FloatArray, FloatArray]:
     x, w = np.polynomial.legendre.leggauss(order)
@@ -67,13 +74,19 @@ def _relative_cuts(
     ``limits[i]`` between knots i and i + 1)."""
     knots = np.asarray(law.breakpoints() if knots is None else knots, dtype=float)
     if limits is None:
-        knots = np.unique(knots)
-    pieces = [knots[:1]]
-    for i, (a, b) in enumerate(itertools.pairwise(knots)):
-        lim = max_panel if limits is None else min(max_panel, float(limits[i]))
-        n = max(1, int(np.ceil((b - a) / lim)))
-        pieces.append(np.linspace(a, b, n + 1)[1:])
-    return np.concatenate(pieces)
+        knots = _unique(knots)
+    if knots.size < 2:
+        return knots[:1].copy()
+    a, b = knots[:-1], knots[1:]
+    lim = np.full(a.size, max_panel) if limits is None else np.minimum(max_panel, limits[: a.size])
+    n = np.maximum(1, np.ceil((b - a) / lim)).astype(np.int64)
+    # np.linspace(a, b, n + 1)[1:] of every gap at once, with linspace's own arithmetic
+    # (j * step + a, the last point b exactly), so the edges are those of the loop it replaces
+    gap = np.repeat(np.arange(a.size), n)
+    j = np.arange(gap.size) - np.repeat(np.cumsum(n) - n, n) + 1.0
+    out = j * ((b - a) / n)[gap] + a[gap]
+    out[np.cumsum(n) - 1] = b
+    return np.concatenate([knots[:1], out])
 
 
 #: Zones of a Gaussian rule in units of sigma_b and the longest panel in each: the 5-point
@@ -161,7 +174,7 @@ class Layout:
     @property
     def key(self) -> bytes:
         """Equal for layouts with the same rule (rates below the law's scale do not matter)."""
-        return np.r_[self.limit, self.grade].tobytes()
+        return np.concatenate(([self.limit], self.grade)).tobytes()
 
 
 def panel_layout(law: JitterLaw, poles: ArrayLike, order: int = DEFAULT_ORDER) -> Layout:
@@ -179,6 +192,26 @@ def panel_layout(law: JitterLaw, poles: ArrayLike, order: int = DEFAULT_ORDER) -
     instead of ~1e6 panels per sample.
     """
     p = np.atleast_1d(np.asarray(poles, dtype=complex))
+    try:  # a law equal by value has the same rule (an unhashable law is not memoised)
+        key = (law, p.tobytes(), order)
+        got = _layouts.get(key)
+    except TypeError:
+        return _panel_layout(law, p, order)
+    if got is None:
+        got = _panel_layout(law, p, order)
+        if len(_layouts) >= _LAYOUTS_KEPT:
+            _layouts.clear()
+        _layouts[key] = got
+    return got
+
+
+#: panel_layout's last results: a search asks for the layout of each new law a few times
+#: (the plan's key, its construction and the plan cache's match)
+_LAYOUTS_KEPT = 16
+_layouts: dict[tuple[JitterLaw, bytes, int], Layout] = {}
+
+
+def _panel_layout(law: JitterLaw, p: NDArray[np.complex128], order: int) -> Layout:
     knots, scale, _ = rule_frame(law)
     width = float(knots[-1] - knots[0]) if knots.size > 1 else 0.0
     if width <= 0 or p.size == 0:
@@ -189,9 +222,9 @@ def panel_layout(law: JitterLaw, poles: ArrayLike, order: int = DEFAULT_ORDER) -
     L0 = min(width, scale) if scale > 0 else width
     mag, damp = np.abs(p), -p.real
     fast = (mag * L0 > _GRADE_FROM) & (damp >= _GRADE_DAMPING * mag)
-    rate = float(np.max(mag[~fast])) if np.any(~fast) else 0.0
+    rate = float(np.max(mag[~fast])) if not fast.all() else 0.0
     limit = min(L0, 1.0 / rate) if rate > 0 else L0
-    if not np.any(fast):
+    if not fast.any():
         return Layout(rate, np.zeros(0), limit)
     lam = 2.0 ** (np.ceil(2 * np.log2(float(np.max(mag[fast])))) / 2)
     a = 2.0 ** (np.floor(2 * np.log2(float(np.min(damp[fast])))) / 2)
@@ -230,7 +263,7 @@ def _window_cuts(
     )
     b_hi = np.searchsorted(breaks, g1, side="left")
     nb = np.maximum(b_hi - b_lo, 0)
-    offs = np.r_[0.0, grade]
+    offs = np.concatenate(([0.0], grade))
     total = int(nb.sum())
     if total:
         own = np.repeat(np.arange(n), nb)
@@ -243,10 +276,10 @@ def _window_cuts(
             order = np.lexsort((v, own))
             v, own = v[order], own[order]
         if v.size > 1:  # drop exact duplicates within a sample
-            keep = np.r_[True, (v[1:] != v[:-1]) | (own[1:] != own[:-1])]
+            keep = np.concatenate(([True], (v[1:] != v[:-1]) | (own[1:] != own[:-1])))
             v, own = v[keep], own[keep]
         # m: how many of the sample's standard edges lie below the cut (exactly, in absolute time)
-        m = np.clip(np.searchsorted(rel, v - kt[own]), 1, R1 - 1)
+        m = np.minimum(np.maximum(np.searchsorted(rel, v - kt[own]), 1), R1 - 1)
         m = np.where(grid[own, m - 1] >= v, m - 1, m)
         m = np.where((m < R1) & (grid[own, np.minimum(m, R1 - 1)] < v), m + 1, m)
         keep = grid[own, np.minimum(m, R1 - 1)] != v  # a cut on a standard edge adds nothing
@@ -331,7 +364,7 @@ def jitter_nodes(
     lo, hi = rule_frame(law)[2]
     grade = np.zeros(0) if grade is None else np.asarray(grade, dtype=float)
     x, wx = _gauss_legendre(order)
-    breaks = np.unique(np.asarray(breaks, dtype=float))
+    breaks = _unique(np.asarray(breaks, dtype=float))
     std_half = 0.5 * np.diff(rel)
     std_pdf = None
     if shared_pdf:
@@ -408,7 +441,7 @@ def jitter_panels(
     """The panels of :func:`jitter_nodes` (standard edges ``rel``), chunk by chunk."""
     del law  # the rule depends on the law through ``rel`` only
     grade = np.zeros(0) if grade is None else np.asarray(grade, dtype=float)
-    breaks = np.unique(np.asarray(breaks, dtype=float))
+    breaks = _unique(np.asarray(breaks, dtype=float))
     yield from _panels(rel, breaks, grade, T, N, _step(rel, breaks, grade, T, chunk))
 
 
