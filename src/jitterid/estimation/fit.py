@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from .._checks import real_array
+from .._memory import trim
 from .._threads import single_thread
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
@@ -541,6 +542,7 @@ def _fit(
             problem.likelihood.release()
             if data.N >= FREE_PLANS_FROM:  # and the moment plans of the checks (~0.5 GB)
                 clear_plans()
+                trim()
         problem = Problem(
             orig_data,
             structure,

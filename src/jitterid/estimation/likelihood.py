@@ -93,6 +93,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
 from .._checks import count, positive, real_array
+from .._memory import trim
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
@@ -132,6 +133,7 @@ _WINDOW_SIGMA_STEP = 0.25  # a noise std below this fraction of the design's is 
 _WINDOW_SIGMA_REDESIGN = 0.8  # ... below this fraction (or above its inverse): re-designed
 _FAR, _FAR_FRACTION = 10.0, 0.25  # the windowed rule gives way to the full one (_far)
 _SPARE_DESIGNS = 2  # earlier windowed designs kept (a check far off, then back)
+_TRIM_FROM = 100_000  # records from this many samples return freed pages after a design
 _WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby scales)
 _WINDOW_EXTRA_ORDER = 4  # Gauss-Legendre nodes per piece: order + this (pieces span 4 sigma
 #                          of the Gaussian factor by a tight slope bound; near an extremum of
@@ -1067,6 +1069,8 @@ class ExactLikelihood:
             self._cuts = _panel_cuts(self._profile, sigma, self.panel)
             check_likelihood(self, law, sig)
             return _Rule(lambda: self._make_nodes(law, sig), (), budget)
+        if self.N >= _TRIM_FROM:  # the build's temporaries: pages back to the system
+            trim()
         n_pieces = sum(pc.owner.size for pc in pieces)
         n_nodes = sum(float(np.sum(pc.nodes, dtype=float)) for pc in pieces)
         check_likelihood(self, law, sig, n_nodes, n_pieces)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .._memory import trim
 from ..jitter.laws import JitterFamily
 from ..moments.modal import clear_plans
 from .problem import Problem
@@ -155,6 +156,7 @@ def run_ml(
         # the moment stage's segment plans (~640 MB at N = 1e6) are not used by the
         # likelihood; what needs the moments later (the checks' model mean) rebuilds them
         clear_plans()
+        trim()
     starts, nfev = _ml_start(problem, x0)
     x, cost, ok, msg, n = _search(problem, starts[0][1], max_nfev - nfev)
     nfev += n
