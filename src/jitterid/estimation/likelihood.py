@@ -117,7 +117,8 @@ DEFAULT_ORDER = 8  # Gauss-Legendre nodes per panel
 DEFAULT_PANEL = 4.0  # panel length <= DEFAULT_PANEL * sigma_v / local max |s'|
 _SLOPE_SAFETY = 1.25
 _PANEL_BUDGET = 20_000_000  # refuse rules with more panels (memory and time)
-_CHUNK = 1024  # samples per node chunk
+_CHUNK = 1024  # samples per node chunk (the full rule: fewer where a sample has many nodes,
+#                 so that a chunk holds at most resources.CHUNK_NODES of them)
 NODE_BUDGET = 8_000_000  # nodes kept in memory between evaluations (~0.4 GB); more: streamed
 _Y_STEP = 0.5  # y-grid spacing of (L3) in units of sigma_v
 _Y_TAIL = 9.0  # y-grid margin in units of sigma_v
@@ -826,6 +827,7 @@ class ExactLikelihood:
     node_budget: int = NODE_BUDGET
     layout: ParamLayout = field(init=False, repr=False)
     _cuts: FloatArray | None = field(init=False, default=None, repr=False)
+    _chunk: int = field(init=False, default=_CHUNK, repr=False)  # samples per full-rule chunk
     _profile: _SlopeProfile | None = field(init=False, default=None, repr=False)
     _design: tuple[Signal, float] | None = field(init=False, default=None, repr=False)
     _window_y: FloatArray | None = field(init=False, default=None, repr=False)
@@ -960,7 +962,7 @@ class ExactLikelihood:
             self._design = (sig, sigma)
         else:
             self._cuts = _panel_cuts(profile, sigma, self.panel)
-            check_likelihood(self, law, sig)  # the rule's memory, before any node is built
+            self._chunk = check_likelihood(self, law, sig)  # its memory, before any node
         self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
 
     def _windowed(
@@ -1007,7 +1009,7 @@ class ExactLikelihood:
             if y is None:  # the full rule, not cached
                 if self._cuts is None:
                     self._cuts = _panel_cuts(self._profile, self._design[1], self.panel)
-                    check_likelihood(self, law, sig)
+                    self._chunk = check_likelihood(self, law, sig)
                 return self._rule(law, sig, None)
             if self._window_y is None or not np.array_equal(self._window_y, y):
                 self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
@@ -1067,7 +1069,7 @@ class ExactLikelihood:
             sigma = self._design[1]
             self._design, self._pieces, self._spares, self._memo = None, None, [], None
             self._cuts = _panel_cuts(self._profile, sigma, self.panel)
-            check_likelihood(self, law, sig)
+            self._chunk = check_likelihood(self, law, sig)
             return _Rule(lambda: self._make_nodes(law, sig), (), budget)
         if self.N >= _TRIM_FROM:  # the build's temporaries: pages back to the system
             trim()
@@ -1186,7 +1188,7 @@ class ExactLikelihood:
             breaks,
             sig.rate,
             order=self.order,
-            chunk=_CHUNK,
+            chunk=self._chunk,
             shared_pdf=True,
         ):
             w = ch.w

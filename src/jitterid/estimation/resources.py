@@ -22,7 +22,8 @@ Two estimates, each where its cost is known:
   ``KEPT_FRACTION`` of the budget) and streams a larger rule chunk by chunk
   (``STREAM_BYTES`` per node of a chunk); the node count is known from the full rule's
   cuts (:func:`jitterid.moments.quadrature.panels_per_sample`) or the windowed rule's
-  pieces (``PIECE_BYTES`` each), :func:`likelihood_bytes`.
+  pieces (``PIECE_BYTES`` each), :func:`likelihood_bytes`; it returns the full rule's
+  samples per chunk (:func:`chunk_samples`: at most ``CHUNK_NODES`` nodes each).
 
 The constants are measured (peak resident memory over the fit, minus that before it;
 ``benchmarks``-style runs on a 2-core machine, November 2026) and rounded up:
@@ -71,6 +72,8 @@ LIKELIHOOD_SECONDS = 8e-6
 #: bytes per node of one chunk of a streamed evaluation (its temporaries; ~530 measured with
 #: tracemalloc on Table 2's setting, scores and information)
 STREAM_BYTES = 600.0
+#: most nodes in one chunk of the full rule (its temporaries: ~150 MB at STREAM_BYTES)
+CHUNK_NODES = 262_144
 #: bytes per piece of the windowed rule (ends, owner, node count, design value: 29)
 PIECE_BYTES = 32.0
 #: at most this fraction of the memory budget holds a rule's nodes between evaluations
@@ -211,25 +214,32 @@ def kept_nodes(node_budget: int, family: bool) -> int:
     return int(min(node_budget, KEPT_FRACTION * memory_budget() / per))
 
 
-def likelihood_bytes(
-    nodes: float, N: int, family: bool, pieces: float = 0.0, chunk: int = 1024
-) -> float:
+def chunk_samples(nodes: float, N: int, chunk: int = 1024) -> int:
+    """Samples per chunk of the full rule: ``chunk``, or fewer so that a chunk holds at most
+    ``CHUNK_NODES`` nodes (at least one sample)."""
+    per_sample = nodes / max(N, 1)
+    return int(max(1, min(chunk, CHUNK_NODES // max(per_sample, 1.0))))
+
+
+def likelihood_bytes(nodes: float, N: int, family: bool, pieces: float = 0.0) -> float:
     """Memory of the exact likelihood with ``nodes`` quadrature nodes over N samples: the
-    nodes kept (at most :func:`kept_nodes` of them), one streamed chunk's temporaries, the
-    windowed rule's ``pieces``, and the per-sample outputs (ln p, scores)."""
+    nodes kept (at most :func:`kept_nodes` of them), one streamed chunk's temporaries
+    (:func:`chunk_samples`), the windowed rule's ``pieces``, and the per-sample outputs
+    (ln p, scores)."""
     per = LIKELIHOOD_FAMILY_BYTES if family else LIKELIHOOD_BYTES
     kept = min(nodes, KEPT_FRACTION * memory_budget() / per)
-    chunk_nodes = nodes * min(1.0, chunk / max(N, 1))
+    chunk_nodes = min(nodes, chunk_samples(nodes, N) * max(nodes / max(N, 1), 1.0))
     return per * kept + STREAM_BYTES * chunk_nodes + PIECE_BYTES * pieces + 64.0 * N
 
 
 def check_likelihood(
     lik: object, law: JitterLaw, resp: Signal, nodes: float | None = None, pieces: float = 0.0
-) -> None:
+) -> int:
     """Refuse a designed likelihood rule (``lik``, an
     :class:`~jitterid.estimation.likelihood.ExactLikelihood`, for the signal ``resp``) whose
     memory (:func:`likelihood_bytes`) would exceed the budget: the full rule from its slope
-    cuts, or the windowed rule from its ``nodes`` and ``pieces``."""
+    cuts, or the windowed rule from its ``nodes`` and ``pieces``. Returns the samples per
+    chunk of the full rule (:func:`chunk_samples`)."""
     N, T = lik.N, lik.T  # type: ignore[attr-defined]
     if nodes is None:
         cuts = lik._cuts  # type: ignore[attr-defined]
@@ -244,3 +254,4 @@ def check_likelihood(
         LIKELIHOOD_SECONDS * nodes,
         _ml_fix(),
     )
+    return chunk_samples(nodes, N)
