@@ -20,11 +20,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from .._checks import real_array
-from .._memory import trim
 from .._threads import single_thread
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
-from ..moments.modal import clear_plans
 from ..noise.models import NoiseModel, NoiseStructure
 from ..systems.model import Model
 from ..systems.structures import ModelStructure, as_structure
@@ -41,7 +39,7 @@ from .checks import (
 )
 from .covariance import covariance, noise_variance_ml
 from .estimators import Estimator, as_estimator
-from .ml import FREE_PLANS_FROM, run_ml
+from .ml import free_moment_plans, run_ml
 from .problem import (
     Problem,
     default_frequencies,
@@ -540,9 +538,7 @@ def _fit(
         problem.release()
         if problem.likelihood is not None:  # its rule, before the next one is designed
             problem.likelihood.release()
-            if data.N >= FREE_PLANS_FROM:  # and the moment plans of the checks (~0.5 GB)
-                clear_plans()
-                trim()
+            free_moment_plans(data.N)  # and the moment plans of the checks
         problem = Problem(
             orig_data,
             structure,

@@ -887,7 +887,18 @@ class ExactLikelihood:
         """Drop the rule (its design, pieces, nodes and remembered pass: hundreds of MB on a
         long record); the next evaluation designs it afresh."""
         self._cuts = self._design = self._profile = self._window_y = None
+        self._forget()
+
+    def _forget(self) -> None:
+        """Drop what was made under the current design: the rules, the pieces kept for
+        nearby scales, the spare designs and the remembered pass."""
         self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
+
+    def _full_cuts(self, law: JitterLaw, sig: Signal, sigma: float) -> None:
+        """The full rule's slope cuts for noise std ``sigma``, and its chunk size, once its
+        memory is checked (before any node is built)."""
+        self._cuts = _panel_cuts(self._profile, sigma, self.panel)
+        self._chunk = check_likelihood(self, law, sig)
 
     def leading(self, n: int) -> ExactLikelihood:
         """The likelihood of the first ``n`` samples alone, with the same model and options
@@ -961,9 +972,8 @@ class ExactLikelihood:
         if self._windowed(profile, law, sig, sigma, span):
             self._design = (sig, sigma)
         else:
-            self._cuts = _panel_cuts(profile, sigma, self.panel)
-            self._chunk = check_likelihood(self, law, sig)  # its memory, before any node
-        self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
+            self._full_cuts(law, sig, sigma)
+        self._forget()
 
     def _windowed(
         self,
@@ -1008,11 +1018,10 @@ class ExactLikelihood:
         if self._design is not None:
             if y is None:  # the full rule, not cached
                 if self._cuts is None:
-                    self._cuts = _panel_cuts(self._profile, self._design[1], self.panel)
-                    self._chunk = check_likelihood(self, law, sig)
+                    self._full_cuts(law, sig, self._design[1])
                 return self._rule(law, sig, None)
             if self._window_y is None or not np.array_equal(self._window_y, y):
-                self._cache, self._pieces, self._spares, self._memo = {}, None, [], None
+                self._forget()
                 self._window_y = np.array(y, dtype=float)
         key = (*x[: self.n_jitter], law.mean)  # a delay shifts the law (Delayed)
         windowed = self._design is not None and y is not None
@@ -1068,8 +1077,7 @@ class ExactLikelihood:
             # step of a search; the full rule, frozen, keeps the criterion smooth there
             sigma = self._design[1]
             self._design, self._pieces, self._spares, self._memo = None, None, [], None
-            self._cuts = _panel_cuts(self._profile, sigma, self.panel)
-            self._chunk = check_likelihood(self, law, sig)
+            self._full_cuts(law, sig, sigma)
             return _Rule(lambda: self._make_nodes(law, sig), (), budget)
         if self.N >= _TRIM_FROM:  # the build's temporaries: pages back to the system
             trim()

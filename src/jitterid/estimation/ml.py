@@ -25,6 +25,15 @@ _DEGENERATE = 1e-3
 FREE_PLANS_FROM = 100_000
 
 
+def free_moment_plans(N: int) -> None:
+    """On a record of at least ``FREE_PLANS_FROM`` samples, drop the moments' segment plans
+    (~640 MB at N = 1e6) and return the freed pages to the system; what needs the moments
+    later (the checks' model mean) rebuilds them."""
+    if N >= FREE_PLANS_FROM:
+        clear_plans()
+        trim()
+
+
 def _residual_std(problem: Problem, x0: FloatArray) -> float:
     """The jitter std that explains the output-error residual variance at x0's system:
     Var(y_k - s(kT)) ~ E[s'(kT)^2] sigma_tau^2 + sigma_v^2 (first order in the jitter)."""
@@ -152,11 +161,7 @@ def run_ml(
     """
     lik = problem.likelihood
     assert lik is not None
-    if problem.data.N >= FREE_PLANS_FROM:
-        # the moment stage's segment plans (~640 MB at N = 1e6) are not used by the
-        # likelihood; what needs the moments later (the checks' model mean) rebuilds them
-        clear_plans()
-        trim()
+    free_moment_plans(problem.data.N)  # not used by the likelihood
     starts, nfev = _ml_start(problem, x0)
     x, cost, ok, msg, n = _search(problem, starts[0][1], max_nfev - nfev)
     nfev += n
