@@ -35,10 +35,22 @@ from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
 from ..systems.model import Model
 from ..systems.tones import SineWave
+from .adequacy import (
+    ALPHA_TONE,
+    Finding,
+    SpectralLine,
+    folding_check,
+    quantisation_step,
+    rail_check,
+    residual_lines,
+    tone_significance,
+)
 from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
+    "ALIAS_FITS",
     "FAMILY_NAMES",
+    "MAX_ALIASES",
     "AliasCandidate",
     "JitterMeasurement",
     "LawCandidate",
@@ -54,6 +66,17 @@ MIN_SAMPLES = 32
 _RESOLUTION_FLOOR = 1e-4
 #: ln L difference below which two aliases are a tie.
 _ALIAS_TIE = 1e-3
+#: Most aliases a band may hold (see measure_jitter, band_hz).
+MAX_ALIASES = 1000
+#: Aliases :func:`alias_likelihoods` fits by the exact likelihood (the best by a one-pass
+#: score).
+ALIAS_FITS = 4
+#: Evaluations of one fit of the Gaussian criterion, CPU units per second of the closed-form
+#: tone moments (N H^2 (2H + 3) per evaluation; measured: N = 400, H = 16, 26 evaluations,
+#: 6.1 s), and the most CPU-s a harmonic fit may cost before it is refused.
+_EVALS_PER_FIT = 30
+_UNITS_PER_SECOND = 2.0e7
+_COST_LIMIT = 120.0
 #: Families tried by default, by name (see measure_jitter, laws).
 DEFAULT_LAWS = ("gaussian", "uniform", "dual-dirac")
 
@@ -161,6 +184,15 @@ class JitterMeasurement:
         The IEEE 1057 slope-regression jitter std the search started from (for comparison).
     T : float
         The nominal sampling interval (s).
+    findings : tuple of Finding
+        What the model-adequacy checks found (:mod:`jitterid.metrology.adequacy`): empty
+        for a record that is one jittered tone; each finding's message says what to do.
+    tone_p_value : float
+        The tone test's p-value (below 1e-3: a tone stands out of the record).
+    harmonics_fitted : int
+        Harmonics in the fitted model (those significant in the record, up to the asked).
+    quantisation_step : float or None
+        The record's quantisation step where its values lie on a grid, else None.
 
     Examples
     --------
@@ -195,6 +227,10 @@ class JitterMeasurement:
     message: str
     slope_regression_std: float
     T: float
+    findings: tuple[Finding, ...] = ()
+    tone_p_value: float = math.nan
+    harmonics_fitted: int = 1
+    quantisation_step: float | None = None
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """Normal-approximation interval of the jitter std, cut at 0.
@@ -230,6 +266,10 @@ class JitterMeasurement:
             f"  IEEE 1057 slope regression (start): {_time(self.slope_regression_std)}",
             "  families (lowest BIC chosen):",
         ]
+        if self.findings:
+            at = lines.index("  families (lowest BIC chosen):")
+            found = [f"  finding ({f.kind}): {f.message}" for f in self.findings]
+            lines[at:at] = found
         for c in self.laws:
             mark = "*" if c.name == self.family else " "
             lines.append(
@@ -363,6 +403,95 @@ def _stderr(result: FitResult, name: str) -> float:
     return float(result.stderr.get(name, float("nan")))
 
 
+def _alias_frequencies(base: float, T: float, band: tuple[float, float]) -> list[float]:
+    """Every alias m/T + base and m/T - base (m integer) of the baseband frequency ``base``
+    inside ``band``, in O(count): refused before anything is built when there are more than
+    :data:`MAX_ALIASES` (the jitter scale free makes them a tie: fitting them tells nothing)."""
+    lo, hi = band
+    fs = 1.0 / T
+    counts = [
+        math.floor((hi - s * base) / fs) - math.ceil((lo - s * base) / fs) + 1 for s in (1, -1)
+    ]
+    total = sum(max(c, 0) for c in counts)
+    if total > MAX_ALIASES:
+        raise ValueError(
+            f"band_hz = ({lo:g}, {hi:g}) holds about {total:.3g} aliases of the record's "
+            f"frequency {base:.6g} Hz (one every {0.5 * fs:g} Hz on average): with the jitter's "
+            "scale free they fit the samples equally (each with its own jitter std, f times the "
+            f"std being what the samples show), so they cannot be ranked; at most {MAX_ALIASES} "
+            "are listed. Narrow band_hz to the Nyquist zone you know, or give frequency="
+        )
+    out: list[float] = []
+    for s in (1, -1):
+        m0 = math.ceil((lo - s * base) / fs)
+        for m in range(m0, m0 + max(counts[s == -1], 0)):
+            f = m * fs + s * base
+            if lo <= f <= hi and f > 0:
+                out.append(f)
+    out.sort()
+    uniq = [f for i, f in enumerate(out) if i == 0 or f - out[i - 1] > 1e-9 * fs]
+    if not uniq:
+        raise ValueError(
+            f"no alias of the record's frequency {base:g} Hz (+ m/T, T = {T:g} s) lies in "
+            f"band_hz = ({lo:g}, {hi:g}); widen the band or check T"
+        )
+    return uniq
+
+
+def _harmonics_present(y: FloatArray, T: float, f: float, H: int) -> int:
+    """The highest harmonic h <= H whose least-squares amplitude at h f is significant
+    (Wald test of its cosine and sine coefficients, p < 1e-3 / H), at least 1. The normal
+    equations are summed over chunks, so a long record costs O(N H) and little memory."""
+    if H == 1:
+        return 1
+    n = y.size
+    k = 2 * H + 1
+    gram = np.zeros((k, k))
+    rhs = np.zeros(k)
+    w = 2 * math.pi * f * np.arange(1, H + 1)
+    for a in range(0, n, 1 << 15):
+        t = np.arange(a, min(a + (1 << 15), n), dtype=float) * T
+        X = np.empty((t.size, k))
+        X[:, 0] = 1.0
+        ph = np.outer(t, w)
+        X[:, 1::2] = np.cos(ph)
+        X[:, 2::2] = np.sin(ph)
+        gram += X.T @ X
+        rhs += X.T @ y[a : a + t.size]
+    try:
+        coef = np.linalg.solve(gram, rhs)
+        inv = np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        return 1
+    ss = float(y @ y - coef @ rhs)
+    s2 = max(ss / max(n - k, 1), 1e-300)
+    best = 1
+    for h in range(2, H + 1):
+        i = slice(2 * h - 1, 2 * h + 1)
+        c = coef[i]
+        try:
+            wald = float(c @ np.linalg.solve(inv[i, i] * s2, c))
+        except np.linalg.LinAlgError:
+            continue
+        if math.exp(-0.5 * min(wald, 1400.0)) < 1e-3 / H:
+            best = h
+    return best
+
+
+def _check_cost(N: int, H: int, n_fits: int) -> None:
+    """Refuse a fit whose closed-form moments would cost more than :data:`_COST_LIMIT`
+    (O(N H^3) per evaluation: H^2 tone pairs, 2 H + 2 parameters), with the estimate."""
+    units = float(N) * H * H * (2 * H + 3) * _EVALS_PER_FIT * n_fits
+    seconds = units / _UNITS_PER_SECOND
+    if seconds > _COST_LIMIT:
+        raise ValueError(
+            f"harmonics={H} on N = {N} samples would cost about {seconds:.3g} CPU-s "
+            f"({n_fits} fit(s) of the Gaussian criterion; its moments cost N H^3 per "
+            f"evaluation): the record holds {H} significant harmonics. Fit fewer "
+            "(harmonics=...), or a shorter record"
+        )
+
+
 def measure_jitter(
     y: ArrayLike,
     T: float,
@@ -375,6 +504,14 @@ def measure_jitter(
     resolution: float | None = None,
 ) -> JitterMeasurement:
     """Measure the sampling jitter from a record of a sine wave.
+
+    Before it reports, the meter checks that the record is one jittered tone
+    (:mod:`jitterid.metrology.adequacy`): that a tone stands out of the record at all
+    (else ``NOT_SIGNIFICANT``), that its alias is not on a multiple of fs/2 nor sampled at
+    too few phases (else ``UNIDENTIFIABLE``), that no samples are piled at the rails
+    (clipping) and that the residual holds no spectral line the model lacks (a second
+    tone, distortion: ``LACK_OF_FIT``), and that the jitter std has a standard error
+    (else ``UNIDENTIFIABLE``). :attr:`JitterMeasurement.findings` lists what was found.
 
     Parameters
     ----------
@@ -395,11 +532,15 @@ def measure_jitter(
         samples is above the noise: dual-Dirac records measured with Gaussian and uniform
         families only came out 6 % low (the uniform family chosen), 0.5 % with it.
     band_hz : (float, float), optional
-        Where the frequency lies, in Hz; every alias of the record's frequency in the band
-        is fitted and the one with the highest likelihood kept (:attr:`JitterMeasurement.
-        aliases` lists them all). Without jitter the aliases are indistinguishable.
+        Where the frequency lies, in Hz. Every alias f0 + m/T, m/T - f0 in the band fits the
+        samples equally well when the jitter's scale is free (the samples see f times the
+        jitter std): one is fitted and :attr:`JitterMeasurement.aliases` lists each with
+        the jitter std it implies; with more than one the status is ``UNIDENTIFIABLE``. A
+        band holding more than :data:`MAX_ALIASES` aliases is refused.
     harmonics : int
-        Harmonics of the sine model (1: a pure sine; more for a distorted source).
+        Harmonics of the sine model (1: a pure sine; more for a distorted source). Only
+        those up to the highest one significant in the record are fitted (the message says
+        so); a fit whose cost would exceed about a minute is refused with its estimate.
     method : {"ml", "gaussian"}
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound; its cost grows
         as N times the quadrature nodes per sample (about 100). ``"gaussian"``: the exact
@@ -425,8 +566,8 @@ def measure_jitter(
     ------
     ValueError
         A record that is too short, not finite or constant, an unknown law, a band with no
-        alias of the record's frequency, or a sine fit that does not converge; each
-        message names the fix.
+        alias of the record's frequency or with too many, a harmonic fit too costly, or a
+        sine fit that does not converge; each message names the fix.
 
     Examples
     --------
@@ -446,24 +587,43 @@ def measure_jitter(
         raise ValueError(f"method must be 'ml' or 'gaussian'; got {method!r}")
     if isinstance(laws, str):
         laws = (laws,)
-    note = ""
+    try:
+        laws = tuple(laws)
+    except TypeError:
+        raise TypeError(
+            f"laws must be a sequence of family names such as ['gaussian']; got {laws!r}"
+        ) from None
+    if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)):
+        raise TypeError(f"harmonics must be a whole number >= 1; got {harmonics!r}")
+    if not 1 <= harmonics <= 64:
+        raise ValueError(f"harmonics must lie in 1..64; got {harmonics}")
+    notes: list[str] = []
     if method == "gaussian" and len(laws) > 1:
         # the second-moment criterion sees a law only through chi(w) and chi(2 w): its
         # value does not rank laws (measured: Gaussian records at 2 pi f sigma = 0.5 and 1
         # came out as 'uniform', 8 % and 25 % low)
-        laws, note = (
-            tuple(laws[:1]),
-            (f"; method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"),
+        notes.append(
+            f"method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"
         )
+        laws = tuple(laws[:1])
     known = _families(T)
     unknown = [name for name in laws if name not in known]
     if unknown or not laws:
         raise ValueError(f"laws must name families among {sorted(known)}; got {list(laws)}")
     N = yv.size
+    band_given = _band(band_hz)
     f_start = positive(frequency, "frequency") if frequency is not None else periodogram_peak(yv, T)
+    step = quantisation_step(yv) if resolution is None else None
     data = SampledData(yv, T, None, resolution=_resolution(yv, resolution))
-    if band_hz is not None:
-        cands = SineWave(band_hz=band_hz, harmonics=harmonics).start_frequencies(data)
+    half_bin = 1.0 / (N * T)
+    # the IEEE 1057 fit at the start: the tone test, and (aliases) the baseband frequency
+    base_fit = sine_fit_4(
+        yv, np.arange(N, dtype=float) * T, f_start, frequency_bounds=_near(f_start, half_bin)
+    )
+    if band_given is not None:
+        f_base = abs(float(base_fit.frequency)) if base_fit.converged else f_start
+        base = _baseband(f_base, T)
+        cands = _alias_frequencies(base, T, band_given)
     else:
         cands = [f_start]
     cycles = cands[0] * N * T
@@ -472,44 +632,39 @@ def measure_jitter(
             f"the record holds {cycles:.3g} periods of its sine; at least 2 are needed "
             "(record longer, or give frequency= if the sine is faster than it looks)"
         )
-    half_bin = 1.0 / (N * T)
-    # every alias with the family chosen on the first one; then the families on the best
-    first_family = laws[0]
-    alias_fits: list[tuple[float, FitResult]] = []
-    alias_starts: list[tuple[FloatArray, float, float]] = []
-    slope_std = float("nan")
-    for fc in cands:
-        lo = max(fc - 4 * half_bin, 0.5 * fc)
-        band = (lo, fc + 4 * half_bin)
-        theta, sj, sv, slope_std_c = _start(yv, T, fc, band)
-        model = SineWave(band_hz=band, harmonics=harmonics)
-        theta_h = _harmonic_start(model, yv, T, theta)
-        res = _fit_one(data, model, known[first_family], theta_h, sj, sv, method)
-        alias_fits.append((fc, res))
-        alias_starts.append((theta_h, sj, sv))
-        if len(alias_fits) == 1 or res.cost < min(r.cost for _, r in alias_fits[:-1]):
-            slope_std = slope_std_c
-    i_best = min(range(len(alias_fits)), key=lambda i: alias_fits[i][1].cost)
-    best = alias_fits[i_best][1]
-    theta_b, sj_b, sv_b = alias_starts[i_best]
-    aliases = tuple(
-        AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, r.jitter_std)
-        for _, r in alias_fits
-    )
+    p_tone = tone_significance(yv, float(base_fit.residuals @ base_fit.residuals))
+    # the aliases are a tie with the jitter scale free: fit one (the given frequency's, else
+    # the lowest), the others follow from it (f sigma is what the samples see)
+    fc = min(cands, key=lambda f: abs(f - f_start)) if frequency is not None else cands[0]
+    band = _near(fc, half_bin)
+    folding = folding_check(fc, T, N)
+    hopeless = p_tone >= ALPHA_TONE or folding is not None
+    H = _harmonics_present(yv, T, fc, harmonics) if not hopeless else 1
+    if harmonics > H:
+        notes.append(
+            f"harmonics {H + 1}..{harmonics} are not significant in the record: {H} fitted"
+        )
+    fam_names = laws[:1] if hopeless else laws
+    _check_cost(N, H, len(fam_names))
+    route = "gaussian" if hopeless else method
+    theta, sj, sv, slope_std = _start(yv, T, fc, band)
+    model = SineWave(band_hz=band, harmonics=H)
+    theta_h = _harmonic_start(model, yv, T, theta)
+    first_family = fam_names[0]
+    best = _fit_one(data, model, known[first_family], theta_h, sj, sv, route)
     # the other families at the chosen alias: from its IEEE starts and from the first
     # family's fit, the better end kept
     fitted: dict[str, FitResult] = {first_family: best}
-    chosen_model = best.structure
     sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
-    for name in laws[1:]:
+    for name in fam_names[1:]:
         fitted[name] = _fit_one(
             data,
-            chosen_model,
+            model,
             known[name],
-            theta_b,
-            sj_b,
-            sv_b,
-            method,
+            theta_h,
+            sj,
+            sv,
+            route,
             other=(sine, best.jitter_std, float(best.x[-1])),
         )
     cands_law = []
@@ -527,23 +682,30 @@ def measure_jitter(
     status, message = r.status, r.message
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
-    message += note
-    lls = sorted((a.loglik for a in aliases), reverse=True)
-    if len(lls) > 1 and lls[0] - lls[1] < _ALIAS_TIE:
+    f_fit = float(r.params["frequency_hz"])
+    aliases = tuple(
+        AliasCandidate(f_fit + (f - fc), -0.5 * r.cost, r.jitter_std * f_fit / (f_fit + f - fc))
+        for f in cands
+    )
+    findings = _adequacy(yv, T, r, step, p_tone, folding)
+    status, message = _judge(status, message, r, findings)
+    if len(aliases) > 1 and status is FitStatus.CONVERGED:
         status = FitStatus.UNIDENTIFIABLE
         message = (
-            f"the frequency is not identified among {len(lls)} aliases in band_hz (their ln L "
-            f"differ by {lls[0] - lls[1]:.2g}): with the jitter's scale free, the samples see "
-            "only f times the jitter std, so each alias fits with its own jitter std. Give "
-            "the frequency (frequency=...), or rank the aliases under a known jitter law "
+            f"the frequency is not identified among {len(aliases)} aliases in band_hz: with "
+            "the jitter's scale free, the samples see only f times the jitter std, so each "
+            "alias fits equally with its own jitter std (listed). Give the frequency "
+            "(frequency=...), or rank the aliases under a known jitter law "
             "(alias_likelihoods)"
         )
+    if notes:
+        message += "; " + "; ".join(notes)
     return JitterMeasurement(
         jitter_std=r.jitter_std,
         jitter_std_stderr=r.jitter_std_stderr,
         noise_std=float(r.params["noise_std"]),
         noise_std_stderr=_stderr(r, "noise_std"),
-        frequency=float(r.params["frequency_hz"]),
+        frequency=f_fit,
         frequency_stderr=_stderr(r, "frequency_hz"),
         amplitude=float(r.params["amplitude"]),
         phase_rad=float(r.params["phase_rad"]),
@@ -557,7 +719,137 @@ def measure_jitter(
         message=message,
         slope_regression_std=slope_std,
         T=T,
+        findings=findings,
+        tone_p_value=p_tone,
+        harmonics_fitted=H,
+        quantisation_step=step,
     )
+
+
+def _band(band_hz: tuple[float, float] | None) -> tuple[float, float] | None:
+    if band_hz is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in band_hz)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"band_hz must be a pair (low, high) in Hz; got {band_hz!r}") from exc
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise ValueError(f"band_hz must satisfy 0 <= low < high < inf (Hz); got {band_hz!r}")
+    return (lo, hi)
+
+
+def _near(f: float, half_bin: float) -> tuple[float, float]:
+    """The frequency search interval around a start: four half-bins either side."""
+    return (max(f - 4 * half_bin, 0.5 * f), f + 4 * half_bin)
+
+
+def _baseband(f: float, T: float) -> float:
+    x = (f * T) % 1.0
+    return (1.0 - x if x > 0.5 else x) / T
+
+
+def _adequacy(
+    y: FloatArray,
+    T: float,
+    r: FitResult,
+    step: float | None,
+    p_tone: float,
+    folding: Finding | None,
+) -> tuple[Finding, ...]:
+    """The findings of :mod:`jitterid.metrology.adequacy` on the chosen fit."""
+    out: list[Finding] = []
+    if folding is not None:
+        out.append(folding)
+    if p_tone >= ALPHA_TONE:
+        out.append(
+            Finding(
+                "no-tone",
+                p_tone,
+                f"no tone stands out of the record (F test of the sine against the offset "
+                f"alone, p = {p_tone:.2g} after the choice among {y.size // 2} bins): the "
+                "record is noise, or the tone is below it; check that the test signal reaches "
+                "the converter, record longer, or give frequency= if the tone is known",
+            )
+        )
+    if out:
+        return tuple(out)
+    N = y.size
+    sig = r.signal()
+    mp = sig.jitter_moments(r.jitter_law, T, N) if hasattr(sig, "jitter_moments") else None
+    if mp is None or mp.var is None:  # pragma: no cover - every tone signal has them
+        return ()
+    noise = float(r.params.get("noise_std", 0.0))
+    sd = np.sqrt(np.maximum(mp.var, 0.0) + noise**2)
+    resid = y - mp.mean
+    rail = rail_check(y, step, mp.mean, sd)
+    if rail is not None:
+        out.append(rail)
+    f0 = float(r.params["frequency_hz"])
+    lines = residual_lines(resid, sd, T, f0)
+    if lines:
+        out.append(_lines_finding(lines, r))
+    return tuple(out)
+
+
+def _lines_finding(lines: tuple[SpectralLine, ...], r: FitResult) -> Finding:
+    parts = []
+    harmonics = sorted({ln.harmonic for ln in lines if ln.harmonic >= 2})
+    for ln in lines[:4]:
+        what = (
+            f"harmonic {ln.harmonic}"
+            if ln.harmonic >= 2
+            else ("the tone itself" if ln.harmonic == 1 else "not a harmonic")
+        )
+        parts.append(
+            f"{ln.frequency_hz:.6g} Hz ({what}, amplitude {ln.amplitude:.3g}, "
+            f"{ln.power_ratio:.3g} x the floor)"
+        )
+    more = f" and {len(lines) - 4} more" if len(lines) > 4 else ""
+    if harmonics and all(ln.harmonic >= 2 for ln in lines):
+        fix = (
+            f"the source or the converter distorts (or clips) the tone: fit harmonics="
+            f"{max(harmonics)}, or lower the amplitude if the record is clipped"
+        )
+    else:
+        fix = (
+            "the record holds a second tone or spur besides the fitted one (or the tone is "
+            "modulated): filter the source, or remove the spur before measuring"
+        )
+    return Finding(
+        "lines",
+        lines[0].p_value,
+        f"the residual holds spectral lines the model lacks: {'; '.join(parts)}{more} "
+        f"(largest p = {lines[0].p_value:.2g}): {fix}; the jitter std "
+        f"({_time(r.jitter_std)}) would absorb them",
+    )
+
+
+def _judge(
+    status: FitStatus, message: str, r: FitResult, findings: tuple[Finding, ...]
+) -> tuple[FitStatus, str]:
+    """The measurement's status: the findings first (a record that is not one jittered tone
+    is not measured, whatever the search said), then a standard error that cannot be
+    computed (never CONVERGED next to a NaN)."""
+    kinds = {f.kind: f for f in findings}
+    for kind, st in (
+        ("folding", FitStatus.UNIDENTIFIABLE),
+        ("no-tone", FitStatus.NOT_SIGNIFICANT),
+        ("clipping", FitStatus.LACK_OF_FIT),
+        ("lines", FitStatus.LACK_OF_FIT),
+    ):
+        if kind in kinds:
+            rest = [f.message for f in findings if f.kind != kind]
+            msg = kinds[kind].message + ("; also: " + "; ".join(rest) if rest else "")
+            return st, msg
+    se = r.jitter_std_stderr
+    if status is FitStatus.CONVERGED and not (math.isfinite(se) and se > 0):
+        return FitStatus.UNIDENTIFIABLE, (
+            f"the jitter std's standard error cannot be computed ({se:g}): the information "
+            "matrix is singular at the estimate, so the interval is unknown; the record may "
+            "not show the jitter (too little, or hidden by noise): record longer or at a "
+            "higher tone frequency"
+        )
+    return status, message
 
 
 def _harmonic_start(model: SineWave, y: FloatArray, T: float, theta: FloatArray) -> FloatArray:
@@ -605,7 +897,11 @@ def alias_likelihoods(
     Returns
     -------
     tuple of AliasCandidate
-        One per alias, highest likelihood first; ``jitter_std_s`` is the known law's std.
+        Highest likelihood first; ``jitter_std_s`` is the known law's std. Every alias is
+        ranked in one pass by the Gaussian log-likelihood of its start under the known law
+        (the closed-form moments, O(N)); the :data:`ALIAS_FITS` best are fitted by the
+        exact likelihood and returned (a band with more than :data:`MAX_ALIASES` aliases is
+        refused).
 
     Examples
     --------
@@ -627,19 +923,39 @@ def alias_likelihoods(
             f"{type(jitter).__name__}"
         )
     data = SampledData(yv, T, None, noise_std=noise_std)
-    cands = SineWave(band_hz=band_hz).start_frequencies(data)
+    band = _band(band_hz)
+    if band is None:
+        raise ValueError("band_hz must be a pair (low, high) in Hz holding the aliases")
+    t = np.arange(yv.size, dtype=float) * T
+    f_p = periodogram_peak(yv, T)
     half_bin = 1.0 / (yv.size * T)
-    out = []
+    fit0 = sine_fit_4(yv, t, f_p, frequency_bounds=_near(f_p, half_bin))
+    cands = _alias_frequencies(
+        _baseband(abs(float(fit0.frequency)) if fit0.converged else f_p, T), T, band
+    )
+    # one pass each: the Gaussian log-likelihood of the alias's start under the known law
+    # (closed-form moments); the likelihood is maximised for the best few only
+    starts = []
     for fc in cands:
-        band = (max(fc - 4 * half_bin, 0.5 * fc), fc + 4 * half_bin)
-        theta, _, sv, _ = _start(yv, T, fc, band)
-        fit4 = sine_fit_4(yv, np.arange(yv.size, dtype=float) * T, fc, frequency_bounds=band)
+        near = _near(fc, half_bin)
+        theta, _, sv, _ = _start(yv, T, fc, near)
+        fit4 = sine_fit_4(yv, t, fc, frequency_bounds=near)
         # the fitted sine is the true one damped by chi(2 pi f) (Lemma 1): undo it
         chi = complex(np.asarray(jitter.cf(np.array([fit4.frequency])))[0]).conjugate()
         if abs(chi) > 1e-3:
             theta[0] = fit4.amplitude / abs(chi)
             theta[1] = fit4.phase - float(np.angle(chi))
-        model = SineWave(band_hz=band)
+        model = SineWave(band_hz=near)
+        noise = float(noise_std) if noise_std is not None else sv
+        mp = model.signal(theta).jitter_moments(jitter, T, yv.size)
+        assert mp is not None
+        assert mp.var is not None
+        v = np.maximum(mp.var, 0.0) + noise**2 + 1e-300
+        score = -0.5 * float(np.sum(np.log(v) + (yv - mp.mean) ** 2 / v))
+        starts.append((score, fc, model, theta, sv))
+    starts.sort(key=lambda s: -s[0])
+    out = []
+    for _, _, model, theta, sv in starts[:ALIAS_FITS]:
         x0 = theta if noise_std is not None else np.r_[theta, sv]
         r = fit(data, model, jitter, method="ml", start=x0)
         out.append(
