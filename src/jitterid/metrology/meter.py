@@ -33,6 +33,7 @@ from ..estimation.fit import fit
 from ..estimation.likelihood import ExactLikelihood
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
+from ..moments.sample import sample_moments
 from ..systems.model import Model
 from ..systems.tones import SineWave
 from .adequacy import (
@@ -45,7 +46,8 @@ from .adequacy import (
     residual_lines,
     tone_significance,
 )
-from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
+from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
+from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
     "ALIAS_FITS",
@@ -62,8 +64,6 @@ FloatArray = NDArray[np.float64]
 
 #: Fewest samples and whole periods a record must hold.
 MIN_SAMPLES = 32
-#: The default noise floor, relative to the record's rms (see measure_jitter, resolution).
-_RESOLUTION_FLOOR = 1e-4
 #: ln L difference below which two aliases are a tie.
 _ALIAS_TIE = 1e-3
 #: Most aliases a band may hold (see measure_jitter, band_hz).
@@ -193,6 +193,14 @@ class JitterMeasurement:
         Harmonics in the fitted model (those significant in the record, up to the asked).
     quantisation_step : float or None
         The record's quantisation step where its values lie on a grid, else None.
+    jitter_var, jitter_var_stderr : float
+        The jitter's variance (s^2, unclipped: it may be below 0 where the record does not
+        resolve the jitter) and its standard error, where the moment route measured it
+        (``method="gaussian"``); NaN otherwise. :meth:`interval` then takes the interval on
+        the variance's scale, one-sided where it reaches 0.
+    noise_floor : float or None
+        The physical noise floor (the ``resolution`` given, or the quantisation step /
+        sqrt(12) of a quantised record); None for a float record, which has none.
 
     Examples
     --------
@@ -231,15 +239,22 @@ class JitterMeasurement:
     tone_p_value: float = math.nan
     harmonics_fitted: int = 1
     quantisation_step: float | None = None
+    jitter_var: float = math.nan
+    jitter_var_stderr: float = math.nan
+    noise_floor: float | None = None
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
-        """Normal-approximation interval of the jitter std, cut at 0.
+        """Normal-approximation interval of the jitter std, cut at 0: on the variance's
+        scale where :attr:`jitter_var_stderr` is known (then one-sided, [0, upper], where
+        the record does not resolve the jitter), else on the std's.
 
         Parameters
         ----------
         level : float, optional
             Coverage, in (0, 1).
         """
+        if math.isfinite(self.jitter_var_stderr) and math.isfinite(self.jitter_var):
+            return std_interval(self.jitter_var, self.jitter_var_stderr, level)
         if not 0 < level < 1:
             raise ValueError(f"level must lie in (0, 1); got {level!r}")
         from scipy.stats import norm
@@ -317,6 +332,14 @@ def _start(
     y: FloatArray, T: float, f0: float, band: tuple[float, float]
 ) -> tuple[FloatArray, float, float, float]:
     """(sine start [A, phase, f, c], jitter std start, noise std start, slope-regression std)."""
+    theta, sj, sv, reg, _ = _start_fit(y, T, f0, band)
+    return theta, sj, sv, reg
+
+
+def _start_fit(
+    y: FloatArray, T: float, f0: float, band: tuple[float, float]
+) -> tuple[FloatArray, float, float, float, SineFit]:
+    """:func:`_start` and the IEEE 1057 four-parameter fit it started from."""
     t = np.arange(y.size, dtype=float) * T
     fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
     if not fit4.converged:
@@ -335,7 +358,7 @@ def _start(
     sv = max(sv, 1e-3 * resid, 1e-9 * fit4.amplitude)
     damping = math.exp(-0.5 * (w * sj) ** 2)
     theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
-    return theta, sj, sv, float(reg.jitter_std)
+    return theta, sj, sv, float(reg.jitter_std), fit4
 
 
 def _fit_one(
@@ -347,22 +370,28 @@ def _fit_one(
     sv: float,
     method: str = "ml",
     other: tuple[FloatArray, float, float] | None = None,
+    gauss: FitResult | None = None,
 ) -> FitResult:
     """The Gaussian criterion from the IEEE starts, then (``method="ml"``) the exact
     likelihood from the better of its end and the IEEE start (by the likelihood itself:
     the second-moment criterion can trade jitter for noise where the law is far from
     Gaussian). With ``other`` (the sine, jitter std and noise std of another family's fit)
     the likelihood is also maximised from there, and the better end kept: a law far from
-    the other's can have a local optimum in phase and frequency near it."""
+    the other's can have a local optimum in phase and frequency near it. ``gauss``: the
+    Gaussian route's fit where it is already known (the moment route's)."""
     x0 = np.r_[family.start_for_std(sj), theta, sv]
-    gauss = fit(data, model, family, method="gaussian", start=x0)
+    if gauss is None:
+        gauss = fit(data, model, family, method="gaussian", start=x0)
     if method == "gaussian":
         return gauss
     xg = np.asarray(gauss.x, dtype=float).copy()
     cands = [x0]
+    lo_noise = data.resolution or 0.0
     if gauss.success and np.all(np.isfinite(xg)):
         if not xg[-1] > 0.1 * sv:  # the Gaussian criterion put the noise at its bound 0
-            xg[-1] = sv
+            xg[-1] = max(sv, lo_noise)
+        x0 = np.r_[x0[:-1], max(float(x0[-1]), lo_noise)]
+        cands = [x0]
         cands.insert(0, xg)
     lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
     scored: list[tuple[float, int, FloatArray]] = []
@@ -388,15 +417,24 @@ def _fit_one(
     return out
 
 
-def _resolution(y: FloatArray, given: float | None) -> float:
-    """The noise floor: ``given``, else the record's quantisation step / sqrt(12), at least
-    1e-6 of its rms (see :func:`measure_jitter`)."""
+def _resolution(given: float | None, step: float | None) -> float | None:
+    """The physical noise floor: ``given``, else the record's quantisation step / sqrt(12)
+    where its values lie on a grid, else None (a float record has none)."""
     if given is not None:
         return positive(given, "resolution")
-    vals = np.unique(y)
-    step = float(np.min(np.diff(vals))) if vals.size > 1 else 0.0
-    rms = float(np.sqrt(np.mean((y - np.mean(y)) ** 2)))
-    return max(step / math.sqrt(12.0), _RESOLUTION_FLOOR * rms)
+    return step / math.sqrt(12.0) if step else None
+
+
+def _ml_floor(physical: float | None, mf: MomentFit | None, amplitude: float) -> float:
+    """The noise floor the likelihood's search needs (its quadrature wants a noise std
+    > 0): the physical one, or, on a float record, 3 % of the jitter's own spread of the
+    samples (a noise variance 1e-3 of the jitter's, which moves the jitter std by less
+    than that: its estimate is not changed by the floor), at least 1e-9 of the amplitude."""
+    spread = 0.0
+    if mf is not None and math.isfinite(mf.phase_var) and mf.phase_var > 0:
+        spread = abs(amplitude) * math.sqrt(0.5 * mf.phase_var)
+    numeric = max(0.03 * spread, 1e-9 * abs(amplitude))
+    return max(physical or 0.0, numeric)
 
 
 def _stderr(result: FitResult, name: str) -> float:
@@ -614,7 +652,7 @@ def measure_jitter(
     band_given = _band(band_hz)
     f_start = positive(frequency, "frequency") if frequency is not None else periodogram_peak(yv, T)
     step = quantisation_step(yv) if resolution is None else None
-    data = SampledData(yv, T, None, resolution=_resolution(yv, resolution))
+    physical = _resolution(resolution, step)
     half_bin = 1.0 / (N * T)
     # the IEEE 1057 fit at the start: the tone test, and (aliases) the baseband frequency
     base_fit = sine_fit_4(
@@ -645,13 +683,31 @@ def measure_jitter(
             f"harmonics {H + 1}..{harmonics} are not significant in the record: {H} fitted"
         )
     fam_names = laws[:1] if hopeless else laws
-    _check_cost(N, H, len(fam_names))
     route = "gaussian" if hopeless else method
-    theta, sj, sv, slope_std = _start(yv, T, fc, band)
+    theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band)
     model = SineWave(band_hz=band, harmonics=H)
+    # the moment route (a few passes, law-free variance profile) for a pure tone: the
+    # answer of method="gaussian", the likelihood's start and its numeric noise floor
+    mf: MomentFit | None = None
+    if H == 1:
+        first = fam_names[0] if fam_names[0] in ROUTE_LAWS else "gaussian"
+        mf = moment_route(yv, T, fit4, first)
+    floor = _ml_floor(physical, mf, float(fit4.amplitude))
+    data = SampledData(yv, T, None, resolution=floor)
     theta_h = _harmonic_start(model, yv, T, theta)
     first_family = fam_names[0]
-    best = _fit_one(data, model, known[first_family], theta_h, sj, sv, route)
+    gauss_first = None
+    if mf is not None and mf.law == first_family and math.isfinite(mf.jitter_var):
+        gauss_first = _moment_result(mf, known[first_family], model, physical)
+    fast_done = route == "gaussian" and gauss_first is not None
+    if not fast_done:
+        _check_cost(N, H, len(fam_names))
+    if gauss_first is not None and fast_done:
+        best = gauss_first
+    else:
+        best = _fit_one(
+            data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first
+        )
     # the other families at the chosen alias: from its IEEE starts and from the first
     # family's fit, the better end kept
     fitted: dict[str, FitResult] = {first_family: best}
@@ -682,12 +738,19 @@ def measure_jitter(
     status, message = r.status, r.message
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
+    status, message = _noise_floor_status(status, message, r, floor, physical, mf)
     f_fit = float(r.params["frequency_hz"])
     aliases = tuple(
         AliasCandidate(f_fit + (f - fc), -0.5 * r.cost, r.jitter_std * f_fit / (f_fit + f - fc))
         for f in cands
     )
-    findings = _adequacy(yv, T, r, step, p_tone, folding)
+    on_route = fast_done and mf is not None and r is gauss_first
+    if on_route:
+        assert mf is not None
+        resid, sd = mf.residuals, np.sqrt(np.maximum(mf.variance, 0.0))
+    else:
+        resid, sd = _model_residuals(yv, T, r)
+    findings = _adequacy(yv, T, resid, sd, float(r.params["frequency_hz"]), step, p_tone, folding)
     status, message = _judge(status, message, r, findings)
     if len(aliases) > 1 and status is FitStatus.CONVERGED:
         status = FitStatus.UNIDENTIFIABLE
@@ -700,9 +763,19 @@ def measure_jitter(
         )
     if notes:
         message += "; " + "; ".join(notes)
+    jstd, jse = r.jitter_std, r.jitter_std_stderr
+    jvar, jvar_se = math.nan, math.nan
+    if on_route:
+        assert mf is not None
+        jstd, jse, jvar, jvar_se = (
+            mf.jitter_std,
+            mf.jitter_std_stderr,
+            mf.jitter_var,
+            mf.jitter_var_stderr,
+        )
     return JitterMeasurement(
-        jitter_std=r.jitter_std,
-        jitter_std_stderr=r.jitter_std_stderr,
+        jitter_std=jstd,
+        jitter_std_stderr=jse,
         noise_std=float(r.params["noise_std"]),
         noise_std_stderr=_stderr(r, "noise_std"),
         frequency=f_fit,
@@ -723,6 +796,9 @@ def measure_jitter(
         tone_p_value=p_tone,
         harmonics_fitted=H,
         quantisation_step=step,
+        jitter_var=jvar,
+        jitter_var_stderr=jvar_se,
+        noise_floor=physical,
     )
 
 
@@ -748,15 +824,123 @@ def _baseband(f: float, T: float) -> float:
     return (1.0 - x if x > 0.5 else x) / T
 
 
+def _moment_result(
+    mf: MomentFit, family: JitterFamily, model: SineWave, physical: float | None
+) -> FitResult:
+    """The moment route's estimate as a :class:`FitResult` of ``model`` (parameters, a
+    diagonal heteroscedasticity-consistent covariance, the Gaussian criterion as cost)."""
+    per_std = float(family.start_for_std(1.0)[0])  # the family's scale per unit std
+    lo, hi = family.bounds[0]
+    std = min(max(mf.jitter_std, lo / per_std), hi / per_std)
+    noise = math.sqrt(max(mf.noise_var, 0.0))
+    noise_se = (
+        mf.noise_var_stderr / (2 * noise)
+        if noise > 0 and mf.noise_var - 1.96 * mf.noise_var_stderr > 0
+        else 0.5 * math.sqrt(mf.noise_var_stderr)
+    )
+    x = np.array(
+        [std * per_std, mf.amplitude, mf.phase_rad, mf.frequency_hz, mf.offset, noise]
+    )
+    se = np.array(
+        [
+            mf.jitter_std_stderr * per_std,
+            mf.amplitude_stderr,
+            mf.phase_stderr,
+            mf.frequency_stderr,
+            mf.offset_stderr,
+            noise_se,
+        ]
+    )
+    names = (*family.param_names, *model.param_names, "noise_std")
+    resolved = mf.jitter_var - 1.96 * mf.jitter_var_stderr > 0
+    msg = (
+        "moment route: IEEE 1057 fit, then the closed-form variance profile by reweighted "
+        "least squares (law-free sandwich errors)"
+    )
+    if not resolved:
+        msg += (
+            "; the jitter is below what the record resolves: its interval is one-sided "
+            "(interval())"
+        )
+    if mf.noise_var - 1.96 * mf.noise_var_stderr <= (physical or 0.0) ** 2:
+        msg += "; the additive noise is not resolved (the record is noise-free within its errors)"
+    return FitResult(
+        method="gaussian",
+        names=names,
+        x=x,
+        cost=mf.criterion,
+        status=FitStatus.CONVERGED,
+        message=msg,
+        nfev=0,
+        system=None,
+        jitter_law=family.law([float(x[0])]),
+        noise_std=noise,
+        freqs=np.zeros(0),
+        cov=np.diag(se**2),
+        cov_type="robust",
+        structure=model,
+        jitter_model=family,
+    )
+
+
+def _noise_floor_status(
+    status: FitStatus,
+    message: str,
+    r: FitResult,
+    floor: float,
+    physical: float | None,
+    mf: MomentFit | None,
+) -> tuple[FitStatus, str]:
+    """AT_BOUND only where the noise floor changes the jitter estimate: a noise std on the
+    likelihood's numeric floor (a float record) or on the physical one, with the jitter
+    std inside the moment route's interval (which no floor touches), is a boundary
+    solution, not a failure: CONVERGED, with the noise reported as below its floor."""
+    if status is not FitStatus.AT_BOUND or "noise_std" not in r.params:
+        return status, message
+    v = float(r.params["noise_std"])
+    if v > floor * (1 + 1e-6):
+        return status, message
+    if mf is not None and math.isfinite(mf.jitter_var_stderr):
+        lo, hi = std_interval(mf.jitter_var, mf.jitter_var_stderr, 0.99)
+        if not lo <= r.jitter_std <= hi:
+            return status, message
+    what = (
+        f"the physical floor {floor:.3g} (resolution)"
+        if physical is not None and floor <= physical * (1 + 1e-9)
+        else f"the likelihood's numeric floor {floor:.3g} (3 % of the jitter's spread)"
+    )
+    return FitStatus.CONVERGED, (
+        f"converged with the noise std below what the record resolves: it stops at {what}, "
+        "which does not change the jitter std (the moment route, which no floor touches, "
+        "agrees)"
+    )
+
+
+def _model_residuals(y: FloatArray, T: float, r: FitResult) -> tuple[FloatArray, FloatArray]:
+    """y - E y and the per-sample std (jitter and noise) of a fitted tone model."""
+    sig = r.signal()
+    mp = sig.jitter_moments(r.jitter_law, T, y.size) if hasattr(sig, "jitter_moments") else None
+    if mp is None or mp.var is None:  # pragma: no cover - every tone signal has them
+        mom = sample_moments(sig, r.jitter_law, T, y.size)
+        mean, var = mom.mean, mom.var
+    else:
+        mean, var = mp.mean, mp.var
+    noise = float(r.params.get("noise_std", 0.0))
+    return y - mean, np.sqrt(np.maximum(var, 0.0) + noise**2)
+
+
 def _adequacy(
     y: FloatArray,
     T: float,
-    r: FitResult,
+    resid: FloatArray,
+    sd: FloatArray,
+    f0: float,
     step: float | None,
     p_tone: float,
     folding: Finding | None,
 ) -> tuple[Finding, ...]:
-    """The findings of :mod:`jitterid.metrology.adequacy` on the chosen fit."""
+    """The findings of :mod:`jitterid.metrology.adequacy` on the chosen fit (its residuals
+    y - E y and per-sample std)."""
     out: list[Finding] = []
     if folding is not None:
         out.append(folding)
@@ -773,25 +957,16 @@ def _adequacy(
         )
     if out:
         return tuple(out)
-    N = y.size
-    sig = r.signal()
-    mp = sig.jitter_moments(r.jitter_law, T, N) if hasattr(sig, "jitter_moments") else None
-    if mp is None or mp.var is None:  # pragma: no cover - every tone signal has them
-        return ()
-    noise = float(r.params.get("noise_std", 0.0))
-    sd = np.sqrt(np.maximum(mp.var, 0.0) + noise**2)
-    resid = y - mp.mean
-    rail = rail_check(y, step, mp.mean, sd)
+    rail = rail_check(y, step, y - resid, sd)
     if rail is not None:
         out.append(rail)
-    f0 = float(r.params["frequency_hz"])
     lines = residual_lines(resid, sd, T, f0)
     if lines:
-        out.append(_lines_finding(lines, r))
+        out.append(_lines_finding(lines))
     return tuple(out)
 
 
-def _lines_finding(lines: tuple[SpectralLine, ...], r: FitResult) -> Finding:
+def _lines_finding(lines: tuple[SpectralLine, ...]) -> Finding:
     parts = []
     harmonics = sorted({ln.harmonic for ln in lines if ln.harmonic >= 2})
     for ln in lines[:4]:
@@ -819,8 +994,7 @@ def _lines_finding(lines: tuple[SpectralLine, ...], r: FitResult) -> Finding:
         "lines",
         lines[0].p_value,
         f"the residual holds spectral lines the model lacks: {'; '.join(parts)}{more} "
-        f"(largest p = {lines[0].p_value:.2g}): {fix}; the jitter std "
-        f"({_time(r.jitter_std)}) would absorb them",
+        f"(largest p = {lines[0].p_value:.2g}): {fix}; the jitter std would absorb them",
     )
 
 

@@ -1,0 +1,321 @@
+"""The jitter meter's fast route: the sine's closed-form jitter moments, fitted in a few passes.
+
+For a tone y_k = A sin(phi_k + w tau_k) + c + v_k, phi_k = w kT + phi, with a symmetric
+jitter law of characteristic function chi(u) = E cos(u tau) and chi_m = chi(m w), the
+per-sample mean and variance are closed forms (Lemmas 1-2 for one tone)::
+
+    E y_k   = c + A chi_1 sin(phi_k)                                               (F1)
+    Var y_k = sigma_v^2 + A^2/2 (1 - chi_1^2) + A^2/2 (chi_1^2 - chi_2) cos(2 phi_k)  (F2)
+
+so, with the damped amplitude A_d = A chi_1 that a least-squares sine fit estimates
+(consistently: (F1) is a sine), the squared residuals r_k^2 regress on [1, cos 2 phi_k]
+with intercept alpha = sigma_v^2 + (A^2 - A_d^2)/2 and slope
+
+    beta = A_d^2 (1 - chi_2 / chi_1^2) / 2,                                         (F3)
+
+free of the noise and of A. For Gaussian jitter chi_2 / chi_1^2 = exp(-(w sigma)^2), so
+(w sigma)^2 = -ln(1 - 2 beta / A_d^2) exactly (the IEEE 1057 slope regression is the
+first-order term, 2 beta / A_d^2, hence its -6 % at 0.5 rad); for a uniform law
+chi(u) = sin(u a)/(u a) and (F3) is solved for a. The noise follows from alpha:
+sigma_v^2 = alpha - A_d^2 (1/chi_1^2 - 1)/2.
+
+The route (:func:`moment_route`): the IEEE 1057 four-parameter fit (O(N) a pass, a few
+passes), then (alpha, beta) by iteratively reweighted least squares on r_k^2 with weights
+1/Var(r_k^2) ~ 1/v_k^2 (the Gaussian criterion's own weights for the variance
+parameters, floored at a quarter of the mean variance so that the tone's peaks on a
+noise-free record, whose variance is of order (w sigma)^4, do not dominate), two
+reweightings. Its covariance is the heteroscedasticity-consistent sandwich of those
+estimating equations (it uses the empirical r_k^4, so it holds whatever the jitter's law
+and the noise's), carried to sigma by the delta method; the mean's parameters enter
+(alpha, beta) at second order only (E r_k = 0), and A_d's own variance is added. Nothing
+bounds the noise: on a noise-free record sigma_v^2 comes out near 0, on either side, and
+the jitter, which (F3) gives without it, is not moved. Where the variance's interval
+reaches 0 the jitter is not resolved and its interval is one-sided (``interval``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .sinefit import SineFit
+
+__all__ = ["MomentFit", "moment_route"]
+
+FloatArray = NDArray[np.float64]
+
+#: Laws whose (F3) is inverted in closed form or by a one-dimensional solve.
+ROUTE_LAWS = ("gaussian", "uniform")
+
+
+@dataclass(frozen=True, eq=False)
+class MomentFit:
+    """What :func:`moment_route` estimated. Times in s, y in its own units.
+
+    Attributes
+    ----------
+    law : str
+        The law (F3) was inverted under (``"gaussian"`` or ``"uniform"``).
+    amplitude, damped_amplitude : float
+        A (the tone before the jitter's damping) and A_d = A chi(w) (the fitted sine's).
+    phase_rad, frequency_hz, offset : float
+        The fitted sine's, ``A_d sin(2 pi f kT + phase) + offset``.
+    alpha, beta : float
+        The variance profile's intercept and cos(2 phi) coefficient, (F2).
+    cov_alpha_beta : ndarray, shape (2, 2)
+        Their sandwich covariance.
+    phase_var, phase_var_stderr : float
+        (w sigma)^2, rad^2, unclipped (it may come out below 0 when the jitter is below
+        what the record resolves), and its standard error.
+    jitter_var, jitter_var_stderr : float
+        sigma^2 in s^2, unclipped, and its standard error.
+    jitter_std, jitter_std_stderr : float
+        sqrt(max(jitter_var, 0)) and its standard error: the delta method, or, where the
+        variance's interval reaches 0, sqrt(jitter_var_stderr) / 2 (the scale of the
+        one-sided interval).
+    noise_var, noise_var_stderr : float
+        sigma_v^2 (unclipped) and its standard error.
+    amplitude_stderr, frequency_stderr, phase_stderr, offset_stderr : float
+        The sine's (heteroscedasticity-consistent, from the fit's residuals).
+    residuals : ndarray
+        y_k - E y_k.
+    variance : ndarray
+        The fitted Var y_k, (F2).
+    criterion : float
+        sum_k ln v_k + r_k^2 / v_k at the estimate (the Gaussian criterion, -2 ln L up to a
+        constant, for comparing fits).
+    """
+
+    law: str
+    amplitude: float
+    damped_amplitude: float
+    phase_rad: float
+    frequency_hz: float
+    offset: float
+    alpha: float
+    beta: float
+    cov_alpha_beta: FloatArray
+    phase_var: float
+    phase_var_stderr: float
+    jitter_var: float
+    jitter_var_stderr: float
+    jitter_std: float
+    jitter_std_stderr: float
+    noise_var: float
+    noise_var_stderr: float
+    amplitude_stderr: float
+    frequency_stderr: float
+    phase_stderr: float
+    offset_stderr: float
+    residuals: FloatArray
+    variance: FloatArray
+    criterion: float
+
+    def interval(self, level: float = 0.95) -> tuple[float, float]:
+        """The jitter std's interval: the variance's normal interval, cut at 0, square-rooted.
+
+        Parameters
+        ----------
+        level : float, optional
+            Coverage, in (0, 1).
+        """
+        return std_interval(self.jitter_var, self.jitter_var_stderr, level)
+
+
+def std_interval(var: float, var_se: float, level: float = 0.95) -> tuple[float, float]:
+    """sqrt of the normal interval var +- z var_se, cut at 0 (one-sided where it reaches 0).
+
+    Parameters
+    ----------
+    var, var_se : float
+        A variance estimate (unclipped) and its standard error.
+    level : float, optional
+        Coverage, in (0, 1).
+
+    Returns
+    -------
+    (float, float)
+
+    Examples
+    --------
+    >>> std_interval(4.0, 1.0)[0] > 1.0
+    True
+    >>> std_interval(-1.0, 1.0)[0]
+    0.0
+    """
+    if not 0 < level < 1:
+        raise ValueError(f"level must lie in (0, 1); got {level!r}")
+    from scipy.stats import norm
+
+    z = float(norm.ppf(0.5 + level / 2))
+    lo, hi = var - z * var_se, var + z * var_se
+    return (math.sqrt(max(lo, 0.0)), math.sqrt(max(hi, 0.0)))
+
+
+def _ratio(law: str, s: float) -> float:
+    """chi_2 / chi_1^2 at phase spread s = w sigma (rad)."""
+    if law == "gaussian":
+        return math.exp(-s * s)
+    a = math.sqrt(3.0) * s  # uniform on (-a, a) in phase
+    if a < 1e-4:
+        return 1.0 - s * s + 0.7 * s**4  # series: 1 - s^2 + (7/12)(-6/5) s^4 ...
+    return (math.sin(2 * a) / (2 * a)) / (math.sin(a) / a) ** 2
+
+
+def _invert(law: str, g: float) -> tuple[float, float]:
+    """(s^2, d s^2 / d g) with chi_2 / chi_1^2 = 1 - g at phase spread s; g may be <= 0
+    (then s^2 is continued linearly: the variance's estimate is unclipped)."""
+    if law == "gaussian":
+        if g < 1.0:
+            return -math.log1p(-g), 1.0 / (1.0 - g)
+        return math.inf, math.inf
+    if g <= 1e-8:
+        return g, 1.0  # the first-order term, for a jitter below the resolution
+    # uniform: 1 - ratio(s) is increasing in s up to where chi_1 vanishes (a = pi): bisect
+    lo, hi = 0.0, math.pi / math.sqrt(3.0) * 0.999
+    if g >= 1.0 - _ratio(law, hi):
+        return math.inf, math.inf
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if 1.0 - _ratio(law, mid) < g:
+            lo = mid
+        else:
+            hi = mid
+    s = 0.5 * (lo + hi)
+    h = max(1e-6 * s, 1e-9)
+    d = ((1.0 - _ratio(law, s + h)) - (1.0 - _ratio(law, s - h))) / (2 * h)  # dg/ds
+    return s * s, 2 * s / d if d > 0 else math.inf
+
+
+def _chi1(law: str, s: float) -> float:
+    if law == "gaussian":
+        return math.exp(-0.5 * s * s)
+    a = math.sqrt(3.0) * s
+    return 1.0 if a < 1e-8 else math.sin(a) / a
+
+
+def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") -> MomentFit:
+    """The jitter std from (F1)-(F3) of the module doc, in a few passes over the record.
+
+    Parameters
+    ----------
+    y : ndarray, shape (N,)
+        The record at the nominal instants kT.
+    T : float
+        The sampling interval, s.
+    fit4 : SineFit
+        A converged four-parameter fit of ``y`` at instants kT (its frequency may be any
+        alias: the jitter is converted to seconds with it).
+    law : {"gaussian", "uniform"}
+        The law (F3) is inverted under; the variance profile itself is law-free.
+
+    Returns
+    -------
+    MomentFit
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from jitterid.metrology.sinefit import periodogram_peak, sine_fit_4
+    >>> rng = np.random.default_rng(0)
+    >>> T, f, N = 1e-3, 123.0, 20000
+    >>> tau = 50e-6 * rng.standard_normal(N)  # 2 pi f sigma = 0.039 rad, noise-free
+    >>> y = np.sin(2 * np.pi * f * (np.arange(N) * T + tau))
+    >>> fit4 = sine_fit_4(y, np.arange(N) * T, periodogram_peak(y, T))
+    >>> m = moment_route(y, T, fit4)
+    >>> lo, hi = m.interval()
+    >>> bool(lo < 50e-6 < hi), bool(abs(m.jitter_std / 50e-6 - 1) < 0.02)
+    (True, True)
+    """
+    if law not in ROUTE_LAWS:
+        raise ValueError(f"law must be one of {ROUTE_LAWS}; got {law!r}")
+    if not fit4.converged:
+        raise ValueError(f"fit4 did not converge ({fit4.message}); fit the sine first")
+    n = y.size
+    p_mean = 4
+    k = np.arange(n, dtype=float)
+    w = 2 * math.pi * fit4.frequency
+    phase_k = w * T * k + fit4.phase
+    sin_k = np.sin(phase_k)
+    c2 = np.cos(2 * phase_k)
+    r = np.asarray(fit4.residuals, dtype=float)
+    r2 = r * r * (n / (n - p_mean))  # the fit's degrees of freedom
+    X = np.column_stack((np.ones(n), c2))
+    coef = np.linalg.lstsq(X, r2, rcond=None)[0]
+    wts = np.ones(n)
+    for _ in range(2):
+        v = X @ coef
+        vbar = max(float(np.mean(v)), 1e-300)
+        wts = 1.0 / np.maximum(v, 0.25 * vbar) ** 2
+        Xw = X * wts[:, None]
+        coef = np.linalg.solve(X.T @ Xw, Xw.T @ r2)
+    u = r2 - X @ coef
+    bread = np.linalg.inv(X.T @ (X * wts[:, None]))
+    meat = (X * (wts * u)[:, None]).T @ (X * (wts * u)[:, None])
+    cov_ab = bread @ meat @ bread
+    alpha, beta = float(coef[0]), float(coef[1])
+    Ad = float(fit4.amplitude)
+    # A_d's variance: A_d ~ (2/N) sum y_k sin(phi_k) for many periods; HC with r_k^2
+    var_Ad = 4.0 / n**2 * float(np.sum(sin_k**2 * r * r))
+    g = 2 * beta / (Ad * Ad)
+    var_g = (2 / Ad**2) ** 2 * float(cov_ab[1, 1]) + (4 * beta / Ad**3) ** 2 * var_Ad
+    s2, ds2 = _invert(law, g)
+    s2_se = abs(ds2) * math.sqrt(var_g)
+    if not math.isfinite(s2):
+        s2, s2_se = math.nan, math.nan
+    jvar, jvar_se = s2 / w**2, s2_se / w**2
+    sd = math.sqrt(max(jvar, 0.0))
+    lo_var = jvar - 1.96 * jvar_se
+    if math.isfinite(jvar) and lo_var > 0:
+        sd_se = jvar_se / (2 * sd)
+    else:
+        sd_se = 0.5 * math.sqrt(jvar_se) if math.isfinite(jvar_se) else math.nan
+    chi1 = _chi1(law, math.sqrt(max(s2, 0.0))) if math.isfinite(s2) else math.nan
+    A = Ad / chi1 if chi1 and math.isfinite(chi1) else math.nan
+    # sigma_v^2 = alpha - A_d^2 (1/chi_1^2 - 1) / 2 = alpha - (A^2 - A_d^2) / 2
+    spread = 0.5 * (A * A - Ad * Ad) if math.isfinite(A) else math.nan
+    noise_var = alpha - spread
+    # d spread / d beta: for small s, spread ~ A_d^2 s^2 / 2 ~ beta (Gaussian exactly:
+    # A_d^2 (e^{s^2} - 1)/2 = beta / (1 - g)), so noise_var ~ alpha - beta / (1 - g)
+    dn_db = -1.0 / max(1.0 - g, 1e-12)
+    noise_var_se = math.sqrt(
+        max(float(cov_ab[0, 0] + 2 * dn_db * cov_ab[0, 1] + dn_db**2 * cov_ab[1, 1]), 0.0)
+    )
+    var_k = np.maximum(X @ coef, 0.0)
+    vv = np.maximum(var_k, 1e-300)
+    crit = float(np.sum(np.log(vv) + r * r / vv))
+    # the sine's standard errors (HC, many periods): a, b ~ (2/N) sum y cos/sin
+    tc = (k - 0.5 * (n - 1)) * T
+    cos_k = np.cos(phase_k)
+    var_ph = 4.0 / n**2 * float(np.sum(cos_k**2 * r * r)) / max(Ad * Ad, 1e-300)
+    col = tc * cos_k
+    var_w = float(np.sum(col * col * r * r)) / max(Ad * Ad * float(np.sum(col * col)) ** 2, 1e-300)
+    return MomentFit(
+        law=law,
+        amplitude=A,
+        damped_amplitude=Ad,
+        phase_rad=float(fit4.phase),
+        frequency_hz=float(fit4.frequency),
+        offset=float(fit4.offset),
+        alpha=alpha,
+        beta=beta,
+        cov_alpha_beta=cov_ab,
+        phase_var=s2,
+        phase_var_stderr=s2_se,
+        jitter_var=jvar,
+        jitter_var_stderr=jvar_se,
+        jitter_std=sd,
+        jitter_std_stderr=sd_se,
+        noise_var=noise_var,
+        noise_var_stderr=noise_var_se,
+        amplitude_stderr=math.sqrt(var_Ad) / chi1 if chi1 else math.nan,
+        frequency_stderr=math.sqrt(var_w) / (2 * math.pi),
+        phase_stderr=math.sqrt(var_ph),
+        offset_stderr=math.sqrt(float(np.sum(r * r))) / n,
+        residuals=r,
+        variance=var_k,
+        criterion=crit,
+    )
