@@ -655,11 +655,18 @@ def measure_jitter(
     physical = _resolution(resolution, step)
     half_bin = 1.0 / (N * T)
     # the IEEE 1057 fit at the start: the tone test, and (aliases) the baseband frequency
-    base_fit = sine_fit_4(
-        yv, np.arange(N, dtype=float) * T, f_start, frequency_bounds=_near(f_start, half_bin)
-    )
+    try:
+        base_fit: SineFit | None = sine_fit_4(
+            yv, np.arange(N, dtype=float) * T, f_start, frequency_bounds=_near(f_start, half_bin)
+        )
+    except ValueError:  # the start aliases to DC or Nyquist: no sine can be fitted there
+        base_fit = None
     if band_given is not None:
-        f_base = abs(float(base_fit.frequency)) if base_fit.converged else f_start
+        f_base = (
+            abs(float(base_fit.frequency))
+            if base_fit is not None and base_fit.converged
+            else f_start
+        )
         base = _baseband(f_base, T)
         cands = _alias_frequencies(base, T, band_given)
     else:
@@ -670,7 +677,11 @@ def measure_jitter(
             f"the record holds {cycles:.3g} periods of its sine; at least 2 are needed "
             "(record longer, or give frequency= if the sine is faster than it looks)"
         )
-    p_tone = tone_significance(yv, float(base_fit.residuals @ base_fit.residuals))
+    p_tone = (
+        tone_significance(yv, float(base_fit.residuals @ base_fit.residuals))
+        if base_fit is not None
+        else 1.0
+    )
     # the aliases are a tie with the jitter scale free: fit one (the given frequency's, else
     # the lowest), the others follow from it (f sigma is what the samples see)
     fc = min(cands, key=lambda f: abs(f - f_start)) if frequency is not None else cands[0]
@@ -684,7 +695,16 @@ def measure_jitter(
         )
     fam_names = laws[:1] if hopeless else laws
     route = "gaussian" if hopeless else method
-    theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band)
+    try:
+        theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band)
+    except ValueError as exc:
+        if p_tone < ALPHA_TONE:
+            raise
+        raise ValueError(
+            f"no tone stands out of the record (the periodogram's peak, {fc:.6g} Hz, is not "
+            f"a sine that can be fitted: {exc}); check that the test signal reaches the "
+            "converter, or give frequency= if the tone is known"
+        ) from None
     model = SineWave(band_hz=band, harmonics=H)
     # the moment route (a few passes, law-free variance profile) for a pure tone: the
     # answer of method="gaussian", the likelihood's start and its numeric noise floor
@@ -705,9 +725,7 @@ def measure_jitter(
     if gauss_first is not None and fast_done:
         best = gauss_first
     else:
-        best = _fit_one(
-            data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first
-        )
+        best = _fit_one(data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first)
     # the other families at the chosen alias: from its IEEE starts and from the first
     # family's fit, the better end kept
     fitted: dict[str, FitResult] = {first_family: best}
@@ -838,9 +856,7 @@ def _moment_result(
         if noise > 0 and mf.noise_var - 1.96 * mf.noise_var_stderr > 0
         else 0.5 * math.sqrt(mf.noise_var_stderr)
     )
-    x = np.array(
-        [std * per_std, mf.amplitude, mf.phase_rad, mf.frequency_hz, mf.offset, noise]
-    )
+    x = np.array([std * per_std, mf.amplitude, mf.phase_rad, mf.frequency_hz, mf.offset, noise])
     se = np.array(
         [
             mf.jitter_std_stderr * per_std,
@@ -859,8 +875,7 @@ def _moment_result(
     )
     if not resolved:
         msg += (
-            "; the jitter is below what the record resolves: its interval is one-sided "
-            "(interval())"
+            "; the jitter is below what the record resolves: its interval is one-sided (interval())"
         )
     if mf.noise_var - 1.96 * mf.noise_var_stderr <= (physical or 0.0) ** 2:
         msg += "; the additive noise is not resolved (the record is noise-free within its errors)"
