@@ -768,7 +768,10 @@ def measure_jitter(
         resid, sd = mf.residuals, np.sqrt(np.maximum(mf.variance, 0.0))
     else:
         resid, sd = _model_residuals(yv, T, r)
-    findings = _adequacy(yv, T, resid, sd, float(r.params["frequency_hz"]), step, p_tone, folding)
+    lsb = step if step else (physical * math.sqrt(12.0) if physical else None)
+    findings = _adequacy(
+        yv, T, resid, sd, float(r.params["frequency_hz"]), step, p_tone, folding, lsb
+    )
     status, message = _judge(status, message, r, findings)
     if len(aliases) > 1 and status is FitStatus.CONVERGED:
         status = FitStatus.UNIDENTIFIABLE
@@ -953,9 +956,11 @@ def _adequacy(
     step: float | None,
     p_tone: float,
     folding: Finding | None,
+    lsb: float | None = None,
 ) -> tuple[Finding, ...]:
     """The findings of :mod:`jitterid.metrology.adequacy` on the chosen fit (its residuals
-    y - E y and per-sample std)."""
+    y - E y and per-sample std); ``lsb``: the converter's step, detected or from the given
+    resolution (lines below half of it are the quantiser's own)."""
     out: list[Finding] = []
     if folding is not None:
         out.append(folding)
@@ -975,7 +980,7 @@ def _adequacy(
     rail = rail_check(y, step, y - resid, sd)
     if rail is not None:
         out.append(rail)
-    lines = residual_lines(resid, sd, T, f0)
+    lines = residual_lines(resid, sd, T, f0, step=lsb)
     if lines:
         out.append(_lines_finding(lines))
     return tuple(out)
