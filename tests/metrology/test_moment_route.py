@@ -119,7 +119,7 @@ def _coverage(setting, records, N, seed0):
     hits = flagged = 0
     for r in range(records):
         rng = np.random.default_rng([seed0, r, bits, round(s * 1e9)])
-        y, f = _coherent_record(N, sigma, rng, bits=bits, noise=thermal / 2**bits if bits else 0)
+        y, _ = _coherent_record(N, sigma, rng, bits=bits, noise=thermal / 2**bits if bits else 0)
         m = ji.measure_jitter(y, T, method="gaussian")
         lo, hi = m.interval()
         hits += lo <= sigma <= hi

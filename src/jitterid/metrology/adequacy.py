@@ -257,13 +257,15 @@ def rail_check(
 ) -> Finding | None:
     """Samples piled on the record's extreme values: a clipped record.
 
-    Counts the samples within half a quantisation step (or 1e-9 of the span, for a float
-    record) of the record's maximum and of its minimum, and compares each count with the
-    number the fitted model expects in that same bin (each sample Gaussian with the model's mean and
-    std, less the rounding's q^2/12 on a quantised record, rounded to the code): a Poisson
-    tail probability below :data:`ALPHA_RAIL` with 5 or more samples and 3 times the
-    expected number is a rail (a sine clipped 1 % beyond full scale puts 4.5 % of its
-    samples on each rail).
+    A clipped sine's fit puts its tops beyond the rail, where no sample is (and its noise
+    std grows to hold the flattened tops). So the test looks at the samples whose model
+    mean lies beyond the record's maximum (minimum) by more than one of the model's std's
+    plus half a quantisation step (1e-9 of the span for a float record): on a record that
+    is one jittered tone there are (almost) none, since the record's extremes lie beyond
+    the jittered sine's mean; where there are, each sits on the rail with probability
+    Phi(-1) at most under the model. Five or more such samples on the rail, 3 times the
+    model's expectation and with a Poisson tail probability below :data:`ALPHA_RAIL`, is a
+    rail.
 
     Parameters
     ----------
@@ -282,33 +284,33 @@ def rail_check(
 
     hi, lo = float(np.max(y)), float(np.min(y))
     tol = 0.5 * step if step else 1e-9 * (hi - lo)
-    if step:  # the quantiser's own error is the rounding to the code, not a spread
-        sd = np.sqrt(np.maximum(sd**2 - step**2 / 12.0, (0.05 * step) ** 2))
     sd = np.maximum(sd, 1e-300)
-    worst: tuple[float, str, int, float] | None = None
-    for name, level in (("top", hi), ("bottom", lo)):
-        count = int(np.sum(np.abs(y - level) <= tol))
+    worst: tuple[float, str, int, float, int] | None = None
+    for name, level, sign in (("top", hi, 1.0), ("bottom", lo, -1.0)):
+        beyond = sign * (mean - level) > sd + tol
+        if int(np.sum(beyond)) < 5:
+            continue
+        on_rail = beyond & (np.abs(y - level) <= tol)
+        count = int(np.sum(on_rail))
         if count < 5:
             continue
-        # the model's count in the code's own bin (a clipped sine's model puts its tops
-        # beyond the rail, where no sample is: the pile is in the bin)
-        expected = float(
-            np.sum(norm.cdf((level + tol - mean) / sd) - norm.cdf((level - tol - mean) / sd))
-        )
+        z = (sign * (level - mean[beyond]) + tol) / sd[beyond]
+        expected = float(np.sum(norm.cdf(z)))
         p = float(poisson.sf(count - 1, max(expected, 1e-12)))
         if p < ALPHA_RAIL and count >= 3 * expected and (worst is None or p < worst[0]):
-            worst = (p, name, count, expected)
+            worst = (p, name, count, expected, int(np.sum(np.abs(y - level) <= tol)))
     if worst is None:
         return None
-    p, name, count, expected = worst
+    p, name, count, expected, total = worst
     level = hi if name == "top" else lo
     return Finding(
         "clipping",
         p,
-        f"{count} samples sit on the record's {name} value {level:.6g} where the fitted "
-        f"sine puts {expected:.3g} (p = {p:.2g}): the record is clipped (the converter's "
-        "rail). Lower the tone's amplitude below full scale and record again; a clipped "
-        "sine's flattened tops are not jitter",
+        f"{total} samples sit on the record's {name} value {level:.6g}, {count} of them where "
+        f"the fitted sine lies clearly beyond it (it expects {expected:.3g} there, p = "
+        f"{p:.2g}): the record is clipped (the converter's rail). Lower the tone's "
+        "amplitude below full scale and record again; a clipped sine's flattened tops are "
+        "not jitter",
     )
 
 
