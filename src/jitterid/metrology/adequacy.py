@@ -232,7 +232,7 @@ def folding_check(frequency_hz: float, T: float, N: int) -> Finding | None:
         )
     k = np.arange(N, dtype=float)
     phase = np.mod(fb * T * k, 1.0)
-    occupied = np.unique(np.minimum((phase * 16).astype(int), 15)).size
+    occupied = int(np.count_nonzero(np.bincount(np.minimum((phase * 16).astype(int), 15))))
     if occupied < 8:
         return Finding(
             "folding",

@@ -337,11 +337,17 @@ def _start(
 
 
 def _start_fit(
-    y: FloatArray, T: float, f0: float, band: tuple[float, float]
+    y: FloatArray,
+    T: float,
+    f0: float,
+    band: tuple[float, float],
+    fit4: SineFit | None = None,
 ) -> tuple[FloatArray, float, float, float, SineFit]:
-    """:func:`_start` and the IEEE 1057 four-parameter fit it started from."""
+    """:func:`_start` and the IEEE 1057 four-parameter fit it started from (``fit4``: that
+    fit, where it is already at hand)."""
     t = np.arange(y.size, dtype=float) * T
-    fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
+    if fit4 is None:
+        fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
     if not fit4.converged:
         raise ValueError(
             f"the four-parameter sine fit did not converge from {f0:g} Hz ({fit4.message}); "
@@ -359,6 +365,36 @@ def _start_fit(
     damping = math.exp(-0.5 * (w * sj) ** 2)
     theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
     return theta, sj, sv, float(reg.jitter_std), fit4
+
+
+def _start_moments(
+    y: FloatArray,
+    T: float,
+    f0: float,
+    band: tuple[float, float],
+    fit4: SineFit | None = None,
+) -> tuple[FloatArray, float, float, float, SineFit, MomentFit]:
+    """:func:`_start_fit` for a pure tone with the slope regression read off the moment
+    route (:attr:`MomentFit.slope_regression_std`: the same regression, one pass fewer),
+    and that Gaussian moment fit."""
+    t = np.arange(y.size, dtype=float) * T
+    if fit4 is None:
+        fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
+    if not fit4.converged:
+        raise ValueError(
+            f"the four-parameter sine fit did not converge from {f0:g} Hz ({fit4.message}); "
+            "give the frequency (frequency=...) or check that y is a sine record"
+        )
+    mf = moment_route(y, T, fit4, "gaussian")
+    w = 2 * math.pi * fit4.frequency
+    sj = mf.slope_regression_std if np.isfinite(mf.slope_regression_std) else 0.0
+    sj = max(sj, 1e-3 / w)
+    resid = float(np.std(fit4.residuals))
+    sv = mf.slope_regression_noise_std if np.isfinite(mf.slope_regression_noise_std) else 0.0
+    sv = max(sv, 1e-3 * resid, 1e-9 * fit4.amplitude)
+    damping = math.exp(-0.5 * (w * sj) ** 2)
+    theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
+    return theta, sj, sv, float(mf.slope_regression_std), fit4, mf
 
 
 def _fit_one(
@@ -650,7 +686,11 @@ def measure_jitter(
         raise ValueError(f"laws must name families among {sorted(known)}; got {list(laws)}")
     N = yv.size
     band_given = _band(band_hz)
-    f_start = positive(frequency, "frequency") if frequency is not None else periodogram_peak(yv, T)
+    f_start = (
+        positive(frequency, "frequency")
+        if frequency is not None
+        else periodogram_peak(yv, T, oversample=2)
+    )
     step = quantisation_step(yv) if resolution is None else None
     physical = _resolution(resolution, step)
     half_bin = 1.0 / (N * T)
@@ -696,7 +736,12 @@ def measure_jitter(
     fam_names = laws[:1] if hopeless else laws
     route = "gaussian" if hopeless else method
     try:
-        theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band)
+        same = base_fit if (fc == f_start and base_fit is not None) else None
+        mf_start: MomentFit | None = None
+        if harmonics == 1 and not hopeless:
+            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(yv, T, fc, band, same)
+        else:
+            theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band, same)
     except ValueError as exc:
         if p_tone < ALPHA_TONE:
             raise
@@ -711,7 +756,8 @@ def measure_jitter(
     mf: MomentFit | None = None
     if H == 1:
         first = fam_names[0] if fam_names[0] in ROUTE_LAWS else "gaussian"
-        mf = moment_route(yv, T, fit4, first)
+        mf = mf_start if first == "gaussian" and mf_start is not None else None
+        mf = mf or moment_route(yv, T, fit4, first)
     floor = _ml_floor(physical, mf, float(fit4.amplitude))
     data = SampledData(yv, T, None, resolution=floor)
     theta_h = _harmonic_start(model, yv, T, theta)

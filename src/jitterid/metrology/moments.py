@@ -87,6 +87,11 @@ class MomentFit:
     criterion : float
         sum_k ln v_k + r_k^2 / v_k at the estimate (the Gaussian criterion, -2 ln L up to a
         constant, for comparing fits).
+    slope_regression_std, slope_regression_noise_std : float
+        The IEEE 1057 slope regression's jitter and noise std (s, units of y): its
+        regression of r_k^2 on [1, s'(kT)^2] spans the same columns as [1, cos 2 phi_k],
+        so it is the unweighted fit of (F2) read to first order: jitter variance
+        2 beta_ols / (w A_d)^2, noise variance alpha_ols - beta_ols (clipped at 0).
     """
 
     law: str
@@ -113,6 +118,8 @@ class MomentFit:
     residuals: FloatArray
     variance: FloatArray
     criterion: float
+    slope_regression_std: float = math.nan
+    slope_regression_noise_std: float = math.nan
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """The jitter std's interval: the variance's normal interval, cut at 0, square-rooted.
@@ -240,11 +247,15 @@ def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") 
     w = 2 * math.pi * fit4.frequency
     phase_k = w * T * k + fit4.phase
     sin_k = np.sin(phase_k)
-    c2 = np.cos(2 * phase_k)
+    cos_k = np.cos(phase_k)
+    c2 = cos_k * cos_k - sin_k * sin_k
     r = np.asarray(fit4.residuals, dtype=float)
     r2 = r * r * (n / (n - p_mean))  # the fit's degrees of freedom
-    X = np.column_stack((np.ones(n), c2))
-    coef = np.linalg.lstsq(X, r2, rcond=None)[0]
+    X = np.empty((n, 2))
+    X[:, 0] = 1.0
+    X[:, 1] = c2
+    coef = np.linalg.solve(X.T @ X, X.T @ r2)
+    ols = coef * ((n - p_mean) / n)  # the plain regression of r^2 (IEEE 1057's, reparametrised)
     wts = np.ones(n)
     for _ in range(2):
         v = X @ coef
@@ -289,7 +300,6 @@ def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") 
     crit = float(np.sum(np.log(vv) + r * r / vv))
     # the sine's standard errors (HC, many periods): a, b ~ (2/N) sum y cos/sin
     tc = (k - 0.5 * (n - 1)) * T
-    cos_k = np.cos(phase_k)
     var_ph = 4.0 / n**2 * float(np.sum(cos_k**2 * r * r)) / max(Ad * Ad, 1e-300)
     col = tc * cos_k
     var_w = float(np.sum(col * col * r * r)) / max(Ad * Ad * float(np.sum(col * col)) ** 2, 1e-300)
@@ -318,4 +328,6 @@ def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") 
         residuals=r,
         variance=var_k,
         criterion=crit,
+        slope_regression_std=math.sqrt(max(2 * float(ols[1]) / (w * Ad) ** 2, 0.0)),
+        slope_regression_noise_std=math.sqrt(max(float(ols[0] - ols[1]), 0.0)),
     )
