@@ -55,6 +55,8 @@ ALPHA_TONE = 1e-3
 ALPHA_RAIL = 1e-4
 #: Highest harmonic a line is named after (beyond it nearly every bin is some harmonic's).
 MAX_HARMONIC = 10
+#: Neighbours on either side that a periodogram ordinate is compared with.
+LOCAL_BINS = 16
 #: Most lines :func:`residual_lines` reports.
 MAX_LINES = 8
 
@@ -88,7 +90,7 @@ class SpectralLine:
     frequency_hz : float
         The line's frequency (baseband, 0..1/(2T)), Hz.
     power_ratio : float
-        Its periodogram ordinate over the mean ordinate (an Exp(1) variable without a line).
+        Its periodogram ordinate over the mean of its neighbours' (near 1 without a line).
     p_value : float
         The probability that the largest of the remaining ordinates is this large without
         a line.
@@ -314,6 +316,24 @@ def rail_check(
     )
 
 
+def _local_ratio(power: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Each ordinate over the mean of its LOCAL_BINS neighbours on either side (the two
+    nearest on each side left out, where a line leaks), and how many there were."""
+    m = power.size
+    c = np.concatenate(([0.0], np.cumsum(power)))
+    j = np.arange(m)
+
+    def window(a: NDArray[np.int64], b: NDArray[np.int64]) -> tuple[FloatArray, FloatArray]:
+        a, b = np.clip(a, 0, m), np.clip(b, 0, m)
+        return c[b] - c[a], (b - a).astype(float)
+
+    s1, k1 = window(j - 2 - LOCAL_BINS, j - 2)
+    s2, k2 = window(j + 3, j + 3 + LOCAL_BINS)
+    k = k1 + k2
+    mean = (s1 + s2) / np.maximum(k, 1.0)
+    return power / np.maximum(mean, 1e-300), k
+
+
 def residual_lines(
     resid: FloatArray,
     sd: FloatArray,
@@ -328,14 +348,14 @@ def residual_lines(
 
     The residual r_k = y_k - E y_k is divided by the model's per-sample std (floored at a
     quarter of its rms, so that samples the model claims to know almost exactly, the
-    tone's peaks on a noise-free record, do not dominate); the periodogram ordinates
-    P_j = |sum_k z_k exp(-2 pi i j k / N)|^2 / N at j = 1..floor((N - 1)/2), divided by
-    their mean, are near Exp(1) without a line (the mean, not the median: its relative
-    error is 1/sqrt(M) against 1.44/sqrt(M), and a line only raises it, which is
-    conservative). The largest is a line where
-    1 - (1 - exp(-P_max))^M < ``alpha`` (M ordinates: the maximum of M exponentials);
-    it is then taken out and the next largest is tested among the M - 1 left, up to
-    ``max_lines``.
+    tone's peaks on a noise-free record, do not dominate); each periodogram ordinate
+    P_j = |sum_k z_k exp(-2 pi i j k / N)|^2 / N, j = 1..floor((N - 1)/2), is divided by
+    the mean of its K = 2 x :data:`LOCAL_BINS` neighbours (the nearest two on each side
+    left out), so that a coloured background (a phase-noise skirt, coloured noise) is
+    not a line; without a line the ratio is F(2, 2K), P(F > x) = (1 + x/K)^(-K), exactly
+    for Gaussian ordinates. The smallest of the M tail probabilities is a line where
+    1 - (1 - p_min)^M < ``alpha``; it is then taken out and the next is tested among the
+    M - 1 left, up to ``max_lines``.
 
     Parameters
     ----------
@@ -367,17 +387,15 @@ def residual_lines(
         return ()
     z = resid / np.maximum(sd, 0.25 * rms)
     z = z - z.mean()
-    spec = np.fft.rfft(z)
     m = (n - 1) // 2
-    if m < 4:
+    if m < 4 * LOCAL_BINS:
         return ()
-    power = np.abs(spec[1 : m + 1]) ** 2 / n
-    scale = float(np.mean(power))
-    if not scale > 0:
-        return ()
-    ratio = power / scale
+    power = np.abs(np.fft.rfft(z)[1 : m + 1]) ** 2 / n
+    ratio, dof = _local_ratio(power)
+    # P(F(2, 2K) > x) = (1 + x / K)^(-K): the ordinate over the mean of K neighbours
+    logp = -dof * np.log1p(ratio / dof)
     raw = np.abs(np.fft.rfft(resid)[1 : m + 1]) * 2 / n
-    order = np.argsort(ratio)[::-1]
+    order = np.argsort(logp)
     fb0 = _baseband(f0, T)
     bin_hz = 1.0 / (n * T)
     out: list[SpectralLine] = []
@@ -388,10 +406,10 @@ def residual_lines(
             break
         if any(abs(int(j) - i) <= 3 for i in taken):
             continue  # the leakage of a line already found (a non-coherent line spreads)
-        x = float(ratio[j])
+        pj = math.exp(float(logp[j]))
         left = m - tested
         tested += 1
-        p = -math.expm1(left * math.log1p(-math.exp(-x))) if x < 700 else 0.0
+        p = -math.expm1(left * math.log1p(-pj)) if pj < 1 else 1.0
         if p >= alpha:
             break
         taken.append(int(j))
@@ -403,5 +421,5 @@ def residual_lines(
             if abs(_baseband(h * fb0, T) - f) <= 1.5 * bin_hz:
                 harmonic = h
                 break
-        out.append(SpectralLine(f, x, p, harmonic, float(raw[j])))
+        out.append(SpectralLine(f, float(ratio[j]), p, harmonic, float(raw[j])))
     return tuple(out)

@@ -47,6 +47,7 @@ from .adequacy import (
     tone_significance,
 )
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
+from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
@@ -201,6 +202,10 @@ class JitterMeasurement:
     noise_floor : float or None
         The physical noise floor (the ``resolution`` given, or the quantisation step /
         sqrt(12) of a quantised record); None for a float record, which has none.
+    decomposition : JitterDecomposition or None
+        The jitter split from the per-sample phase error
+        (:mod:`jitterid.metrology.phase`): RJ rms, PJ amplitude and frequency, total, and
+        whether the jitter is correlated from sample to sample (a pure tone only).
 
     Examples
     --------
@@ -242,6 +247,7 @@ class JitterMeasurement:
     jitter_var: float = math.nan
     jitter_var_stderr: float = math.nan
     noise_floor: float | None = None
+    decomposition: JitterDecomposition | None = None
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """Normal-approximation interval of the jitter std, cut at 0: on the variance's
@@ -281,6 +287,8 @@ class JitterMeasurement:
             f"  IEEE 1057 slope regression (start): {_time(self.slope_regression_std)}",
             "  families (lowest BIC chosen):",
         ]
+        if self.decomposition is not None:
+            lines.insert(-1, f"  decomposition     {self.decomposition.summary()}")
         if self.findings:
             at = lines.index("  families (lowest BIC chosen):")
             found = [f"  finding ({f.kind}): {f.message}" for f in self.findings]
@@ -814,11 +822,43 @@ def measure_jitter(
         resid, sd = mf.residuals, np.sqrt(np.maximum(mf.variance, 0.0))
     else:
         resid, sd = _model_residuals(yv, T, r)
+    jstd, jse = r.jitter_std, r.jitter_std_stderr
+    jvar, jvar_se = math.nan, math.nan
+    if on_route:
+        assert mf is not None
+        jstd, jse, jvar, jvar_se = (
+            mf.jitter_std,
+            mf.jitter_std_stderr,
+            mf.jitter_var,
+            mf.jitter_var_stderr,
+        )
+    # the per-sample phase error: periodic and coloured jitter (informational findings;
+    # a coloured jitter's interval is widened to its Newey-West value)
+    decomposition: JitterDecomposition | None = None
+    info: list[Finding] = []
+    if not hopeless and H == 1:
+        decomposition, info, widened = _phase_findings(yv, T, r, resid, sd, jstd, mf)
+        if widened is not None and mf is not None:
+            if on_route:
+                jstd, jse, jvar, jvar_se = (
+                    widened.jitter_std,
+                    widened.jitter_std_stderr,
+                    widened.jitter_var,
+                    widened.jitter_var_stderr,
+                )
+            elif mf.jitter_var_stderr > 0:
+                # the likelihood assumes independent samples: widen its standard error by
+                # the moment route's Newey-West / independent-sample ratio
+                jse *= max(widened.jitter_var_stderr / mf.jitter_var_stderr, 1.0)
     lsb = step if step else (physical * math.sqrt(12.0) if physical else None)
+    pj_f = decomposition.pj_frequency_hz if decomposition and decomposition.periodic else None
     findings = _adequacy(
-        yv, T, resid, sd, float(r.params["frequency_hz"]), step, p_tone, folding, lsb
+        yv, T, resid, sd, float(r.params["frequency_hz"]), step, p_tone, folding, lsb, pj_f
     )
+    findings = (*findings, *info)
     status, message = _judge(status, message, r, findings)
+    if status is FitStatus.CONVERGED and info:
+        message += "; " + "; ".join(f.message for f in info)
     if len(aliases) > 1 and status is FitStatus.CONVERGED:
         status = FitStatus.UNIDENTIFIABLE
         message = (
@@ -830,16 +870,6 @@ def measure_jitter(
         )
     if notes:
         message += "; " + "; ".join(notes)
-    jstd, jse = r.jitter_std, r.jitter_std_stderr
-    jvar, jvar_se = math.nan, math.nan
-    if on_route:
-        assert mf is not None
-        jstd, jse, jvar, jvar_se = (
-            mf.jitter_std,
-            mf.jitter_std_stderr,
-            mf.jitter_var,
-            mf.jitter_var_stderr,
-        )
     return JitterMeasurement(
         jitter_std=jstd,
         jitter_std_stderr=jse,
@@ -866,6 +896,7 @@ def measure_jitter(
         jitter_var=jvar,
         jitter_var_stderr=jvar_se,
         noise_floor=physical,
+        decomposition=decomposition,
     )
 
 
@@ -980,6 +1011,68 @@ def _noise_floor_status(
     )
 
 
+def _phase_findings(
+    y: FloatArray,
+    T: float,
+    r: FitResult,
+    resid: FloatArray,
+    sd: FloatArray,
+    total_std: float,
+    mf: MomentFit | None,
+) -> tuple[JitterDecomposition, list[Finding], MomentFit | None]:
+    """The phase-error analysis of the chosen fit: the decomposition, its informational
+    findings, and (a coloured jitter) the moment fit ``mf`` again with a Newey-West
+    covariance."""
+    f0 = float(r.params["frequency_hz"])
+    N = y.size
+    phase_k = 2 * math.pi * f0 * T * np.arange(N, dtype=float) + float(r.params["phase_rad"])
+    mean = y - resid
+    Ad = math.sqrt(2.0 * float(np.mean((mean - np.mean(mean)) ** 2)))
+    dec, _ = phase_error_analysis(resid, sd**2, phase_k, Ad, f0, T, total_std)
+    out: list[Finding] = []
+    widened: MomentFit | None = None
+    if dec.periodic:
+        out.append(
+            Finding(
+                "periodic-jitter",
+                dec.pj_p_value,
+                f"periodic jitter found in the per-sample phase error: {dec.summary()}",
+            )
+        )
+    if dec.coloured:
+        lags = newey_west_lags(N, dec.decay)
+        dec = JitterDecomposition(**{**dec.__dict__, "hac_lags": lags})
+        if mf is not None:
+            widened = moment_route(y, T, _fit4_of(mf), mf.law, hac_lags=lags)
+        out.append(
+            Finding(
+                "coloured-jitter",
+                dec.whiteness_p_value,
+                "the jitter is correlated from sample to sample (lag-1 autocorrelation of the "
+                f"phase error {dec.lag1_autocorrelation:.2f}, whiteness p = "
+                f"{dec.whiteness_p_value:.2g}): the rms is still right, and its interval is "
+                f"the Newey-West one ({lags} lags) in place of the independent-sample one",
+            )
+        )
+    return dec, out, widened
+
+
+def _fit4_of(mf: MomentFit) -> SineFit:
+    """The four-parameter fit a moment fit was made from (its sine and residuals)."""
+    return SineFit(
+        amplitude=mf.damped_amplitude,
+        phase=mf.phase_rad,
+        frequency=mf.frequency_hz,
+        offset=mf.offset,
+        a=mf.damped_amplitude * math.sin(mf.phase_rad),
+        b=mf.damped_amplitude * math.cos(mf.phase_rad),
+        residuals=mf.residuals,
+        iterations=0,
+        converged=True,
+        message="the moment fit's sine",
+    )
+
+
 def _model_residuals(y: FloatArray, T: float, r: FitResult) -> tuple[FloatArray, FloatArray]:
     """y - E y and the per-sample std (jitter and noise) of a fitted tone model."""
     sig = r.signal()
@@ -1003,6 +1096,7 @@ def _adequacy(
     p_tone: float,
     folding: Finding | None,
     lsb: float | None = None,
+    pj_frequency: float | None = None,
 ) -> tuple[Finding, ...]:
     """The findings of :mod:`jitterid.metrology.adequacy` on the chosen fit (its residuals
     y - E y and per-sample std); ``lsb``: the converter's step, detected or from the given
@@ -1027,6 +1121,19 @@ def _adequacy(
     if rail is not None:
         out.append(rail)
     lines = residual_lines(resid, sd, T, f0, step=lsb)
+    if pj_frequency is not None:  # the periodic jitter's sidebands h f0 +- m f_p: not spurs
+        bin_hz = 1.0 / (y.size * T)
+        # (and at the odd harmonics' too: the residual is normalised by a std that varies
+        # with cos 2 phi, which mixes the sidebands up by 2 f0)
+        sidebands = [
+            _baseband(h * f0 + sgn * m * pj_frequency, T)
+            for h in (1, 3, 5, 7)
+            for m in (1, 2, 3)
+            for sgn in (1, -1)
+        ]
+        lines = tuple(
+            ln for ln in lines if min(abs(ln.frequency_hz - sb) for sb in sidebands) > 1.5 * bin_hz
+        )
     if lines:
         out.append(_lines_finding(lines))
     return tuple(out)

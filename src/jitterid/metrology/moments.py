@@ -204,7 +204,9 @@ def _chi1(law: str, s: float) -> float:
     return 1.0 if a < 1e-8 else math.sin(a) / a
 
 
-def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") -> MomentFit:
+def moment_route(
+    y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian", *, hac_lags: int = 0
+) -> MomentFit:
     """The jitter std from (F1)-(F3) of the module doc, in a few passes over the record.
 
     Parameters
@@ -218,6 +220,11 @@ def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") 
         alias: the jitter is converted to seconds with it).
     law : {"gaussian", "uniform"}
         The law (F3) is inverted under; the variance profile itself is law-free.
+    hac_lags : int, optional
+        0 (default): the samples' jitter is independent (the heteroscedasticity-consistent
+        sandwich); more: a Newey-West (Bartlett) covariance over that many lags, for a
+        jitter correlated from sample to sample
+        (:func:`jitterid.metrology.phase.newey_west_lags`).
 
     Returns
     -------
@@ -265,7 +272,11 @@ def moment_route(y: FloatArray, T: float, fit4: SineFit, law: str = "gaussian") 
         coef = np.linalg.solve(X.T @ Xw, Xw.T @ r2)
     u = r2 - X @ coef
     bread = np.linalg.inv(X.T @ (X * wts[:, None]))
-    meat = (X * (wts * u)[:, None]).T @ (X * (wts * u)[:, None])
+    g = X * (wts * u)[:, None]
+    meat = g.T @ g
+    for lag in range(1, max(int(hac_lags), 0) + 1):
+        gam = g[:-lag].T @ g[lag:]
+        meat += (1 - lag / (hac_lags + 1)) * (gam + gam.T)
     cov_ab = bread @ meat @ bread
     alpha, beta = float(coef[0]), float(coef[1])
     Ad = float(fit4.amplitude)
