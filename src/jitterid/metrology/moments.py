@@ -197,6 +197,18 @@ def _invert(law: str, g: float) -> tuple[float, float]:
     return s * s, 2 * s / d if d > 0 else math.inf
 
 
+def _long_run(x: FloatArray, lags: int) -> float:
+    """The variance of sum_k x_k: sum_k x_k^2 for independent terms (``lags`` = 0), else
+    with the lagged products up to ``lags`` added in full (the truncated kernel: the
+    Bartlett weights' taper was measured to leave the interval 13 % short on AR(1) 0.9
+    jitter at N = 1000), never below the independent value."""
+    base = float(x @ x)
+    out = base
+    for lag in range(1, max(int(lags), 0) + 1):
+        out += 2 * float(x[:-lag] @ x[lag:])
+    return max(out, base)
+
+
 def _chi1(law: str, s: float) -> float:
     if law == "gaussian":
         return math.exp(-0.5 * s * s)
@@ -272,18 +284,23 @@ def moment_route(
         coef = np.linalg.solve(X.T @ Xw, Xw.T @ r2)
     u = r2 - X @ coef
     bread = np.linalg.inv(X.T @ (X * wts[:, None]))
-    g = X * (wts * u)[:, None]
-    meat = g.T @ g
+    gw = X * (wts * u)[:, None]
+    meat = gw.T @ gw
     for lag in range(1, max(int(hac_lags), 0) + 1):
-        gam = g[:-lag].T @ g[lag:]
+        gam = gw[:-lag].T @ gw[lag:]
         meat += (1 - lag / (hac_lags + 1)) * (gam + gam.T)
     cov_ab = bread @ meat @ bread
     alpha, beta = float(coef[0]), float(coef[1])
     Ad = float(fit4.amplitude)
     # A_d's variance: A_d ~ (2/N) sum y_k sin(phi_k) for many periods; HC with r_k^2
-    var_Ad = 4.0 / n**2 * float(np.sum(sin_k**2 * r * r))
+    # g = 2 beta / A_d^2 through the samples' influences: beta's (the reweighted
+    # regression's) and A_d's (A_d ~ (2/N) sum y_k sin phi_k for many periods), summed
+    # with their lagged products where the jitter is coloured (Bartlett weights)
+    inf_A = 2.0 * r * sin_k / n
+    var_Ad = float(inf_A @ inf_A)
     g = 2 * beta / (Ad * Ad)
-    var_g = (2 / Ad**2) ** 2 * float(cov_ab[1, 1]) + (4 * beta / Ad**3) ** 2 * var_Ad
+    inf_g = (2 / Ad**2) * (gw @ bread[1]) - (4 * beta / Ad**3) * inf_A
+    var_g = _long_run(inf_g, hac_lags)
     s2, ds2 = _invert(law, g)
     s2_se = abs(ds2) * math.sqrt(var_g)
     if not math.isfinite(s2):

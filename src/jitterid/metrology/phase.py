@@ -237,10 +237,16 @@ def phase_error_analysis(
         amp, fp, coef, X = best
         d_white = d - X @ coef
         p_pj = pj.p_value
-    p_white, r1, r2 = whiteness(d_white)
-    # the correlation's decay, for the Newey-West bandwidth: r2 / r1 of an AR(1) part
-    # (diluted by the white part and the noise, r1 itself understates it)
-    decay = r2 / r1 if r1 > 0.05 and r2 > 0 else r1
+    p_white, r1, _ = whiteness(d_white)
+    # the correlation's decay, for the Newey-West bandwidth: the phase error's own lag-2 /
+    # lag-1 autocorrelation (d_k = (1 + cos 2 phi_k) e_k: each lag's sum is divided by the
+    # envelope's, and the white part and the noise, which only add at lag 0, cancel)
+    env = 1.0 + (c1 * c1 - s1 * s1)
+    acf = [
+        float(d_white[:-lag] @ d_white[lag:]) / max(float(env[:-lag] @ env[lag:]), 1e-300)
+        for lag in (1, 2)
+    ]
+    decay = acf[1] / acf[0] if acf[0] > 0 and acf[1] > 0 else max(r1, 0.0)
     pj_amp_s = amp / w
     pj_rms = pj_amp_s / math.sqrt(2.0)
     rj = math.sqrt(max(total_std**2 - pj_rms**2, 0.0)) if math.isfinite(total_std) else math.nan
