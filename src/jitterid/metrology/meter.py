@@ -171,7 +171,10 @@ class JitterMeasurement:
     law : JitterLaw
         The fitted jitter law of the chosen family.
     family : str
-        The chosen family's name (lowest BIC among :attr:`laws`).
+        The chosen family's name (lowest BIC among :attr:`laws`); ``"law-free"`` where the
+        moment route measured the std without assuming a law (``method="gaussian"`` with
+        several laws: :attr:`law` is then the Gaussian of that std, the shape is in the
+        message).
     laws : tuple of LawCandidate
         Every family tried.
     aliases : tuple of AliasCandidate
@@ -680,14 +683,19 @@ def measure_jitter(
     if not 1 <= harmonics <= 64:
         raise ValueError(f"harmonics must lie in 1..64; got {harmonics}")
     notes: list[str] = []
+    law_free = False
     if method == "gaussian" and len(laws) > 1:
         # the second-moment criterion sees a law only through chi(w) and chi(2 w): its
         # value does not rank laws (measured: Gaussian records at 2 pi f sigma = 0.5 and 1
-        # came out as 'uniform', 8 % and 25 % low)
+        # came out as 'uniform', 8 % and 25 % low). With the law not given, the moment route
+        # measures the std law-free (the shape from the fourth moment)
         notes.append(
-            f"method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"
+            "method='gaussian' does not rank laws: with several laws given, the std is "
+            "measured law-free (the law's shape from the fourth moment, its uncertainty in "
+            "the interval); give one law to assume it"
         )
-        laws = tuple(laws[:1])
+        laws = ("gaussian",)
+        law_free = True
     known = _families(T)
     unknown = [name for name in laws if name not in known]
     if unknown or not laws:
@@ -764,6 +772,8 @@ def measure_jitter(
     mf: MomentFit | None = None
     if H == 1:
         first = fam_names[0] if fam_names[0] in ROUTE_LAWS else "gaussian"
+        if law_free and route == "gaussian":
+            first = "free"
         mf = mf_start if first == "gaussian" and mf_start is not None else None
         mf = mf or moment_route(yv, T, fit4, first)
     floor = _ml_floor(physical, mf, float(fit4.amplitude))
@@ -771,7 +781,11 @@ def measure_jitter(
     theta_h = _harmonic_start(model, yv, T, theta)
     first_family = fam_names[0]
     gauss_first = None
-    if mf is not None and mf.law == first_family and math.isfinite(mf.jitter_var):
+    if (
+        mf is not None
+        and (mf.law == first_family or (mf.law == "free" and first_family == "gaussian"))
+        and math.isfinite(mf.jitter_var)
+    ):
         gauss_first = _moment_result(mf, known[first_family], model, physical)
     fast_done = route == "gaussian" and gauss_first is not None
     if not fast_done:
@@ -881,7 +895,7 @@ def measure_jitter(
         phase_rad=float(r.params["phase_rad"]),
         offset=float(r.params["offset"]),
         law=r.jitter_law,
-        family=chosen.name,
+        family="law-free" if (on_route and mf is not None and mf.law == "free") else chosen.name,
         laws=tuple(cands_law),
         aliases=aliases,
         fit=r,
@@ -959,6 +973,10 @@ def _moment_result(
         )
     if mf.noise_var - 1.96 * mf.noise_var_stderr <= (physical or 0.0) ** 2:
         msg += "; the additive noise is not resolved (the record is noise-free within its errors)"
+    if mf.law == "free" and math.isfinite(mf.kurtosis):
+        msg += f"; law-free: the jitter's kurtosis {mf.kurtosis:.2f} (Gaussian 3, uniform 1.8)"
+    if mf.note:
+        msg += "; " + mf.note
     return FitResult(
         method="gaussian",
         names=names,

@@ -47,8 +47,20 @@ __all__ = ["MomentFit", "moment_route"]
 
 FloatArray = NDArray[np.float64]
 
-#: Laws whose (F3) is inverted in closed form or by a one-dimensional solve.
-ROUTE_LAWS = ("gaussian", "uniform")
+#: Below this g = 2 beta / A_d^2 ~ (w sigma)^2 the law's shape moves the std by under
+#: 1e-6 (the kurtosis term is (7/12)(K - 3) (w sigma)^4): the law-free route inverts as
+#: Gaussian.
+_FREE_MIN_G = 1e-6
+#: Up to this g (2 pi f sigma up to about 0.2 rad) the fourth moment's h / g^2 rises
+#: with the shape (about K / 8) and tells it; beyond it, h is not monotone in the shape,
+#: and the law-free route spans the shapes instead (:func:`_shape_span`).
+_FREE_MAX_G = 0.04
+#: The shapes spanned where the moments cannot tell them: from the dual Dirac (kurtosis 1)
+#: to a scale mixture of kurtosis 3.75.
+_SPAN = (-1.0, 0.5)
+#: Laws whose (F3) is inverted in closed form or by a one-dimensional solve (``"free"``:
+#: with the shape from the fourth moment, law-free).
+ROUTE_LAWS = ("gaussian", "uniform", "free")
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,6 +104,14 @@ class MomentFit:
         regression of r_k^2 on [1, s'(kT)^2] spans the same columns as [1, cos 2 phi_k],
         so it is the unweighted fit of (F2) read to first order: jitter variance
         2 beta_ols / (w A_d)^2, noise variance alpha_ols - beta_ols (clipped at 0).
+    shape, kurtosis : float
+        ``law="free"``: the shape family's parameter (:func:`_shape_chi`; below 0 a dual
+        Dirac plus Gaussian, above 0 a scale mixture of two Gaussians, 0 the Gaussian) and
+        the jitter's kurtosis it implies; 0 and NaN under a named law (or where the jitter
+        is too small for its shape to matter, (w sigma)^2 < 1e-6); NaN shape where the
+        moments cannot tell it (above about 0.2 rad: the interval spans the shapes).
+    note : str
+        What the route could not do, in words (empty when nothing).
     """
 
     law: str
@@ -120,6 +140,9 @@ class MomentFit:
     criterion: float
     slope_regression_std: float = math.nan
     slope_regression_noise_std: float = math.nan
+    shape: float = 0.0
+    kurtosis: float = math.nan
+    note: str = ""
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """The jitter std's interval: the variance's normal interval, cut at 0, square-rooted.
@@ -209,6 +232,85 @@ def _long_run(x: FloatArray, lags: int) -> float:
     return max(out, base)
 
 
+def _shape_chi(m: int, s2: float, theta: float) -> float:
+    """chi(m w) of the law-free route's shape family at phase variance s2: theta <= 0 a
+    dual Dirac +-delta plus Gaussian rho (delta^2 = -theta s2, rho^2 = s2 - delta^2;
+    kurtosis 3 - 2 theta^2), theta > 0 two equal-weight Gaussians of variances
+    s2 (1 +- theta) (kurtosis 3 (1 + theta^2)); theta = 0 the Gaussian."""
+    if theta <= 0:
+        d2 = -theta * s2
+        return math.cos(m * math.sqrt(d2)) * math.exp(-0.5 * m * m * (s2 - d2))
+    return 0.5 * (
+        math.exp(-0.5 * m * m * s2 * (1 + theta)) + math.exp(-0.5 * m * m * s2 * (1 - theta))
+    )
+
+
+def _gh(s2: float, theta: float) -> tuple[float, float]:
+    """(g, h) of the shape family: g = 1 - chi_2 / chi_1^2 and h = (chi_4 - 4 chi_1 chi_3
+    + 6 chi_1^2 chi_2 - 3 chi_1^4) / (8 chi_1^4), the cos(4 phi) coefficient of E r^4 over
+    A_d^4 (the module doc's (F4))."""
+    c1, c2, c3, c4 = (_shape_chi(m, s2, theta) for m in (1, 2, 3, 4))
+    q = c1 * c1
+    return 1 - c2 / q, (c4 - 4 * c1 * c3 + 6 * q * c2 - 3 * q * q) / (8 * q * q)
+
+
+def _s2_for(g: float, theta: float) -> float:
+    """The phase variance whose g is ``g`` at shape ``theta`` (g increases with s2 while
+    chi_1 > 0.05)."""
+    from scipy.optimize import brentq
+
+    hi = 0.5
+    while hi < 9.0:
+        c1 = _shape_chi(1, hi, theta)
+        if c1 < 0.05 or _gh(hi, theta)[0] >= g:
+            break
+        hi *= 2
+    lo_g = _gh(1e-12, theta)[0]
+    hi_g = _gh(hi, theta)[0]
+    if not lo_g < g < hi_g:
+        return math.nan
+    return float(brentq(lambda v: _gh(v, theta)[0] - g, 1e-12, hi, xtol=1e-14, rtol=1e-12))
+
+
+def _free_solve(g: float, h: float, h_se: float) -> tuple[float, float, float]:
+    """(s2, theta, spread): the phase variance and shape of the family (:func:`_shape_chi`)
+    with the observed g and h, and the range of s2 over every shape whose h lies within
+    1.96 ``h_se`` of the observed one (at fixed g). At small phase spread h / g^2 is about
+    K / 8 and tells the shape; from about 0.3 rad on, h is not monotone in the shape, and
+    at fixed g the shapes' s2 differ: the spread carries that ambiguity into the interval.
+    The estimate is the matching shape nearest the Gaussian."""
+    thetas = np.linspace(-1.0, 1.0, 41)
+    rows = []
+    for th in thetas:
+        v = _s2_for(g, float(th))
+        if math.isfinite(v):
+            rows.append((float(th), v, _gh(v, float(th))[1]))
+    if not rows:
+        return math.nan, 0.0, math.nan
+    th_a = np.array([r[0] for r in rows])
+    s2_a = np.array([r[1] for r in rows])
+    miss = np.array([r[2] for r in rows]) - h
+    plausible = np.abs(miss) <= 1.96 * max(h_se, 0.0)
+    if not plausible.any():
+        plausible = np.abs(miss) == np.min(np.abs(miss))
+    roots = []
+    for i in range(len(rows) - 1):
+        if miss[i] == 0 or miss[i] * miss[i + 1] < 0:
+            frac = miss[i] / (miss[i] - miss[i + 1]) if miss[i] != miss[i + 1] else 0.0
+            roots.append(th_a[i] + frac * (th_a[i + 1] - th_a[i]))
+    theta = float(min(roots, key=abs)) if roots else float(th_a[int(np.argmin(np.abs(miss)))])
+    s2 = _s2_for(g, theta)
+    spread = float(np.max(s2_a[plausible]) - np.min(s2_a[plausible]))
+    return s2, theta, max(spread, 0.0)
+
+
+def _shape_span(g: float) -> tuple[float, float]:
+    """The range of s2 over the shapes :data:`_SPAN` at fixed g (NaN where none fits)."""
+    vals = [_s2_for(g, float(th)) for th in np.linspace(_SPAN[0], _SPAN[1], 7)]
+    vals = [v for v in vals if math.isfinite(v)]
+    return (min(vals), max(vals)) if vals else (math.nan, math.nan)
+
+
 def _chi1(law: str, s: float) -> float:
     if law == "gaussian":
         return math.exp(-0.5 * s * s)
@@ -230,8 +332,13 @@ def moment_route(
     fit4 : SineFit
         A converged four-parameter fit of ``y`` at instants kT (its frequency may be any
         alias: the jitter is converted to seconds with it).
-    law : {"gaussian", "uniform"}
+    law : {"gaussian", "uniform", "free"}
         The law (F3) is inverted under; the variance profile itself is law-free.
+        ``"free"``: the law's shape is measured too, from the cos(4 phi) harmonic of the
+        residuals' fourth power, (F4) of the module doc, within a family spanning kurtosis
+        1 (dual Dirac) through 3 (Gaussian) to 6 (a scale mixture), and its uncertainty is
+        in the interval: honest for uniform, dual-Dirac and mixture jitter at any phase
+        spread, at the price of a wider interval where the spread is large.
     hac_lags : int, optional
         0 (default): the samples' jitter is independent (the heteroscedasticity-consistent
         sandwich); more: a Newey-West (Bartlett) covariance over that many lags, for a
@@ -301,8 +408,52 @@ def moment_route(
     g = 2 * beta / (Ad * Ad)
     inf_g = (2 / Ad**2) * (gw @ bread[1]) - (4 * beta / Ad**3) * inf_A
     var_g = _long_run(inf_g, hac_lags)
-    s2, ds2 = _invert(law, g)
-    s2_se = abs(ds2) * math.sqrt(var_g)
+    theta = 0.0
+    kurtosis = math.nan
+    shape_note = ""
+    if law == "free" and g > _FREE_MAX_G:
+        # the moments cannot tell the law's shape here: span the shapes (a dual Dirac to a
+        # Gaussian mixture), the estimate the middle, the half-range inside the interval
+        lo_s2, hi_s2 = _shape_span(g)
+        s2 = 0.5 * (lo_s2 + hi_s2)
+        d_g = _invert("gaussian", g)[1]
+        s2_se = math.sqrt(d_g * d_g * var_g + (0.5 * (hi_s2 - lo_s2) / 1.96) ** 2)
+        theta = math.nan
+        shape_note = (
+            f"at this phase spread (2 pi f sigma ~ {math.sqrt(max(s2, 0.0)):.2g} rad) the "
+            "jitter law's shape changes the std and the moments cannot tell it: the "
+            "interval spans the shapes from a dual Dirac to a Gaussian mixture; "
+            "method='ml' chooses the law by likelihood"
+        )
+    elif law == "free" and g > _FREE_MIN_G:
+        # the law's shape from the fourth moment: the cos(4 phi) coefficient of E r_k^4,
+        # (F4), is A_d^4 h whatever the noise (symmetric, independent)
+        X4 = np.empty((n, 3))
+        X4[:, :2] = X
+        X4[:, 2] = 2 * c2 * c2 - 1  # cos 4 phi
+        r4 = r2 * r2
+        v = np.maximum(X @ coef, 0.25 * max(float(np.mean(X @ coef)), 1e-300))
+        w4 = 1.0 / v**4
+        B4 = np.linalg.inv(X4.T @ (X4 * w4[:, None]))
+        coef4 = B4 @ ((X4 * w4[:, None]).T @ r4)
+        u4 = r4 - X4 @ coef4
+        h = float(coef4[2]) / Ad**4
+        inf_h = ((X4 * (w4 * u4)[:, None]) @ B4[2]) / Ad**4 - (4 * h / Ad) * inf_A
+        h_se = math.sqrt(_long_run(inf_h, hac_lags))
+        s2, theta, spread = _free_solve(g, h, h_se)
+        if math.isfinite(s2):
+            eg = 1e-4 * max(g, 1e-12)
+            d_g = (_s2_for(g + eg, theta) - _s2_for(g - eg, theta)) / (2 * eg)
+            if not math.isfinite(d_g):
+                d_g = _invert("gaussian", g)[1]
+            # the shape's ambiguity: half the plausible range as a 95 % half-width
+            s2_se = math.sqrt(d_g * d_g * var_g + (0.5 * spread / 1.96) ** 2)
+            kurtosis = 3 - 2 * theta * theta if theta <= 0 else 3 * (1 + theta * theta)
+        else:
+            s2_se = math.nan
+    else:
+        s2, ds2 = _invert("gaussian" if law == "free" else law, g)
+        s2_se = abs(ds2) * math.sqrt(var_g)
     if not math.isfinite(s2):
         s2, s2_se = math.nan, math.nan
     jvar, jvar_se = s2 / w**2, s2_se / w**2
@@ -312,7 +463,11 @@ def moment_route(
         sd_se = jvar_se / (2 * sd)
     else:
         sd_se = 0.5 * math.sqrt(jvar_se) if math.isfinite(jvar_se) else math.nan
-    chi1 = _chi1(law, math.sqrt(max(s2, 0.0))) if math.isfinite(s2) else math.nan
+    if law == "free":
+        th1 = theta if math.isfinite(theta) else 0.0
+        chi1 = _shape_chi(1, max(s2, 0.0), th1) if math.isfinite(s2) else math.nan
+    else:
+        chi1 = _chi1(law, math.sqrt(max(s2, 0.0))) if math.isfinite(s2) else math.nan
     A = Ad / chi1 if chi1 and math.isfinite(chi1) else math.nan
     # sigma_v^2 = alpha - A_d^2 (1/chi_1^2 - 1) / 2 = alpha - (A^2 - A_d^2) / 2
     spread = 0.5 * (A * A - Ad * Ad) if math.isfinite(A) else math.nan
@@ -358,4 +513,7 @@ def moment_route(
         criterion=crit,
         slope_regression_std=math.sqrt(max(2 * float(ols[1]) / (w * Ad) ** 2, 0.0)),
         slope_regression_noise_std=math.sqrt(max(float(ols[0] - ols[1]), 0.0)),
+        shape=theta,
+        kurtosis=kurtosis,
+        note=shape_note,
     )
