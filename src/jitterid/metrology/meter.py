@@ -36,6 +36,7 @@ from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
 from ..moments.sample import sample_moments
 from ..systems.model import Model
 from ..systems.tones import SineWave
+from ._format import time_text as _time
 from .adequacy import (
     ALPHA_TONE,
     Finding,
@@ -314,16 +315,6 @@ class JitterMeasurement:
 
     def __str__(self) -> str:
         return self.summary()
-
-
-def _time(x: float) -> str:
-    """A time in s with an SI prefix."""
-    if not np.isfinite(x):
-        return "nan"
-    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9), ("ps", 1e-12)):
-        if abs(x) >= scale or unit == "ps":
-            return f"{x / scale:.4g} {unit}"
-    return f"{x:.4g} s"  # pragma: no cover
 
 
 def _record(y: ArrayLike) -> FloatArray:

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ._format import time_text as _time
 from .adequacy import ALPHA_LINES, _local_ratio, residual_lines
 
 __all__ = ["ALPHA_WHITE", "JitterDecomposition", "phase_error_analysis", "whiteness"]
@@ -95,8 +96,6 @@ class JitterDecomposition:
 
     def summary(self) -> str:
         """One line: RJ rms, PJ amplitude and frequency, total, and the whiteness test."""
-        from .meter import _time
-
         pj = (
             f"PJ {_time(self.pj_amplitude)} peak ({_time(self.pj_rms)} rms) at "
             f"{self.pj_frequency_hz:.6g} Hz (p = {self.pj_p_value:.2g})"
