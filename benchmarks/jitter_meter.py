@@ -32,6 +32,7 @@ plots RMSE / sigma against theta, one panel per (N, noise), with sqrt(CRB) / sig
     python benchmarks/jitter_meter.py                    # the full study (long)
     python benchmarks/jitter_meter.py --records 200 --sizes 1000 --methods ieee1057 adctoolbox
     python benchmarks/jitter_meter.py --instrument       # issue 26: N = 2^16, 1 GHz at 7 GS/s
+    python benchmarks/jitter_meter.py --shapes           # the law-free route, 4 laws
 
 ``--instrument`` runs the instrument-scale comparison of issue 26 instead (no sqlite, one
 run, the peer in the same process): N = 2^16, a coherent ~1 GHz tone (J prime to N) at
@@ -463,6 +464,47 @@ def instrument_study(records: int, sizes: list[int]) -> None:
                 )
 
 
+def _shape_draw(law: str, rng: np.random.Generator, s: float, n: int) -> np.ndarray:
+    """Phase jitter (rad) of std ``s`` for :func:`shapes_study`."""
+    if law == "uniform":
+        return rng.uniform(-s * math.sqrt(3), s * math.sqrt(3), n)
+    if law == "dual_dirac":
+        rj = s / 3
+        return math.sqrt(s * s - rj * rj) * rng.choice([-1.0, 1.0], n) + rj * rng.normal(0, 1, n)
+    if law == "scale_mixture":  # two Gaussians of std ratio 0.6 : 1.28, kurtosis 4.2
+        sc = np.where(rng.random(n) < 0.5, 0.6, 1.28) / math.sqrt((0.36 + 1.28**2) / 2)
+        return s * sc * rng.normal(0, 1, n)
+    return s * rng.normal(0, 1, n)
+
+
+def shapes_study(records: int, n: int) -> None:
+    """The law-free moment route on non-Gaussian laws (``--shapes``): bias and coverage of
+    ``measure_jitter(y, T, method="gaussian")`` (default laws: law-free), a 123 Hz tone at
+    T = 1 ms, amplitude 1, offset 0.1, noise 1e-2, frequency unknown."""
+    Ts, F = 1e-3, 123.0
+    print(f"# law-free moment route, N = {n}, {records} records a cell")
+    print(f"{'law':<14} {'theta':>6} {'bias':>8} {'rmse':>7} {'cover':>6} {'flagged':>7}")
+    for law in ("uniform", "dual_dirac", "gaussian", "scale_mixture"):
+        for theta in (0.05, 0.3, 0.6, 1.0):
+            sig = theta / (2 * math.pi * F)
+            est, cover, flagged = [], 0, 0
+            for rep in range(records):
+                rng = np.random.default_rng([27, LAWS.get(law, 3), round(theta * 100), rep])
+                t = np.arange(n) * Ts + _shape_draw(law, rng, theta, n) / (2 * math.pi * F)
+                y = np.sin(2 * math.pi * F * t + rng.uniform(0, 2 * math.pi)) + 0.1
+                y = y + rng.normal(0, 1e-2, n)
+                m = jitterid.measure_jitter(y, Ts, method="gaussian")
+                lo, hi = m.interval()
+                est.append(m.jitter_std / sig)
+                cover += lo <= sig <= hi
+                flagged += bool(m.findings)
+            e = np.array(est)
+            print(
+                f"{law:<14} {theta:>6g} {e.mean() - 1:+8.4f} {np.sqrt(np.mean((e - 1) ** 2)):7.4f} "
+                f"{cover / records:6.2f} {flagged:>7d}"
+            )
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="N = 1000 only, few records")
@@ -476,6 +518,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--figure", type=Path, help="PNG path ('none' for no figure)")
     ap.add_argument("--fresh", action="store_true", help="discard stored results first")
     ap.add_argument(
+        "--shapes",
+        action="store_true",
+        help="the law-free moment route on uniform, dual-Dirac, Gaussian, mixture jitter",
+    )
+    ap.add_argument(
         "--instrument",
         action="store_true",
         help="issue 26's instrument-scale comparison (N = 2^16, 1 GHz at 7 GS/s) instead",
@@ -483,6 +530,9 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     if args.instrument:
         instrument_study(args.records or 16, args.sizes or [2**16])
+        return
+    if args.shapes:
+        shapes_study(args.records or 100, (args.sizes or [1000])[0])
         return
 
     grid = dict(QUICK if args.quick else FULL)

@@ -1,21 +1,23 @@
 """The jitter meter: the sampling jitter's std, law and interval from a sine record.
 
 :func:`measure_jitter` fits a :class:`~jitterid.systems.tones.SineWave` with the jitter law
-estimated (the JOE structure (2c) with a signal model, the paper's (1a)), by the exact
-likelihood (notes 4), for each candidate jitter family, and keeps the family with the
-lowest BIC. Starting values, in the order a test engineer trusts them:
+estimated (the JOE structure (2c) with a signal model, the paper's (1a)). In order:
 
 1. the frequency: the periodogram's peak refined by the IEEE 1057 four-parameter fit
-   (:mod:`jitterid.metrology.sinefit`), or the given one;
-2. jitter and noise std's: the IEEE 1057 slope regression of the squared residuals on the
-   squared slope; the amplitude divided by the damping exp(-(2 pi f sigma)^2 / 2) that the
-   jitter puts on the fitted sine (Lemma 1: E[sin(w (t + tau))] = chi(w) sin(w t));
-3. the exact Gaussian criterion (closed-form moments, O(N)), then the exact likelihood.
-
-With a band above the Nyquist frequency (equivalent-time sampling) every alias
-f0 + m/T or m/T - f0 in the band is fitted; without jitter they fit the samples equally
-well, with jitter each damps the sine by its own |chi(2 pi f)| (the paper's Section 3.4),
-and the likelihood ranks them (:attr:`JitterMeasurement.aliases`).
+   (:mod:`jitterid.metrology.sinefit`), or the given one; with a band, its aliases there
+   (a tie with the jitter's scale free: one is fitted, the others follow);
+2. the tone test and the folding check (:mod:`jitterid.metrology.adequacy`): a record with
+   no tone, or a tone that cannot show jitter, is not measured further;
+3. the moment route (:mod:`jitterid.metrology.moments`): the closed-form per-sample mean
+   and variance of a jittered tone, fitted in a few passes (the answer of
+   ``method="gaussian"``, law-free when several laws are given, and the likelihood's start
+   and its numeric noise floor);
+4. (``method="ml"``) the exact likelihood (notes 4) for each candidate family, the lowest
+   BIC kept;
+5. the adequacy checks on the chosen fit (rails, lines in the residual), the per-sample
+   phase error (:mod:`jitterid.metrology.phase`: periodic and coloured jitter, the RJ/PJ
+   decomposition, a Newey-West interval for a coloured jitter), and the status: what was
+   found and what to do, never ``CONVERGED`` beside a NaN standard error.
 """
 
 from __future__ import annotations
@@ -619,20 +621,23 @@ def measure_jitter(
         so); a fit whose cost would exceed about a minute is refused with its estimate.
     method : {"ml", "gaussian"}
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound; its cost grows
-        as N times the quadrature nodes per sample (about 100). ``"gaussian"``: the exact
-        Gaussian criterion on the samples' closed-form means and variances (Lemmas 1-2),
-        O(N) with a small constant, consistent for any law in the family and close to
-        efficient where the jitter's phase spread 2 pi f sigma is small (the samples are
-        then nearly Gaussian); its errors are the exact sandwich. For long records. It fits
-        the first of ``laws`` only (its criterion sees the law through chi(w) and chi(2 w)
-        alone and does not rank laws; the message says so).
+        as N times the quadrature nodes per sample (about 100). ``"gaussian"``: for a pure
+        tone the moment route (:func:`jitterid.metrology.moments.moment_route`: the IEEE
+        1057 fit, then the closed-form variance profile by reweighted least squares, a few
+        passes over the record, its interval a sandwich that holds for any law and noise);
+        with several laws given (the default) it measures the std law-free (the law's
+        shape from the fourth moment; ``family`` is ``"law-free"``), with one it assumes
+        that law (gaussian or uniform). With harmonics, the exact Gaussian criterion on the
+        closed-form moments of the first law.
     resolution : float, optional
         The smallest noise std the record can have (the converter's LSB / sqrt(12)), in
-        units of y. Default: the record's own quantisation step (the smallest gap between
-        its distinct values) over sqrt(12), and at least 1e-4 of its rms. Where the jitter
-        dominates, the likelihood's noise std runs down to this floor (the noise-free
-        jittered sine explains the samples as well): the fit then says AT_BOUND for
-        ``noise_std``, and the jitter std is the one given the noise at its floor.
+        units of y. Default: the record's own quantisation step over sqrt(12) where its
+        values lie on a grid (:func:`jitterid.metrology.adequacy.quantisation_step`), and
+        none for a float record (a simulator's record can be noise-free; the moment route
+        needs no floor, and the likelihood's search stops at 3 % of the jitter's own
+        spread, which does not move the jitter: the status stays CONVERGED and the message
+        says the noise is below what the record resolves). AT_BOUND only where a bound
+        changes the jitter estimate.
 
     Returns
     -------
