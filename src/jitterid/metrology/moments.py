@@ -416,7 +416,11 @@ def moment_route(
         # Gaussian mixture), the estimate the middle, the half-range inside the interval
         lo_s2, hi_s2 = _shape_span(g)
         s2 = 0.5 * (lo_s2 + hi_s2)
-        d_g = _invert("gaussian", g)[1]
+        eg = 1e-4 * g
+        up, dn = _shape_span(g + eg), _shape_span(g - eg)
+        d_g = (sum(up) - sum(dn)) / (4 * eg)  # d (middle) / d g
+        if not math.isfinite(d_g):
+            d_g = (hi_s2 - lo_s2) / max(g, 1e-300)
         s2_se = math.sqrt(d_g * d_g * var_g + (0.5 * (hi_s2 - lo_s2) / 1.96) ** 2)
         theta = math.nan
         shape_note = (
