@@ -123,7 +123,7 @@ def _coverage(setting, records, N, seed0):
         m = ji.measure_jitter(y, T, method="gaussian")
         lo, hi = m.interval()
         hits += lo <= sigma <= hi
-        flagged += bool(m.findings)
+        flagged += m.status is not ji.FitStatus.CONVERGED  # a failing finding
     return hits, flagged
 
 
@@ -134,7 +134,7 @@ def _coverage(setting, records, N, seed0):
 )
 def test_coverage_on_noise_free_and_quantised_records_small(setting):
     """16 records each (the slow test runs 64): at least 13 intervals hold the truth
-    (P(<= 12 | 16, 0.95) = 0.7 %), and the adequacy checks flag at most 2."""
+    (P(<= 12 | 16, 0.95) = 0.7 %), and the adequacy checks fail at most 2."""
     hits, flagged = _coverage(setting, 16, 2048, 11)
     assert hits >= 13
     assert flagged <= 2
@@ -148,7 +148,8 @@ def test_coverage_on_noise_free_and_quantised_records_small(setting):
 )
 def test_coverage_on_noise_free_and_quantised_records(setting):
     """Issue 26's test: the truth inside the 95 % interval in >= 90 % of 64 records; the
-    adequacy checks flag at most 5 % of them."""
+    adequacy checks fail at most 5 % of them (periodic and coloured jitter, which only
+    inform, have their own false-alarm test in test_phase_error.py)."""
     hits, flagged = _coverage(setting, 64, 8192, 12)
     assert hits >= 58
     assert flagged <= 3

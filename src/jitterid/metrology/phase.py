@@ -35,14 +35,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._format import time_text as _time
-from .adequacy import ALPHA_LINES, _local_ratio, residual_lines
+from .adequacy import _local_ratio, residual_lines
 
 __all__ = ["ALPHA_WHITE", "JitterDecomposition", "phase_error_analysis", "whiteness"]
 
 FloatArray = NDArray[np.float64]
 
-#: False-alarm probability of the whiteness test on independent jitter.
-ALPHA_WHITE = 0.01
+#: False-alarm probability of the whiteness test on independent jitter (and of the
+#: periodic-jitter line test): half the residual-line test's, so that the three tests
+#: together flag about 2 % of records of white jitter.
+ALPHA_WHITE = 0.005
 #: Lags of the portmanteau test (fewer on a short record: N / 20).
 WHITE_LAGS = 20
 
@@ -66,8 +68,8 @@ class JitterDecomposition:
     pj_p_value : float
         The line test's p-value for the periodic part (NaN when none is found).
     periodic : bool
-        A periodic part is found (p below :data:`jitterid.metrology.adequacy.ALPHA_LINES`,
-        and the line is a phase, not an amplitude, modulation).
+        A periodic part is found (p below :data:`ALPHA_WHITE`, and the line is a phase,
+        not an amplitude, modulation).
     whiteness_p_value : float
         The portmanteau test's p-value (independent jitter: uniform).
     lag1_autocorrelation : float
@@ -202,7 +204,7 @@ def phase_error_analysis(
     sd_q = 2.0 * np.abs(s1) * np.sqrt(np.maximum(var, 0.0)) / Ad
     sd_q = np.maximum(sd_q, 0.25 * float(np.sqrt(np.mean(sd_q**2))) + 1e-300)
     n = d.size
-    lines = residual_lines(d, sd_d, T, frequency_hz, alpha=ALPHA_LINES, max_lines=4)
+    lines = residual_lines(d, sd_d, T, frequency_hz, alpha=ALPHA_WHITE, max_lines=4)
     zq = q / sd_q
     zq = zq - zq.mean()
     m = (n - 1) // 2
