@@ -199,3 +199,18 @@ def test_false_alarm_rate_with_the_likelihood():
         for s in range(30)
     )
     assert flagged <= 2, flagged
+
+
+def test_the_command_line_says_it_too(tmp_path):
+    """Issue 25: the same through ``jitterid jitter`` (it exited 0 with CONVERGED)."""
+    from click.testing import CliRunner
+
+    from jitterid.cli import main
+
+    y = _issue_records()["two tones"]
+    path = tmp_path / "two.csv"
+    rows = "".join(f"{k},{float(v)!r}\n" for k, v in enumerate(y))
+    path.write_text("# T: 1\n# time_unit: ms\nk,y\n" + rows)
+    res = CliRunner().invoke(main, ["jitter", str(path), "--law", "gaussian"])
+    assert res.exit_code != 0, res.output
+    assert "LACK_OF_FIT" in res.output
