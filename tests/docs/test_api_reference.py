@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
+
+from helpers import REPO
 
 import jitterid
 
-API = Path(__file__).resolve().parents[1] / "docs" / "api.rst"
+API = REPO / "docs" / "api.rst"
 
 
 def _listed() -> set[str]:

@@ -308,15 +308,13 @@ def test_a_structure_without_derivatives_takes_the_declared_difference_route():
     np.testing.assert_allclose(res.x[1:], ref.x[1:], rtol=1e-5)
 
 
-def test_a_new_estimator_is_one_class_and_one_registration(monkeypatch):
+def test_a_new_estimator_is_one_class_and_one_registration(estimator_registry):
     """Time-domain BCLS, sum_k (y_k - m_k)^2, written as a new estimator: fit, the search and
     the covariance take it with no other change, and on white data it agrees with the
     frequency-domain BCLS (14) within its standard errors."""
     from dataclasses import dataclass
 
     from jitterid.estimation.estimators import base
-
-    monkeypatch.setattr(base, "_REGISTRY", dict(base._REGISTRY))
 
     @base.register
     @dataclass(frozen=True)

@@ -8,10 +8,10 @@ and repeated simulation (coverage of the error bars).
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import REPO
 from scipy import stats
 
 import jitterid as ji
@@ -496,7 +496,7 @@ def test_bode_band_covers_the_true_response():
 
 def test_ml_benchmark_script_runs():
     """Smoke run of benchmarks/bench_ml.py at one realization, so that it never rots."""
-    script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_ml.py"
+    script = REPO / "benchmarks" / "bench_ml.py"
     out = subprocess.run(
         [sys.executable, str(script), "--runs", "1", "--joe-runs", "0"],
         capture_output=True,

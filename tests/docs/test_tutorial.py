@@ -14,13 +14,13 @@ import os
 import re
 import shlex
 import shutil
-from pathlib import Path
 
 from click.testing import CliRunner
+from helpers import REPO
 
 from jitterid.cli import main
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = REPO / "docs"
 TUTORIAL = DOCS / "tutorial.md"
 FENCE = re.compile(r"^```(\w+)[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
 

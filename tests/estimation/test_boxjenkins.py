@@ -9,11 +9,11 @@ import json
 import subprocess
 import sys
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from helpers import REPO
 from scipy import integrate, stats
 
 import jitterid as ji
@@ -28,7 +28,6 @@ from jitterid.estimation.estimators import (
     coloured_method_names,
     register,
 )
-from jitterid.estimation.estimators import base as estimator_base
 from jitterid.estimation.problem import Problem
 from jitterid.experiments import ExperimentError, load_experiment, packaged_path, parse_experiment
 from jitterid.experiments.bj import spectra_figure
@@ -43,7 +42,7 @@ RESONANT = ji.NoiseModel(ji.TransferFunction([0.3, 1.0], [1.0, 0.8, 2.0]), inten
 OU = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 1.0]))  # r_v(t) = exp(-|t|) / 2
 # The bj experiment's noise: slow (correlation time 20 s), std 0.2.
 SLOW = ji.NoiseModel(ji.TransferFunction([0.2 * np.sqrt(0.1)], [1.0, 0.05]))
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+BENCH = REPO / "benchmarks"
 Z_MAX = 4.5  # |z| bound for Monte Carlo comparisons (two-sided p = 7e-6 per comparison)
 
 
@@ -627,14 +626,7 @@ def test_bad_input_is_refused_naming_the_argument(call, exc, match):
 # --------------------------------------------------------------------------- estimator objects
 
 
-@pytest.fixture
-def registry(monkeypatch):
-    """A private copy of the estimator registry: estimators registered in a test vanish
-    after it."""
-    monkeypatch.setattr(estimator_base, "_REGISTRY", dict(estimator_base._REGISTRY))
-
-
-def test_a_registered_estimator_is_used_by_the_bj_path_without_edits_elsewhere(registry):
+def test_a_registered_estimator_is_used_by_the_bj_path_without_edits_elsewhere(estimator_registry):
     """One subclass and one registration: a Newton-searched estimator (its coloured-noise
     criterion inherited and instrumented) and one blind to the noise covariance (a BCLS
     variant, whose BJ estimate is its own white-noise one) go through fit(..., noise=...) by
@@ -676,7 +668,9 @@ def test_a_registered_estimator_is_used_by_the_bj_path_without_edits_elsewhere(r
     np.testing.assert_array_equal(got.x[3:], ref.x[3:])  # the same plug-in noise model
 
 
-def test_an_estimator_without_a_coloured_noise_form_is_refused_naming_method_and_noise(registry):
+def test_an_estimator_without_a_coloured_noise_form_is_refused_naming_method_and_noise(
+    estimator_registry,
+):
     @register
     @dataclasses.dataclass(frozen=True)
     class WhiteOnly(Estimator):

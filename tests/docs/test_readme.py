@@ -1,13 +1,13 @@
 """The README's Python examples run, in order, as a new user would paste them."""
 
 import re
-from pathlib import Path
 
 import matplotlib
+from helpers import REPO
 
 matplotlib.use("Agg")
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = REPO / "README.md"
 
 
 def test_readme_python_blocks_run(capsys):

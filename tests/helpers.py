@@ -1,0 +1,54 @@
+"""Helpers shared by test modules in several folders of ``tests/``.
+
+The suite runs with ``--import-mode=importlib`` and ``pythonpath = ["tests"]`` (pyproject), so
+test modules cannot import each other but can ``import helpers``. Fixtures shared across
+folders live in ``tests/conftest.py``; data generators, referees and paths live here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import jitterid as ji
+
+#: The repository's root (README.md, docs/, benchmarks/).
+REPO = Path(__file__).resolve().parents[1]
+BENCHMARKS = REPO / "benchmarks"
+DOCS = REPO / "docs"
+
+# The paper's Table 2 setting: G = 6.25 / ((s + 1.5)^2 + 4) as a PolePairGain, a telegraph
+# input, T = 1 s, N = 200, white noise std 0.01, jitter U(-0.5, 0.5).
+TABLE2_T, TABLE2_N, TABLE2_NOISE = 1.0, 200, 0.01
+TABLE2_TRUTH = np.array([6.25, -1.5, 2.0])
+
+
+def table2_data(
+    seed: int,
+    jitter: ji.JitterLaw | None = None,
+    noise: float = TABLE2_NOISE,
+    known_noise: bool = True,
+) -> ji.SampledData:
+    """One realization of Table 2 (``jitter`` defaults to U(-0.5, 0.5)); with
+    ``known_noise=False`` the data do not carry the noise std."""
+    T, N = TABLE2_T, TABLE2_N
+    rng = np.random.default_rng(seed)
+    truth = ji.PolePairGain().system(TABLE2_TRUTH)
+    u = ji.telegraph_input(N * T + 2, rng)
+    data = ji.simulate(truth, u, jitter or ji.Uniform(0.5), T, N, noise, rng)
+    return data if known_noise else ji.SampledData(data.y, T, data.u)
+
+
+def central_differences(fun, x, rel=1e-6):
+    """Central differences of ``fun`` (any shape) in every coordinate of ``x``: the array of
+    the derivatives along axis 0, step ``rel * max(|x_i|, 1e-2)``."""
+    x = np.asarray(x, float)
+    cols = []
+    for i in range(x.size):
+        h = rel * max(abs(x[i]), 1e-2)
+        up, down = x.copy(), x.copy()
+        up[i] += h
+        down[i] -= h
+        cols.append((np.asarray(fun(up)) - np.asarray(fun(down))) / (2 * h))
+    return np.array(cols)
