@@ -29,15 +29,28 @@ def table2_data(
     jitter: ji.JitterLaw | None = None,
     noise: float = TABLE2_NOISE,
     known_noise: bool = True,
+    *,
+    n: int = TABLE2_N,
+    noise_model: ji.NoiseModel | None = None,
 ) -> ji.SampledData:
-    """One realization of Table 2 (``jitter`` defaults to U(-0.5, 0.5)); with
+    """One realization of Table 2 (``jitter`` defaults to U(-0.5, 0.5)) with ``n`` samples,
+    white noise std ``noise`` and, if given, coloured noise ``noise_model`` added; with
     ``known_noise=False`` the data do not carry the noise std."""
-    T, N = TABLE2_T, TABLE2_N
+    T = TABLE2_T
     rng = np.random.default_rng(seed)
     truth = ji.PolePairGain().system(TABLE2_TRUTH)
-    u = ji.telegraph_input(N * T + 2, rng)
-    data = ji.simulate(truth, u, jitter or ji.Uniform(0.5), T, N, noise, rng)
+    u = ji.telegraph_input(n * T + 2, rng)
+    law = ji.Uniform(0.5) if jitter is None else jitter
+    data = ji.simulate(truth, u, law, T, n, noise, rng, noise_model=noise_model)
     return data if known_noise else ji.SampledData(data.y, T, data.u)
+
+
+# Coloured noise models of the Box-Jenkins tests. RESONANT: complex poles and a zero, driven
+# with intensity 0.5 (exercises every term of (N1)-(N3)); OU: r_v(t) = exp(-|t|) / 2; SLOW:
+# the bj experiment's noise (correlation time 20 s, std 0.2).
+RESONANT_NOISE = ji.NoiseModel(ji.TransferFunction([0.3, 1.0], [1.0, 0.8, 2.0]), intensity=0.5)
+OU_NOISE = ji.NoiseModel(ji.TransferFunction([1.0], [1.0, 1.0]))
+SLOW_NOISE = ji.NoiseModel(ji.TransferFunction([0.2 * np.sqrt(0.1)], [1.0, 0.05]))
 
 
 def central_differences(fun, x, rel=1e-6):

@@ -1,13 +1,16 @@
-"""Smoke runs of the benchmark scripts at tiny sizes, so that they never rot."""
+"""Smoke runs of the benchmark scripts (benchmarks/*.py) at tiny sizes, so that they never rot.
+
+Each runs a script in a subprocess (seconds to minutes of CPU): the whole module is marked
+slow and runs with ``pytest -m slow``."""
 
 import subprocess
 import sys
 
 import numpy as np
 import pytest
-from helpers import REPO
+from helpers import BENCHMARKS as BENCH
 
-BENCH = REPO / "benchmarks"
+pytestmark = pytest.mark.slow
 
 
 def test_scale_benchmark_runs_at_small_n():
@@ -222,3 +225,26 @@ def test_reproduce_benchmark_runs_at_one_realization():
     for m in ("ls", "bcls", "asml-diag"):
         assert f"table2        {m:<10}" in out, out
     assert "gaussian" not in out
+
+
+def test_bj_benchmark_runs_at_small_n():
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_bj.py"), "--sizes", "200", "800", "--repeats", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout
+    assert "log-log slope" in out
+
+
+def test_ml_benchmark_script_runs():
+    """Smoke run of benchmarks/bench_ml.py at one realization, so that it never rots."""
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_ml.py"), "--runs", "1", "--joe-runs", "0"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    ).stdout
+    assert "fit(method='ml'), end to end" in out

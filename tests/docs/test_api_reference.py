@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import re
 
-from helpers import REPO
+from helpers import DOCS
 
 import jitterid
 
-API = REPO / "docs" / "api.rst"
+API = DOCS / "api.rst"
 
 
 def _listed() -> set[str]:

@@ -16,11 +16,10 @@ import shlex
 import shutil
 
 from click.testing import CliRunner
-from helpers import REPO
+from helpers import DOCS
 
 from jitterid.cli import main
 
-DOCS = REPO / "docs"
 TUTORIAL = DOCS / "tutorial.md"
 FENCE = re.compile(r"^```(\w+)[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
 

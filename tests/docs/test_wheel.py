@@ -21,11 +21,9 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from helpers import REPO
+from helpers import REPO as ROOT
 
 import jitterid
-
-ROOT = REPO
 
 
 def test_version_has_one_source():

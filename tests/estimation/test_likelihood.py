@@ -6,12 +6,8 @@ the closed-form output-error bound without jitter, the Gaussian criterion in its
 and repeated simulation (coverage of the error bars).
 """
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
-from helpers import REPO
 from scipy import stats
 
 import jitterid as ji
@@ -492,16 +488,3 @@ def test_bode_band_covers_the_true_response():
         hits.append((band.magnitude_lo <= true) & (true <= band.magnitude_hi))
     cover = np.mean(hits, axis=0)
     assert np.all((cover > 0.9) & (cover < 0.99)), cover
-
-
-def test_ml_benchmark_script_runs():
-    """Smoke run of benchmarks/bench_ml.py at one realization, so that it never rots."""
-    script = REPO / "benchmarks" / "bench_ml.py"
-    out = subprocess.run(
-        [sys.executable, str(script), "--runs", "1", "--joe-runs", "0"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    ).stdout
-    assert "fit(method='ml'), end to end" in out
