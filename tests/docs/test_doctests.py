@@ -20,7 +20,7 @@ def _modules() -> list[str]:
     names = [jitterid.__name__]
     for info in pkgutil.walk_packages(jitterid.__path__, prefix=jitterid.__name__ + "."):
         if ".cli" in info.name or info.name.endswith("__main__"):
-            continue  # the command line entry points: exercised by tests/test_cli_*.py
+            continue  # the command line entry points: exercised by tests/cli/
         names.append(info.name)
     return sorted(names)
 

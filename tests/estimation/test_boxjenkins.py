@@ -53,8 +53,8 @@ def test_estimated_noise_model_on_white_data_gives_the_oe_fit_in_few_evaluations
     estimate is OE's within a fraction of a standard error, and the Newton search with
     analytic derivatives needs ~40-90 evaluations in all stages (L-BFGS-B with difference
     quotients needed 500-1000). Error bars: OE's gaussian covariance uses the samples' third
-    and fourth moments exactly (tests/test_score_covariance.py); BJ's keeps the first-order
-    delta method, which overstates them: BJ / OE = 1.00-1.25 measured on these six seeds
+    and fourth moments exactly (tests/estimation/test_score_covariance.py); BJ's keeps the
+    first-order delta method, which overstates them: BJ / OE = 1.00-1.25 measured on these six seeds
     (the OE first-order form gave the same as BJ within 10 %)."""
     for seed in range(40, 46):
         d = table2_data(seed)

@@ -1,9 +1,7 @@
-"""Issue 15 A: no fit is reported as successful when it is not.
-
-Every case is generated data that the code before this change fitted with ``success=True``
-(or, for the arguments, accepted silently / never returned): checks before the search raise
-a ValueError naming the argument, checks after it give their own non-success status.
-"""
+"""The checks after a search (jitterid.estimation.checks): no fit is reported as successful
+when it is not. Each case is generated data that an earlier version fitted with
+``success=True``: the statuses NOT_SIGNIFICANT, UNSTABLE_MODEL, LOCAL_OPTIMUM, UNIDENTIFIABLE,
+AT_BOUND and LACK_OF_FIT, each with what to try, and no false alarm on well-posed fits."""
 
 from __future__ import annotations
 
@@ -28,104 +26,6 @@ def _paper(
 @pytest.fixture(scope="module")
 def data() -> ji.SampledData:
     return _paper()
-
-
-def _scaled(d: ji.SampledData, c: float) -> ji.SampledData:
-    assert isinstance(d.u, ji.PiecewiseConstant)
-    return ji.SampledData(d.y * c, d.T, ji.PiecewiseConstant(d.u.times, d.u.levels * c), None)
-
-
-# ------------------------------------------------------------------------ arguments
-@pytest.mark.parametrize("method", ["bcls", "asml", "asml-diag", "gaussian", "wbcls"])
-@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), "0.01"])
-def test_noise_std_must_be_a_nonnegative_number(data, method, bad):
-    # was: -1 silently used as +1 (asml, asml-diag, gaussian, wbcls) and reported as -1.0
-    with pytest.raises(ValueError, match="noise_std"):
-        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method, noise_std=bad)
-
-
-@pytest.mark.parametrize("bad", [1.5, 0, -3, float("nan"), True, "10", None])
-def test_max_nfev_must_be_a_positive_whole_number(data, bad):
-    # was: max_nfev=1.5 never returned
-    with pytest.raises(ValueError, match="max_nfev"):
-        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls", max_nfev=bad)
-
-
-def test_a_whole_float_max_nfev_is_accepted(data):
-    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls", max_nfev=2000.0)
-    assert res.success
-
-
-# ------------------------------------------------------------------------ data
-@pytest.mark.parametrize("method", ["ls", "bcls", "wbcls", "asml", "asml-diag", "gaussian", "ml"])
-def test_zero_input_is_refused(data, method):
-    # was: CONVERGED at the first start with all 7 methods
-    u = ji.PiecewiseConstant(data.u.times, np.zeros_like(data.u.levels))
-    zero = ji.SampledData(data.y, T, u, 0.01)
-    law = ji.NoJitter() if method == "ls" else ji.Uniform(0.5)
-    with pytest.raises(ValueError, match=r"data\.u: the input is zero"):
-        ji.fit(zero, ji.PolePairGain(), law, method)
-
-
-def test_zero_input_is_refused_with_coloured_noise_too(data):
-    u = ji.PiecewiseConstant(data.u.times, np.zeros_like(data.u.levels))
-    zero = ji.SampledData(data.y, T, u, 0.01)
-    with pytest.raises(ValueError, match=r"data\.u: the input is zero"):
-        ji.fit(zero, ji.PolePairGain(), ji.Uniform(0.5), "bcls", noise=ji.RationalNoise(0, 1))
-
-
-@pytest.mark.parametrize("level", [0.0, 3.5])
-def test_constant_output_is_refused(data, level):
-    # was: y = 0 CONVERGED
-    flat = ji.SampledData(np.full(N, level), T, data.u, 0.01)
-    with pytest.raises(ValueError, match=r"data\.y: the output is constant"):
-        ji.fit(flat, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
-
-
-def test_an_input_that_ends_before_the_data_is_refused(data):
-    # was: CONVERGED (the input is zero after its end)
-    short = ji.PiecewiseConstant(data.u.times[:101], data.u.levels[:100])
-    assert short.end < (N - 1) * T
-    with pytest.raises(ValueError, match=r"data\.u: the input ends at"):
-        ji.fit(ji.SampledData(data.y, T, short, 0.01), ji.PolePairGain(), ji.Uniform(0.5), "bcls")
-
-
-@pytest.mark.parametrize("n", [6, 8])
-def test_too_few_samples_for_the_parameters_are_refused(n):
-    # was: N = 6-8 CONVERGED with wrong estimates (k0 = 1.7 and 4.1 for 6.25)
-    d = _paper(law=ji.Uniform(0.5), n=n)
-    with pytest.raises(ValueError, match=rf"N = {n} samples are too few for 3 parameters"):
-        ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
-    with pytest.raises(ValueError, match="too few for 5 parameters"):
-        ji.fit(_paper(n=12), ji.PolePairGain(), ji.SumOfUniformsFamily(), "bcls")
-
-
-# ------------------------------------------------------------------------ units
-@pytest.mark.parametrize("method", ["ls", "bcls", "wbcls"])
-def test_estimates_do_not_depend_on_the_units(data, method):
-    # was (bcls, ls): y and u scaled by <= 1e-6 stopped after 1 evaluation at
-    # pr = -1.98 (against -1.29); wbcls at 1e-6 ended at pr = -1.40 (against -1.45)
-    law = ji.NoJitter() if method == "ls" else ji.Uniform(0.5)
-    ref = ji.fit(_scaled(data, 1.0), ji.PolePairGain(), law, method)
-    assert ref.success
-    for c in (1e-9, 1e-6, 1e-3, 1e3, 1e6):
-        res = ji.fit(_scaled(data, c), ji.PolePairGain(), law, method)
-        assert res.success, (c, res.message)
-        np.testing.assert_allclose(res.x, ref.x, rtol=1e-6, err_msg=f"scale {c}")
-        np.testing.assert_allclose(res.cov, ref.cov, rtol=1e-4, err_msg=f"scale {c}")
-        # the LS criteria scale as y^2; WBCLS is weighted by the variances, so scale-free
-        assert res.cost == pytest.approx(ref.cost * (1.0 if method == "wbcls" else c**2), rel=1e-6)
-
-
-def test_estimated_noise_and_its_covariance_map_back_to_the_data_units(data):
-    ref = ji.fit(_scaled(data, 1.0), ji.PolePairGain(), ji.UniformFamily(), "gaussian")
-    for c in (1e-9, 1e6):
-        res = ji.fit(_scaled(data, c), ji.PolePairGain(), ji.UniformFamily(), "gaussian")
-        assert res.success, res.message
-        np.testing.assert_allclose(res.x[:-1], ref.x[:-1], rtol=1e-6)
-        assert res.params["noise_std"] == pytest.approx(c * ref.params["noise_std"], rel=1e-6)
-        assert res.stderr["a"] == pytest.approx(ref.stderr["a"], rel=1e-4)
-        assert res.stderr["pr"] == pytest.approx(ref.stderr["pr"], rel=1e-4)
 
 
 # ------------------------------------------------------------------------ after the search

@@ -38,7 +38,7 @@ def test_leading_likelihood_is_the_likelihood_of_the_first_samples():
 def test_the_screen_lets_a_better_start_through_and_passes_a_good_fit(monkeypatch):
     """With the screen on (its leading part shortened so that it applies at N = 200): the
     ML fit that stays near a BCLS local optimum (jitter ten samples wide, the case of
-    tests/test_honest_status.py) is still reported, and a good fit still converges."""
+    tests/estimation/test_checks.py) is still reported, and a good fit still converges."""
     import jitterid.estimation.fit as fit_module
 
     monkeypatch.setattr(fit_module, "SCREEN_SAMPLES", 40)

@@ -1,19 +1,14 @@
-"""fit(): the paper's estimators on its Table 2 experiment, bad input, failure reporting."""
+"""fit(): the paper's estimators on its Table 2 experiment, parameter names, bad arguments,
+failure reporting, two parameterisations of one model and a shared BCLS stage."""
 
 import numpy as np
 import pytest
+from helpers import TABLE2_TRUTH as TRUTH
+from helpers import table2_data
 
 import jitterid as ji
 
 T, N, NOISE = 1.0, 200, 0.01
-TRUTH = np.array([6.25, -1.5, 2.0])
-
-
-def table2_data(seed):
-    rng = np.random.default_rng(seed)
-    truth = ji.PolePairGain().system(TRUTH)
-    u = ji.telegraph_input(N * T + 2, rng)
-    return ji.simulate(truth, u, ji.Uniform(0.5), T, N, NOISE, rng)
 
 
 @pytest.fixture(scope="module")
@@ -128,43 +123,6 @@ def test_summary_lists_every_parameter():
 def test_bad_fit_arguments(call, exc, match):
     with pytest.raises(exc, match=match):
         call(table2_data(9))
-
-
-def test_bad_data_is_refused():
-    u = ji.telegraph_input(20.0, 0)
-    with pytest.raises(ValueError, match="y contains"):
-        ji.SampledData([1.0, np.nan, 2.0, 3.0], 1.0, u)
-    with pytest.raises(ValueError, match="at least 4"):
-        ji.SampledData([1.0, 2.0], 1.0, u)
-    with pytest.raises(ValueError, match="T must"):
-        ji.SampledData([1.0, 2.0, 3.0, 4.0], 0.0, u)
-    with pytest.raises(ValueError, match="noise_std"):
-        ji.SampledData([1.0, 2.0, 3.0, 4.0], 1.0, u, noise_std=-1)
-    with pytest.raises(ValueError, match="instants"):
-        ji.SampledData([1.0, 2.0, 3.0, 4.0], 1.0, u, instants=[0.0, 1.0])
-
-
-def test_bad_simulation_arguments():
-    g = ji.TransferFunction([1.0], [1.0, 2.0])
-    u = ji.telegraph_input(20.0, 0)
-    with pytest.raises(ValueError, match="N must"):
-        ji.simulate(g, u, ji.Uniform(0.5), 1.0, 3, 0.01, 0)
-    with pytest.raises(ValueError, match="input ends"):
-        ji.simulate(g, u, ji.Uniform(0.5), 1.0, 40, 0.01, 0)
-    with pytest.raises(ValueError, match="noise_std"):
-        ji.simulate(g, u, ji.Uniform(0.5), 1.0, 10, -0.01, 0)
-    with pytest.raises(ValueError, match="not stable"):
-        ji.simulate(ji.TransferFunction([1.0], [1.0, -2.0]), u, ji.Uniform(0.5), 1.0, 10, 0.01, 0)
-    with pytest.raises(ValueError, match="a"):
-        ji.Uniform(-0.5)
-    with pytest.raises(ValueError, match="outside its bounds"):
-        ji.PolePairGain().system([1.0, 0.5, 2.0])
-
-
-def test_simulation_is_reproducible_from_the_seed():
-    a, b = table2_data(21), table2_data(21)
-    np.testing.assert_array_equal(a.y, b.y)
-    assert not np.array_equal(a.y, table2_data(22).y)
 
 
 def test_rational_model_and_pole_pair_agree_on_the_same_data():

@@ -5,20 +5,13 @@ import pickle
 
 import numpy as np
 import pytest
+from helpers import TABLE2_TRUTH as TRUTH
+from helpers import table2_data
 
 import jitterid as ji
 from jitterid.params import ParamLayout
 
 T, N, NOISE = 1.0, 200, 0.01
-TRUTH = np.array([6.25, -1.5, 2.0])
-
-
-def table2_data(seed, jitter=None, noise=NOISE, known_noise=True):
-    rng = np.random.default_rng(seed)
-    truth = ji.PolePairGain().system(TRUTH)
-    u = ji.telegraph_input(N * T + 2, rng)
-    data = ji.simulate(truth, u, jitter or ji.Uniform(0.5), T, N, noise, rng)
-    return data if known_noise else ji.SampledData(data.y, T, data.u)
 
 
 def ls_covariance_by_hand(data, x):

@@ -1,29 +1,19 @@
-"""What a fit shows (issue 15 F, output): intervals of positive parameters that never go
-negative without losing coverage, the jitter std's standard error through the family, and
-every "nan" explained."""
+"""What a FitResult shows (jitterid.estimation.result): intervals of positive parameters that
+never go negative without losing coverage, the jitter std's standard error through the family,
+and every "nan" explained."""
 
 import dataclasses
 import math
 
 import numpy as np
 import pytest
+from helpers import table2_data
 
 import jitterid as ji
 from jitterid.estimation.result import _jitter_std_gradient
 
-T, N, NOISE = 1.0, 200, 0.01
+NOISE = 0.01
 TRUTH = {"a": 0.5, "k0": 6.25, "pr": -1.5, "pi": 2.0, "noise_std": NOISE}
-
-
-def table2_data(seed, known_noise=True):
-    """Table 2's setting (tests/test_result.py): G = 6.25 / ((s + 1.5)^2 + 4), telegraph
-    input, T = 1, N = 200, noise 0.01, jitter U(-0.5, 0.5)."""
-    rng = np.random.default_rng(seed)
-    u = ji.telegraph_input(N * T + 2, rng)
-    data = ji.simulate(
-        ji.PolePairGain().system([6.25, -1.5, 2.0]), u, ji.Uniform(0.5), T, N, NOISE, rng
-    )
-    return data if known_noise else ji.SampledData(data.y, T, data.u)
 
 
 @pytest.fixture(scope="module")
@@ -214,7 +204,7 @@ def test_intervals_of_positive_parameters_keep_their_coverage(table2_monte_carlo
 
     noise_std: its linear interval covers 0.84 (0.86 over 150 other seeds) and its log
     interval 0.875 (0.90). Its stated error is right (the sandwich's score covariance
-    matches 600 simulated scores within 2 %, see tests/test_result.py), but the Gaussian
+    matches 600 simulated scores within 2 %, see tests/estimation/test_result.py), but the Gaussian
     criterion's noise std is biased low here (mean 0.00875 for 0.01 over 150 seeds, 5 SEM):
     beside the jitter's variance the noise is seen only where s is flat, about five
     samples' worth of information. The log interval, which follows the estimate's skew,

@@ -16,6 +16,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy import integrate, stats
+from scipy.interpolate import BSpline
 
 from jitterid.jitter.laws import (
     CustomJitter,
@@ -570,3 +571,29 @@ def test_family_laws_are_the_right_laws() -> None:
 def test_family_bad_construction(make: Callable[[], object], name: str) -> None:
     with pytest.raises((ValueError, TypeError), match=name):
         make()
+
+
+@pytest.mark.parametrize("n", [0.0, 0.37, 1.0, 2.0, 2.6, 7.3, 19.999])
+def test_sum_of_uniforms_shared_splines_and_knots(n: float) -> None:
+    """The B-splines shared per m and the knots kept per law give the density of splines
+    built for the law alone, and the knots are a fresh array at every call."""
+    law = SumOfUniforms(n, 0.4)
+    m = law.components[0]
+    own = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
+    assert np.array_equal(law._spline.t, own.t)
+    assert np.array_equal(law._spline_cdf.c, own.antiderivative().c)
+    k1 = law.breakpoints()
+    k1[0] = 99.0  # a caller's change does not reach the law
+    assert np.array_equal(law.breakpoints(), SumOfUniforms(n, 0.4)._breakpoints())
+    tau = np.linspace(-0.45, 0.45, 301)
+    assert np.array_equal(law.pdf(tau), SumOfUniforms(n, 0.4).pdf(tau))
+
+
+def test_wide_window_density_in_one_evaluation() -> None:
+    """The moving-average density of a non-integer n takes both CDF ends from one spline
+    call: the values of two calls."""
+    law = SumOfUniforms(2.6, 0.3)
+    x = -np.abs(np.linspace(-0.31, 0.31, 257))
+    c = law.components[2]
+    two = (law._irwin_hall_cdf(x + c) - law._irwin_hall_cdf(x - c)) / (2.0 * c)
+    assert np.array_equal(law._window_mean(x), two)

@@ -1,11 +1,14 @@
-"""The lab setting (issue: moment estimators 10-60x slower on lab-like data): a third-order
-system with a zero, a +-1 zero-order-hold input on the sampling grid, Gaussian jitter whose
-+-8.5 sigma window spans several input switches, and fast poles from an over-fitted model.
+"""The quadrature rule over the jitter (jitterid.moments.quadrature) on the lab setting: a
+third-order system with a zero, a +-1 zero-order-hold input on the sampling grid, Gaussian
+jitter whose +-8.5 sigma window spans several input switches, and fast poles from an
+over-fitted model (the setting where the moment estimators were once 10-60x slower); and the
+rule's cached pieces (cuts, panel layouts, unique knots) against the code they replaced.
 
-Referees: brute-force Monte Carlo over jitter draws, and the same quadrature with panels
-4x finer (and more nodes per panel), evaluated node by node from the signal itself.
+Referees: brute-force Monte Carlo over jitter draws, the same quadrature with panels 4x finer
+(and more nodes per panel) evaluated node by node from the signal itself, and the former loops.
 """
 
+import itertools
 import subprocess
 import sys
 import textwrap
@@ -14,9 +17,10 @@ import numpy as np
 import pytest
 
 import jitterid as ji
+from jitterid.jitter.laws import SumOfUniforms
 from jitterid.moments import modal as _modal
 from jitterid.moments import quadrature as _quad
-from jitterid.moments.quadrature import jitter_nodes, panel_layout, relative_cuts
+from jitterid.moments.quadrature import _relative_cuts, jitter_nodes, panel_layout, relative_cuts
 from jitterid.moments.sample import sample_moments
 
 T, SIGMA = 0.5, 0.08
@@ -84,31 +88,6 @@ def test_a_window_is_cut_only_by_its_own_edges_and_switches():
     whole = np.concatenate([c.t for c in jitter_nodes(law, T, n, u.breaks, 0.0, chunk=n)])
     parts = np.concatenate([c.t for c in jitter_nodes(law, T, n, u.breaks, 0.0, chunk=7)])
     np.testing.assert_array_equal(whole, parts)
-
-
-def test_a_gaussian_plan_serves_every_sigma_of_its_band():
-    n = 60
-    u = _lab_input(n)
-    structure, theta = ji.RationalModel(1, 3), np.array([1.0, 2.0, 3.0, 4.0, 2.0])
-    tf = structure.system(theta)
-    tab = _modal.tables(tf, u)
-    dtab = _modal.derivative_tables(tf, u, _modal.modal_sensitivity(structure, theta, tf))
-    p = tf._modal[2]
-    _modal.clear_plans()
-    first = _modal.cached_plan(ji.Gaussian(0.0801), T, n, u, 1.5, p)
-    _modal.modal_moments(first, tab)  # builds and keeps the nodes
-    law = ji.Gaussian(0.0806)  # the same band
-    shared = _modal.cached_plan(law, T, n, u, 1.5, p)
-    assert shared._store is first._store
-    assert len(_modal._plans) == 1
-    own = _modal.SegmentPlan(law, T, n, u, 1.5, poles=p)
-    for a, b in zip(
-        _modal.modal_moments(shared, tab, dtab, scale=0.0806),
-        _modal.modal_moments(own, tab, dtab, scale=0.0806),
-        strict=True,
-    ):
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-13)
-    _modal.clear_plans()
 
 
 def test_a_fast_damped_pole_is_graded_after_switches_not_everywhere():
@@ -193,3 +172,60 @@ def test_one_order_too_many_ends_under_a_2_gb_address_space_limit():
     assert last.startswith(("RESULT", "REFUSED")), out.stdout
     if last.startswith("RESULT"):
         assert np.isfinite(float(last.split()[-1]))
+
+
+def _loop_cuts(knots, max_panel, limits=None):
+    """The former per-gap loop of ``_relative_cuts`` (np.linspace per gap)."""
+    knots = np.asarray(knots, float)
+    if limits is None:
+        knots = np.unique(knots)
+    pieces = [knots[:1]]
+    for i, (a, b) in enumerate(itertools.pairwise(knots)):
+        lim = max_panel if limits is None else min(max_panel, float(limits[i]))
+        n = max(1, int(np.ceil((b - a) / lim)))
+        pieces.append(np.linspace(a, b, n + 1)[1:])
+    return np.concatenate(pieces)
+
+
+def test_relative_cuts_match_the_linspace_loop_bit_for_bit() -> None:
+    rng = np.random.default_rng(7)
+    for t in range(2000):
+        k = np.sort(rng.uniform(-1, 1, rng.integers(1, 12)) * 10 ** rng.uniform(-8, 2))
+        panel = 10 ** rng.uniform(-3, 1) * (np.ptp(k) + 1e-12)
+        limits = None
+        if t % 2:
+            k = np.unique(k)
+            limits = rng.uniform(0.01, 2, k.size) * panel
+        assert np.array_equal(_relative_cuts(None, panel, k, limits), _loop_cuts(k, panel, limits))
+
+
+def test_panel_layout_memo_gives_the_computed_layout() -> None:
+    """The memoised layout of a law equals the one computed afresh for an equal law."""
+    from jitterid.moments.quadrature import _panel_layout, panel_layout
+
+    poles = np.array([-2.0, -300.0 + 40j, -300.0 - 40j])
+    for law in (SumOfUniforms(2.3, 0.4), ji.Gaussian(0.1), ji.Uniform(0.2)):
+        first = panel_layout(law, poles)
+        again = panel_layout(type(law)(**law.params), poles)
+        fresh = _panel_layout(law, np.asarray(poles, complex), 5)
+        for lay in (first, again):
+            assert lay.key == fresh.key
+            assert lay.rate == fresh.rate
+            assert np.array_equal(lay.grade, fresh.grade)
+
+
+def test_unique_skips_the_sort_only_when_already_unique() -> None:
+    """The switch times and knots skip np.unique's sort when they increase strictly; any
+    other array gets np.unique itself."""
+    from jitterid.moments.quadrature import _unique
+
+    rng = np.random.default_rng(11)
+    for a in (
+        np.sort(rng.uniform(0, 100, 50)),
+        rng.uniform(0, 100, 50),
+        np.repeat(np.arange(5.0), 2),
+        np.array([1.0]),
+        np.zeros(0),
+        np.array([0.0, np.nan, 1.0]),
+    ):
+        assert np.array_equal(_unique(a), np.unique(a), equal_nan=True)
