@@ -7,11 +7,16 @@ folders live in ``tests/conftest.py``; data generators, referees and paths live 
 
 from __future__ import annotations
 
+import copy
+import csv
+import dataclasses
+import tomllib
 from pathlib import Path
 
 import numpy as np
 
 import jitterid as ji
+from jitterid.experiments import Experiment, parse_experiment
 
 #: The repository's root (README.md, docs/, benchmarks/).
 REPO = Path(__file__).resolve().parents[1]
@@ -65,3 +70,43 @@ def central_differences(fun, x, rel=1e-6):
         down[i] -= h
         cols.append((np.asarray(fun(up)) - np.asarray(fun(down))) / (2 * h))
     return np.array(cols)
+
+
+# A tiny Monte Carlo experiment (two cases, LS and BCLS, N = 48, 3 runs) for the tests of
+# jitterid.experiments: its definition as parsed TOML, and the Experiment with ``changes``.
+TINY_EXPERIMENT = tomllib.loads("""
+[experiment]
+name = "tiny"
+runs = 3
+seed = 11
+[sampling]
+T = 1.0
+N = 48
+noise_std = 0.01
+[input]
+kind = "telegraph"
+[system]
+structure = "pole_pair"
+truth = { k0 = 6.25, pr = -1.5, pi = 2.0 }
+[jitter]
+model = "known"
+[[cases]]
+name = "u"
+law = { kind = "uniform", a = 0.5 }
+[[cases]]
+name = "g"
+law = { kind = "gaussian", sigma = 0.05 }
+[estimators]
+methods = ["ls", "bcls"]
+""")
+
+
+def tiny_experiment(**changes) -> Experiment:
+    """The tiny experiment (``TINY_EXPERIMENT``) with the fields ``changes`` replaced."""
+    exp = parse_experiment(copy.deepcopy(TINY_EXPERIMENT), "tiny.toml")
+    return dataclasses.replace(exp, **changes)
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    """The rows of a CSV file as dicts (the stores' exports, ``jitterid reproduce``)."""
+    return list(csv.DictReader(path.read_text().splitlines()))
