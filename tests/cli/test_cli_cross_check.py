@@ -1,4 +1,5 @@
-"""Issue 15: ``jitterid fit`` cross-checks the jitter std against the detection test.
+"""``jitterid fit`` cross-checks the jitter std against the detection test
+(jitterid.analysis.diagnostics.cross_check_jitter).
 
 End to end on generated data: a fitted jitter scale ~0 while ``detect_jitter`` finds jitter
 (even where the fit's own status is CONVERGED), an assumed law far wider than anything the

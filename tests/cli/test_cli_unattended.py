@@ -1,7 +1,9 @@
-"""Issue 15, sections B (file/TOML/run sizes), C, D and E: every case that used to end in a
-traceback, an out-of-memory kill, a hang, a lost fit, a silent unit error or an open port,
-rebuilt from generated data. Each ends in a non-zero exit with a one-line message naming the
-file or option and the fix (no traceback), or in a correct result."""
+"""The command line run unattended: damaged or absurd files, TOML definitions and sizes, damaged
+stores and full or read-only disks, units of times, and safe defaults (loopback only, escaped
+reports). Every case that once ended in a traceback, an out-of-memory kill, a hang, a lost fit,
+a silent unit error or an open port (issue 15, B-E), rebuilt from generated data. Each ends in a
+non-zero exit with a one-line message naming the file or option and the fix (no traceback), or
+in a correct result."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Issue 6: the O(N) moment path, its chunking, and the analytic derivatives of every criterion.
+"""The O(N) moment path, its chunking, and the analytic derivatives of every criterion
+(jitterid.estimation.jacobians).
 
 Each analytic quantity is checked against central differences of the function it
 differentiates (the referee), on small problems: known-jitter OE and a JOE family, with the

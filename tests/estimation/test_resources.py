@@ -1,10 +1,9 @@
-"""Issue 15 B: a fit estimates its memory before it starts and refuses, with the figure and
-the fix, anything above the budget (``JITTERID_MEMORY_BUDGET``), instead of running for
-minutes and then dying of a MemoryError (ML at N = 1e5 of the lab setting needed > 8 GB;
-BCLS at N = 1e7 took 485 s at 8 GB).
+"""Memory estimates (jitterid.estimation.resources): a fit estimates its memory before it starts
+and refuses, with the figure and the fix, anything above the budget
+(``JITTERID_MEMORY_BUDGET``), instead of running for minutes and then dying of a MemoryError (ML
+at N = 1e5 of the lab setting needed > 8 GB; BCLS at N = 1e7 took 485 s at 8 GB).
 
-The budget is set small here so that the refusals trigger at small N; nothing is timed.
-"""
+The budget is set small here so that the refusals trigger at small N; nothing is timed."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""FitResult: covariance forms (cov_type), the measurement noise in every covariance, what a
-result keeps (structure, law, noise), pickling and JSON, and the one parameter layout."""
+"""FitResult (jitterid.estimation.result): covariance forms (cov_type), the measurement noise in
+every covariance, what a result keeps (structure, law, noise), pickling and JSON, and a result
+handed to the bounds in place of a parameter vector."""
 
 import pickle
 
@@ -9,7 +10,6 @@ from helpers import TABLE2_TRUTH as TRUTH
 from helpers import table2_data
 
 import jitterid as ji
-from jitterid.params import ParamLayout
 
 T, N, NOISE = 1.0, 200, 0.01
 
@@ -179,164 +179,6 @@ def test_json_refuses_classes_outside_the_package():
         ji.FitResult.from_dict(d)
 
 
-# ------------------------------------------------------------------ the parameter layout
-def test_layout_blocks_and_conversions():
-    lay = ParamLayout.build(
-        ji.SumOfUniformsFamily(), ji.PolePairGain(), ji.RationalNoise(0, 1), noise_std=True
-    )
-    assert lay.names == ("n", "a", "k0", "pr", "pi", "hb0", "ha0", "noise_std")
-    x = np.arange(8.0)
-    assert lay.block(x, "jitter").tolist() == [0, 1]
-    assert lay.block(x, "system").tolist() == [2, 3, 4]
-    assert lay.block(x, "noise").tolist() == [5, 6]
-    assert lay.block(x, "noise_std").tolist() == [7]
-    np.testing.assert_array_equal(lay.vector(lay.to_dict(x)), x)
-    np.testing.assert_array_equal(lay.vector(list(x)), x)
-    with pytest.raises(ValueError, match="did you mean 'k0'"):
-        lay.vector({**lay.to_dict(x), "K0": 1.0})
-    with pytest.raises(ValueError, match="missing value"):
-        lay.vector({"n": 1})
-    with pytest.raises(ValueError, match="must have 8 values"):
-        lay.vector([1, 2])
-    with pytest.raises(ValueError, match="block must be one of"):
-        lay.block(x, "plant")
-
-
-def test_layout_takes_a_fit_result_by_name():
-    data = table2_data(12, known_noise=False)
-    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian")
-    assert "noise_std" in res.names
-    lay = ParamLayout.build(None, ji.PolePairGain())
-    np.testing.assert_array_equal(lay.vector(res), res.x[:3])
-
-
-# ------------------------------------------------------------------ estimators as objects
-def test_estimator_objects_and_their_names_give_the_same_fit():
-    data = table2_data(13)
-    by_name = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
-    by_object = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), ji.BCLS())
-    np.testing.assert_array_equal(by_name.x, by_object.x)
-    assert by_object.method == "bcls"
-    once = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), ji.WBCLS(refreeze=0))
-    twice = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "wbcls")  # refreeze=1
-    assert once.success
-    assert twice.success
-    assert not np.array_equal(once.x, twice.x)  # the option reaches the search
-    np.testing.assert_allclose(once.x, twice.x, rtol=0.05)
-    with pytest.raises(ValueError, match="method must be one of"):
-        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bls")
-    with pytest.raises(ValueError, match="refreeze"):
-        ji.WBCLS(refreeze=-1)
-
-
-def test_registering_a_second_estimator_under_a_taken_name_is_refused():
-    from jitterid.estimation.estimators import register
-
-    class Other(ji.Estimator):
-        name = "bcls"
-        equation = "-"
-
-    with pytest.raises(ValueError, match="registered already"):
-        register(Other)
-
-
-# ------------------------------------------------------------------ derivative protocol
-def _coefficient_differences(structure, theta, n):
-    P = theta.size
-    dnum, dden = np.zeros((P, n)), np.zeros((P, n))
-    for i in range(P):
-        h = 1e-6 * max(abs(theta[i]), 1.0)
-        up, down = theta.copy(), theta.copy()
-        up[i] += h
-        down[i] -= h
-        a, b = structure.system(up), structure.system(down)
-        pad = lambda c: np.r_[np.zeros(n - c.size), c]
-        dnum[i] = (pad(a.num) - pad(b.num)) / (2 * h)
-        dden[i] = (pad(a.den) - pad(b.den)) / (2 * h)
-    return dnum, dden
-
-
-@pytest.mark.parametrize(
-    ("structure", "theta"),
-    [
-        (ji.PolePairGain(), np.array([6.25, -1.5, 2.0])),
-        (ji.RationalModel(1, 3), np.array([0.5, 2.0, 3.0, 4.0, 2.0])),
-    ],
-)
-def test_structures_coefficient_derivatives_against_differences(structure, theta):
-    n = structure.system(theta).den.size
-    closed = structure.coefficient_jacobian(theta, n)
-    assert closed is not None
-    ref = _coefficient_differences(structure, theta, n)
-    for got, want in zip(closed, ref, strict=True):
-        np.testing.assert_allclose(got, want, atol=1e-7)
-
-
-def test_a_structure_without_derivatives_takes_the_declared_difference_route():
-    """A reparameterised structure that does not override coefficient_jacobian: its parent's
-    closed form belongs to another map, so the moments' sensitivities use differences of
-    the new map (never the parent's formula), and the fit equals the analytic one's."""
-
-    class LogGain(ji.PolePairGain):
-        @property
-        def param_names(self):
-            return ("log_k0", "pr", "pi")
-
-        @property
-        def bounds(self):
-            return ((-10.0, 10.0), *super().bounds[1:])
-
-        def system(self, params):
-            p = np.asarray(params, float)
-            return super().system([np.exp(p[0]), p[1], p[2]])
-
-        def starts(self, T):
-            return [np.r_[np.log(s[0]), s[1:]] for s in super().starts(T)]
-
-    data = table2_data(14)
-    ref = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
-    res = ji.fit(data, LogGain(), ji.Uniform(0.5), "bcls")
-    assert res.success
-    np.testing.assert_allclose(np.exp(res.x[0]), ref.x[0], rtol=1e-5)
-    np.testing.assert_allclose(res.x[1:], ref.x[1:], rtol=1e-5)
-
-
-def test_a_new_estimator_is_one_class_and_one_registration(estimator_registry):
-    """Time-domain BCLS, sum_k (y_k - m_k)^2, written as a new estimator: fit, the search and
-    the covariance take it with no other change, and on white data it agrees with the
-    frequency-domain BCLS (14) within its standard errors."""
-    from dataclasses import dataclass
-
-    from jitterid.estimation.estimators import base
-
-    @base.register
-    @dataclass(frozen=True)
-    class TimeBCLS(ji.Estimator):
-        name = "time-bcls"
-        equation = "test"
-        least_squares = True
-        needs_noise = False
-        estimates_noise = False
-
-        def residuals(self, problem, x):
-            return problem.data.y - problem.moments(x).mean
-
-        def jacobian(self, problem, x):
-            return -problem.derivatives(x)[2].T
-
-        def grad_y(self, problem, x):
-            return 2 * self.residuals(problem, x)
-
-    data = table2_data(15)
-    new = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "time-bcls")
-    ref = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
-    assert new.success
-    assert new.method == "time-bcls"
-    se = np.sqrt(np.diag(ref.cov))
-    assert np.all(np.abs(new.x - ref.x) < 0.5 * se), (new.x, ref.x, se)
-    np.testing.assert_allclose(np.sqrt(np.diag(new.cov)), se, rtol=0.2)
-
-
 def test_bounds_take_a_dict_a_vector_or_a_fit_result_with_the_same_answer():
     data = table2_data(16)
     res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
@@ -349,37 +191,3 @@ def test_bounds_take_a_dict_a_vector_or_a_fit_result_with_the_same_answer():
     with pytest.raises(ValueError, match="did you mean 'pi'"):
         ji.crb(*args, {"k0": 6.0, "pr": -1.5, "Pi": 2.0})
     np.testing.assert_array_equal(ji.PolePairGain().system(res).den, res.system.den)
-
-
-@pytest.mark.parametrize(
-    ("method", "jitter"),
-    [
-        ("ls", ji.NoJitter()),
-        ("bcls", ji.UniformFamily()),
-        ("wbcls", ji.Uniform(0.5)),
-        ("asml-diag", ji.UniformFamily()),
-        ("gaussian", ji.GaussianFamily()),
-    ],
-)
-def test_closed_form_d2v_dx_dy_against_differences_of_grad_y(method, jitter):
-    """The covariance's G = d^2 V / dx dy^T in closed form, against central differences of
-    the criterion's dV/dy (the route it replaces), at a point off the optimum."""
-    from jitterid import finite_diff
-    from jitterid.estimation.problem import Problem
-
-    data = table2_data(17, known_noise=False)
-    f = ji.default_frequencies(N, T)
-    noise = 0.02 if method == "wbcls" else None
-    problem = Problem(data, ji.PolePairGain(), jitter, method, f, noise)
-    x = {"ls": [6.0, -1.4, 2.1], "wbcls": [6.0, -1.4, 2.1], "gaussian": [0.1, 6.0, -1.4, 2.1]}.get(
-        method, [0.4, 6.0, -1.4, 2.1]
-    )
-    x = np.r_[x, 0.015] if problem.estimates_noise else np.asarray(x, float)
-    if method == "wbcls":
-        problem = Problem(data, ji.PolePairGain(), jitter, method, f, noise, weights_at=x * 1.01)
-    G = problem.estimator.grad_y_jacobian(problem, x)
-    assert G is not None
-    ref = np.array(
-        [finite_diff.derivative(problem.grad_y, x, i, problem.bounds[i]) for i in range(x.size)]
-    )
-    np.testing.assert_allclose(G, ref, rtol=1e-5, atol=1e-6 * np.max(np.abs(ref)))

@@ -1,4 +1,5 @@
-"""Jitter laws regular in their shape (issue 12, item 4): GeneralizedNormal, DualDirac, families.
+"""Jitter laws regular in their shape (jitterid.jitter.regular): GeneralizedNormal, DualDirac,
+their families.
 
 Referees: direct numerical integration of the density (scipy.integrate.quad), the empirical
 characteristic function and moments of simulated draws, the closed-form neighbours

@@ -1,5 +1,5 @@
-"""User control of the search (issue 16): Constrained structures (start values, bounds,
-fixed parameters) in Python and the fit command's --start, --bounds and --fix."""
+"""User control of the search (jitterid.systems.constrained): Constrained structures (start values,
+bounds, fixed parameters) in Python and the fit command's --start, --bounds and --fix."""
 
 from __future__ import annotations
 
