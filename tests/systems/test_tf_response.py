@@ -1,11 +1,12 @@
-"""Exact response at arbitrary instants against an independent fine-step ODE solution."""
+"""TransferFunction (jitterid.systems.tf): the exact response at arbitrary instants against an
+independent fine-step ODE solution, the frequency response, and bad transfer functions."""
 
 import numpy as np
 import pytest
 from scipy import signal as sps
 from scipy.integrate import solve_ivp
 
-from jitterid.inputs import Multisine, PiecewiseConstant, telegraph_input, zoh_input
+from jitterid.inputs import Multisine, PiecewiseConstant, telegraph_input
 from jitterid.systems.tf import TransferFunction
 
 SYSTEMS = {
@@ -91,20 +92,6 @@ def test_long_record_stays_accurate_across_blocks():
     assert resp(u.times[-2:-1])[0] == pytest.approx(x, abs=1e-10)
 
 
-def test_zoh_input_is_piecewise_constant():
-    u = zoh_input([1.0, -2.0, 3.0], T=0.5, start=1.0)
-    np.testing.assert_array_equal(u(np.array([0.9, 1.0, 1.6, 2.2])), [0.0, 1.0, -2.0, 3.0])
-    assert u.end == pytest.approx(2.5)
-
-
-def test_fourier_transform_of_piecewise_constant_by_quadrature():
-    u = PiecewiseConstant([0.0, 0.7, 2.0, 2.5], [1.0, -0.5, 2.0])
-    t = np.linspace(0, 2.5, 250001)
-    for psi in (0.0, 0.3, 1.7, -2.2):
-        direct = np.trapezoid(u(t) * np.exp(-2j * np.pi * psi * t), t)
-        assert u.fourier(np.array([psi]))[0] == pytest.approx(direct, abs=2e-5)
-
-
 def test_freqresp_in_hz():
     tf = SYSTEMS["first order"]
     assert tf.frequency_response(1.0) == pytest.approx(1 / (2j * np.pi + 2))
@@ -136,14 +123,3 @@ def test_sampling_past_the_input_end_is_refused():
     resp = TransferFunction([1], [1, 1]).response(u)
     with pytest.raises(ValueError, match="input ends"):
         resp(np.array([1.0, 5.0]))
-
-
-def test_bad_inputs():
-    with pytest.raises(ValueError, match="strictly increasing"):
-        PiecewiseConstant([0, 1, 1, 2], [1, 2, 3])
-    with pytest.raises(ValueError, match="levels"):
-        PiecewiseConstant([0, 1, 2], [1])
-    with pytest.raises(TypeError, match="rng"):
-        telegraph_input(5.0, None)  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="duration"):
-        telegraph_input(-1.0, 0)
