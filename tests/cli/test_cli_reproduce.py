@@ -14,14 +14,16 @@ from jitterid.experiments import (
 
 
 # ------------------------------------------------------------------ end to end
-def test_reproduce_table2_runs_end_to_end(tmp_path):
+@pytest.mark.parametrize("runs", [2, pytest.param(8, marks=pytest.mark.slow)])
+def test_reproduce_table2_runs_end_to_end(tmp_path, runs):
+    """Two realizations in the default run (the fast version), eight with -m slow."""
     res = CliRunner().invoke(
         main,
         [
             "reproduce",
             "table2",
             "--runs",
-            "8",
+            str(runs),
             "--workers",
             "1",
             "--out",
@@ -31,12 +33,12 @@ def test_reproduce_table2_runs_end_to_end(tmp_path):
     )
     assert res.exit_code == 0, res.output
     rows = read_csv(tmp_path / "table2.csv")
-    assert len(rows) == 8 * 6
+    assert len(rows) == runs * 6
     assert {r["method"] for r in rows} == {"ls", "bcls", "asml-diag", "gaussian", "ml", "crb"}
     report = (tmp_path / "table2.md").read_text()
-    assert "| CRB | √(mean bound), first 8 inputs |" in report
+    assert f"| CRB | √(mean bound), first {runs} inputs |" in report
     assert report.count("std / √CRB, here") == 5
-    assert "jitterid reproduce table2 --runs 8" in report
+    assert f"jitterid reproduce table2 --runs {runs}" in report
     for method, label in [("ls", "LS"), ("bcls", "BCLS"), ("asml-diag", "AsML")]:
         k0 = np.array(
             [float(r["k0"]) for r in rows if r["method"] == method and r["success"] == "1"]
@@ -55,7 +57,7 @@ def test_reproduce_table2_runs_end_to_end(tmp_path):
             "reproduce",
             "table2",
             "--runs",
-            "8",
+            str(runs),
             "--workers",
             "1",
             "--out",
@@ -71,7 +73,7 @@ def test_reproduce_table2_runs_end_to_end(tmp_path):
             "reproduce",
             "table2",
             "--runs",
-            "8",
+            str(runs),
             "--workers",
             "1",
             "--out",
@@ -81,7 +83,7 @@ def test_reproduce_table2_runs_end_to_end(tmp_path):
         ],
     )
     assert resumed.exit_code == 0
-    assert "8 already stored, 0 new" in resumed.output
+    assert f"{runs} already stored, 0 new" in resumed.output
 
 
 @pytest.mark.parametrize("fig", ["fig1", "fig2", "fig3", "fig4"])

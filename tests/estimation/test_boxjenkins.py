@@ -454,7 +454,16 @@ def test_bj_fits_that_cannot_be_trusted_get_an_honest_status():
     assert "hb1" in res.message
 
 
-@pytest.mark.parametrize("method", ["bcls", "wbcls", "asml", "asml-diag", "gaussian"])
+@pytest.mark.parametrize(
+    "method",
+    [
+        "bcls",
+        "wbcls",
+        pytest.param("asml", marks=pytest.mark.slow),  # 3 s of CPU; its criterion is tested
+        "asml-diag",  # in tests/estimation/test_bj_criteria.py
+        "gaussian",
+    ],
+)
 def test_ordinary_bj_fits_stay_converged(method):
     """No false alarm from the checks: Table 2's system with slow coloured noise, and with
     white noise only (the noise model then at its white limit, said in the message)."""

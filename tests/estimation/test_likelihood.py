@@ -222,6 +222,7 @@ def _mc_information(lik, x, law, tf, u, reps, rng):
     return S, outer.mean(0), outer.std(0) / np.sqrt(reps)
 
 
+@pytest.mark.parametrize("reps", [200, pytest.param(600, marks=pytest.mark.slow)])
 @pytest.mark.parametrize(
     ("jitter", "law", "x", "noise"),
     [
@@ -230,16 +231,21 @@ def _mc_information(lik, x, law, tf, u, reps, rng):
         (LAWS["gaussian"], LAWS["gaussian"], np.r_[TRUTH, NOISE], None),
     ],
 )
-def test_fisher_information_matches_monte_carlo_of_score_outer_products(jitter, law, x, noise):
+def test_fisher_information_matches_monte_carlo_of_score_outer_products(
+    jitter, law, x, noise, reps
+):
+    """200 simulated score vectors in the default run (the fast version), 600 with -m slow;
+    the tolerances are the Monte Carlo's own standard errors."""
     n = 30
     data = table_data(8, law, n=n)
     tf = ji.PolePairGain().system(TRUTH)
     lik = ji.ExactLikelihood(ji.PolePairGain(), jitter, data.u, T, n, noise)
     info = lik.fisher(x)
-    S, mc, se = _mc_information(lik, x, law, tf, data.u, 600, np.random.default_rng(2))
+    S, mc, se = _mc_information(lik, x, law, tf, data.u, reps, np.random.default_rng(2))
     np.testing.assert_array_less(np.abs(S.mean(0)), 5 * S.std(0) / np.sqrt(S.shape[0]))
     assert np.all(np.abs(mc - info) <= 5 * se), (info, mc, se)
-    # and the two are not trivially close: the diagonal is estimated to ~5 %
+    # and the two are not trivially close: the diagonal is estimated to ~5 % (600 draws)
+    # or ~9 % (200 draws)
     assert np.all(se.diagonal() < 0.15 * info.diagonal())
 
 

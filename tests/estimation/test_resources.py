@@ -14,7 +14,6 @@ from click.testing import CliRunner
 import jitterid as ji
 from jitterid._checks import TooLargeError
 from jitterid.cli import main
-from jitterid.estimation import fit as fit_module
 from jitterid.estimation import likelihood as likelihood_module
 from jitterid.estimation import resources
 from jitterid.io import save_data
@@ -35,16 +34,24 @@ def _lab(n: int, seed: int = 1) -> ji.SampledData:
     return ji.simulate(g, u, ji.Gaussian(0.08), 0.5, n, 0.02, rng)
 
 
-def _no_work(*args, **kwargs):
-    raise AssertionError("the fit started although it should have been refused up front")
+class _Counted(ji.PolePairGain):
+    """The pole-pair structure, counting the systems it builds: every evaluation of a fit's
+    criterion builds one, so a fit refused before any work has built none."""
+
+    built = 0
+
+    def system(self, params):
+        type(self).built += 1
+        return super().system(params)
 
 
 def test_a_moment_fit_over_the_budget_is_refused_before_any_work(monkeypatch):
     d = _paper(2000)
     monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "1e6")  # 1 MB; the estimate is 2 MB
-    monkeypatch.setattr(fit_module, "Problem", _no_work)
+    monkeypatch.setattr(_Counted, "built", 0)
     with pytest.raises(TooLargeError) as err:
-        ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "bcls")
+        ji.fit(d, _Counted(), ji.Uniform(0.5), "bcls")
+    assert _Counted.built == 0  # refused before any evaluation
     msg = str(err.value)
     assert "N = 2000 samples with 3 parameters" in msg
     assert "GB of memory" in msg
@@ -64,10 +71,12 @@ def test_ml_whose_rule_cannot_fit_is_refused_before_the_first_stage(monkeypatch)
     d = _paper(2000)
     # bcls fits the budget (2 MB); the likelihood's rule needs at least 112e3 nodes (22 MB)
     monkeypatch.setenv("JITTERID_MEMORY_BUDGET", "5e6")
-    assert ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "bcls").success
-    monkeypatch.setattr(fit_module, "Problem", _no_work)
+    assert ji.fit(d, _Counted(), ji.Uniform(0.5), "bcls").success
+    assert _Counted.built > 0  # the referee: a fit that runs builds systems
+    monkeypatch.setattr(_Counted, "built", 0)
     with pytest.raises(TooLargeError, match="quadrature nodes for the exact likelihood") as err:
-        ji.fit(d, ji.PolePairGain(), ji.Uniform(0.5), "ml")
+        ji.fit(d, _Counted(), ji.Uniform(0.5), "ml")
+    assert _Counted.built == 0  # refused before the BCLS stage
     assert "method 'gaussian' or 'asml-diag'" in str(err.value)
 
 

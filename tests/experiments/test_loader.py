@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from helpers import TINY_EXPERIMENT, tiny_experiment
 
 from jitterid.cli import main
-from jitterid.estimation import problem as criteria
+from jitterid.estimation.estimators import BCLS, register
 from jitterid.experiments import (
     PAPER_EXPERIMENTS,
     ExperimentError,
@@ -112,13 +112,24 @@ def test_ls_cannot_estimate_a_jitter_family():
         parse_experiment(data, "tiny.toml")
 
 
-def test_methods_are_checked_against_the_librarys_list_at_load_time(monkeypatch):
-    data = edited("estimators.methods", ["bcls", "ml"])
-    if "ml" not in criteria.METHODS:
-        with pytest.raises(ExperimentError, match="methods"):
-            parse_experiment(copy.deepcopy(data), "tiny.toml")
-    monkeypatch.setattr(criteria, "METHODS", (*criteria.METHODS, "ml"))
-    assert parse_experiment(data, "tiny.toml").methods == ("bcls", "ml")
+@pytest.mark.xfail(
+    strict=True,
+    reason="jitterid.estimation.problem.METHODS is frozen when problem.py is imported, so the "
+    "loader does not see an estimator registered later (issue 23: one registration)",
+)
+def test_an_estimator_registered_after_import_is_accepted_at_load_time(estimator_registry):
+    """The methods are checked against the library's registered estimators when the file is
+    read: a name unknown until its estimator is registered is refused, then accepted."""
+    data = edited("estimators.methods", ["bcls", "test-loader-bcls"])
+    with pytest.raises(ExperimentError, match=r"methods\[1\]"):
+        parse_experiment(copy.deepcopy(data), "tiny.toml")
+
+    @register
+    @dataclasses.dataclass(frozen=True)
+    class LoaderBCLS(BCLS):
+        name = "test-loader-bcls"
+
+    assert parse_experiment(data, "tiny.toml").methods == ("bcls", "test-loader-bcls")
 
 
 def test_run_with_a_bad_file_fails_before_any_work(tmp_path):

@@ -1,4 +1,6 @@
-"""The Monte Carlo engine's promises: same numbers on any backend, nothing lost after SIGKILL."""
+"""The Monte Carlo engine's promises (jitterid.experiments.runner): same numbers on any backend,
+nothing lost after SIGKILL. The backends (worker processes, a Dask cluster, one client for
+several runs) start processes: those tests are slow; the SIGKILL test stays in the default run."""
 
 import logging
 import os
@@ -80,11 +82,13 @@ def run_cli(args):
     return res.output
 
 
+@pytest.mark.slow  # ~6 s of CPU (two worker processes)
 def test_two_local_worker_processes_give_the_in_process_numbers(definition, reference, tmp_path):
     run_cli(["run", str(definition), "--workers", "2", "--out", str(tmp_path)])
     assert_same(stored(definition, tmp_path), reference)
 
 
+@pytest.mark.slow  # ~10 s of CPU (a Dask cluster)
 def test_a_dask_cluster_on_loopback_gives_the_in_process_numbers(definition, reference, tmp_path):
     from dask.distributed import LocalCluster
 
@@ -110,6 +114,7 @@ def test_a_dask_cluster_on_loopback_gives_the_in_process_numbers(definition, ref
     assert_same(stored(definition, tmp_path), reference)
 
 
+@pytest.mark.slow  # ~14 s of CPU (a Dask cluster)
 def test_one_client_for_several_runs_gives_the_in_process_numbers(definition, reference, tmp_path):
     """`reproduce all` sends its tables to one cluster (dask_client): each run on it gives
     the in-process numbers, and so does --no-share."""

@@ -44,6 +44,7 @@ def test_round_trip_gaussian_jitter_within_its_stated_error():
     assert m.family == "gaussian"
 
 
+@pytest.mark.slow  # ~45 s of CPU; no small version: 0.5 rad at N = 300 still takes 13 s
 def test_large_uniform_jitter_is_measured_and_its_law_found():
     """2 pi f sigma = 0.8 rad, far outside the linearisation of the IEEE slope regression
     (it says 1.25 ms here for a true 1.04 ms): the likelihood is not biased, and prefers

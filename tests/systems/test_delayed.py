@@ -125,10 +125,17 @@ def test_likelihood_score_of_the_delay_against_differences(
 @pytest.mark.parametrize(
     ("true_law", "assumed", "expected"),
     [
+        # ~3 s of CPU for each jittered case: the default run keeps the case without jitter
+        # (1 s) and the one where the delay absorbs the jitter's mean
         (ji.NoJitter(), ji.NoJitter(), 0.7),
-        (ji.Uniform(0.5), ji.Uniform(0.5), 0.7),
+        pytest.param(ji.Uniform(0.5), ji.Uniform(0.5), 0.7, marks=pytest.mark.slow),
         # a converter sampling 0.2 s late on average: known, the delay is the true one ...
-        (ji.Shifted(ji.Uniform(0.3), 0.2), ji.Shifted(ji.Uniform(0.3), 0.2), 0.7),
+        pytest.param(
+            ji.Shifted(ji.Uniform(0.3), 0.2),
+            ji.Shifted(ji.Uniform(0.3), 0.2),
+            0.7,
+            marks=pytest.mark.slow,
+        ),
         # ... assumed zero-mean, the delay absorbs the mean: delay - mean = 0.5
         (ji.Shifted(ji.Uniform(0.3), 0.2), ji.Uniform(0.3), 0.5),
     ],

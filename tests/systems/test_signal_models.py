@@ -238,6 +238,7 @@ def test_a_sinusoid_search_that_ends_at_the_wrong_frequency_is_not_a_success():
     assert near.status is ji.FitStatus.CONVERGED
 
 
+@pytest.mark.slow  # ~21 s of CPU: N = 4000 is the point of the test
 def test_ml_error_bars_of_a_frequency_over_a_long_record():
     """The covariance's difference steps follow each parameter's own scale: with the old
     relative step 1e-4 |f| the phase at the end of N = 4000 samples moved by 0.6 rad, and
