@@ -12,7 +12,7 @@ import pytest
 import jitterid as ji
 from jitterid.estimation import jacobians as _jacobians
 from jitterid.estimation.likelihood import _modal_gradient, _pole_sensitivity
-from jitterid.estimation.problem import Problem, adjoint_dtft, default_frequencies
+from jitterid.estimation.problem import Problem, adjoint_dtft
 from jitterid.moments import modal as _modal
 from jitterid.moments.quadrature import jitter_nodes
 from jitterid.moments.sample import sample_moments
@@ -91,7 +91,7 @@ def test_no_jitter_is_the_signal_at_the_nominal_instants():
 def test_kept_plans_are_bounded_and_shared():
     _modal.clear_plans()
     data = _data(ji.Uniform(0.5))
-    f = default_frequencies(N, T)
+    f = ji.default_frequencies(N, T)
     bcls = Problem(data, ji.PolePairGain(), ji.Uniform(0.5), "bcls", f, None)
     gauss = Problem(data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", f, NOISE)
     bcls.moments(TRUTH)
@@ -155,7 +155,7 @@ CASES = [
 def _problem(case, method, noise):
     _name, jitter, x = case
     data = _data(ji.SumOfUniforms(2.0, 0.3))
-    pb = Problem(data, ji.PolePairGain(), jitter, method, default_frequencies(N, T), noise)
+    pb = Problem(data, ji.PolePairGain(), jitter, method, ji.default_frequencies(N, T), noise)
     return pb, (np.r_[x, 0.02] if pb.estimates_noise else x)
 
 
@@ -186,7 +186,7 @@ def test_frozen_wbcls_jacobian_matches_differences(case):
     _name, jitter, x = case
     data = _data(ji.SumOfUniforms(2.0, 0.3))
     pb = Problem(
-        data, ji.PolePairGain(), jitter, "wbcls", default_frequencies(N, T), NOISE, x * 1.02
+        data, ji.PolePairGain(), jitter, "wbcls", ji.default_frequencies(N, T), NOISE, x * 1.02
     )
     _check_columns(pb.jacobian(x), _central(pb.residuals, x).T, pb.n_jitter)
 
@@ -195,7 +195,7 @@ def test_jacobian_of_a_model_with_feedthrough():
     """A biproper model: D and its derivative enter c_j = u_j G(0) and s jumps at switches."""
     structure, theta = ji.RationalModel(2, 2), np.array([0.5, 2.0, 6.25, 3.0, 6.25])
     data = _data(ji.Uniform(0.5), structure=structure, theta=theta)
-    pb = Problem(data, structure, ji.Uniform(0.5), "bcls", default_frequencies(N, T), None)
+    pb = Problem(data, structure, ji.Uniform(0.5), "bcls", ji.default_frequencies(N, T), None)
     x = theta * 1.05
     _check_columns(pb.jacobian(x), _central(pb.residuals, x).T, 0)
 
@@ -229,7 +229,7 @@ def test_gradients_match_differences_of_the_criterion(case, method, noise):
 def test_scale_derivative_matches_differences_of_the_moments(family, xj, structure, theta):
     """(M3): E[s' tau] / a, plus the jumps of s at switches when the model has feedthrough."""
     data = _data(ji.Uniform(0.3), n=80, structure=structure, theta=theta)
-    pb = Problem(data, structure, family, "gaussian", default_frequencies(80, T), NOISE)
+    pb = Problem(data, structure, family, "gaussian", ji.default_frequencies(80, T), NOISE)
     x = np.r_[xj, theta]
     _, _, dm, dw = _jacobians.moment_derivatives(pb, x)
     i = len(xj) - 1  # the scale a
@@ -249,7 +249,7 @@ def test_moment_derivatives_with_a_multisine_input_fall_back_to_differences():
     u = ji.Multisine([0.05, 0.13], [1.0, 0.5], end=80.0)
     data = ji.simulate(ji.PolePairGain().system(TRUTH), u, ji.Uniform(0.5), T, 60, NOISE, 3)
     pb = Problem(
-        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", default_frequencies(60, T), NOISE
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", ji.default_frequencies(60, T), NOISE
     )
     _, grad, _ = pb.objective_gradient(TRUTH)
     _check_columns(
@@ -261,7 +261,7 @@ def test_expected_hessian_of_the_gaussian_criterion_is_close_to_its_hessian_at_t
     data = _data(ji.Uniform(0.5), n=400)
     res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method="gaussian")
     pb = Problem(
-        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", default_frequencies(400, T), NOISE
+        data, ji.PolePairGain(), ji.Uniform(0.5), "gaussian", ji.default_frequencies(400, T), NOISE
     )
     _, grad, info = pb.objective_gradient(res.x)
     H = _central(lambda z: pb.objective_gradient(z)[1], res.x, rel=1e-5)
@@ -278,7 +278,7 @@ def test_newton_search_ends_where_a_tight_quasi_newton_search_ends(method):
     res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), method=method, noise_std=NOISE)
     assert res.success
     pb = Problem(
-        data, ji.PolePairGain(), ji.Uniform(0.5), method, default_frequencies(200, T), NOISE
+        data, ji.PolePairGain(), ji.Uniform(0.5), method, ji.default_frequencies(200, T), NOISE
     )
     ref = minimize(
         lambda z: pb.objective_gradient(z)[:2],
@@ -294,7 +294,7 @@ def test_newton_search_ends_where_a_tight_quasi_newton_search_ends(method):
 def test_adjoint_dtft_on_the_dft_grid_is_the_direct_sum():
     rng = np.random.default_rng(2)
     n = 64
-    f = default_frequencies(n, T)
+    f = ji.default_frequencies(n, T)
     z = rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)
     direct = np.exp(2j * np.pi * np.outer(np.arange(n) * T, f)) @ z
     np.testing.assert_allclose(adjoint_dtft(z, T, f, n), direct, rtol=0, atol=1e-12)

@@ -13,7 +13,7 @@ from scipy import stats
 import jitterid as ji
 from jitterid.estimation import likelihood as lk
 from jitterid.estimation.covariance import covariance
-from jitterid.estimation.problem import Problem, default_frequencies
+from jitterid.estimation.problem import Problem
 
 T, N, NOISE = 1.0, 200, 0.01
 TRUTH = np.array([6.25, -1.5, 2.0])
@@ -157,8 +157,8 @@ def test_exact_likelihood_tends_to_the_gaussian_criterion_for_small_jitter():
     for sigma in (0.1, 0.05, 0.025):
         law = ji.Gaussian(sigma)
         data = ji.simulate(structure.system(TRUTH), u, law, T, n, NOISE, 9)
-        gauss = Problem(data, structure, law, "gaussian", default_frequencies(n, T), NOISE)
-        ml = Problem(data, structure, law, "ml", default_frequencies(n, T), NOISE)
+        gauss = Problem(data, structure, law, "gaussian", ji.default_frequencies(n, T), NOISE)
+        ml = Problem(data, structure, law, "ml", ji.default_frequencies(n, T), NOISE)
         w, m = gauss.variances(TRUTH), gauss.moments(TRUTH).mean
         gaussian = -0.5 * ((data.y - m) ** 2 / w + np.log(w) + np.log(2 * np.pi))
         assert ml.likelihood is not None

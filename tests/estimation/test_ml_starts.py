@@ -11,7 +11,7 @@ import pytest
 
 import jitterid as ji
 from jitterid.estimation import ml
-from jitterid.estimation.problem import Problem, default_frequencies
+from jitterid.estimation.problem import Problem
 
 T, N, NOISE = 1.0, 200, 0.01
 TRUTH = np.array([6.25, -1.5, 2.0])
@@ -107,7 +107,7 @@ def test_every_family_gets_several_scored_starts(at_zero):
         (ji.UniformFamily(), np.r_[3e-11, bcls.x[1:]]),
         (ji.SumOfUniformsFamily(), np.r_[2.0, 3e-11, bcls.x[1:]]),
     ):
-        problem = Problem(data, ji.PolePairGain(), fam, "ml", default_frequencies(N, T), NOISE)
+        problem = Problem(data, ji.PolePairGain(), fam, "ml", ji.default_frequencies(N, T), NOISE)
         starts, n = ml._ml_start(problem, x0)
         assert n == len(starts) >= 3
         scores = [v for v, _ in starts]

@@ -17,7 +17,7 @@ import pytest
 
 import jitterid as ji
 from jitterid.estimation import covariance as C
-from jitterid.estimation.problem import Problem, default_frequencies
+from jitterid.estimation.problem import Problem
 
 N, T = 200, 1.0
 SYSTEM = ji.PolePairGain().system([6.25, -1.5, 2.0])
@@ -30,7 +30,7 @@ def _scores(method, jitter, x0, law, R, rng, u, n=N):
             ji.PolePairGain(),
             jitter,
             method,
-            default_frequencies(n, T),
+            ji.default_frequencies(n, T),
             None,
         )
 

@@ -16,7 +16,7 @@ import pytest
 from scipy import integrate
 
 import jitterid as ji
-from jitterid.estimation.problem import Problem, default_frequencies
+from jitterid.estimation.problem import Problem
 from jitterid.jitter import registry
 
 T, NOISE = 1.0, 0.01
@@ -195,7 +195,7 @@ def test_moment_derivatives_in_the_family_parameters(family, jp, method):
     """The moments' derivative pass (analytic: dp/dtheta at the nodes) against central
     differences of the moments, in every jitter parameter."""
     data = _data(family.law(jp))
-    pr = Problem(data, ji.PolePairGain(), family, method, default_frequencies(data.N, T), NOISE)
+    pr = Problem(data, ji.PolePairGain(), family, method, ji.default_frequencies(data.N, T), NOISE)
     x = np.r_[jp, TRUTH]
     _, _, dm, dw = pr.derivatives(x)
     for i in range(2):

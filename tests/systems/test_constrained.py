@@ -15,7 +15,8 @@ import jitterid as ji
 from jitterid import _serial
 from jitterid.cli import main
 from jitterid.estimation import jacobians
-from jitterid.estimation.problem import METHODS, Problem, default_frequencies
+from jitterid.estimation.estimators import method_names
+from jitterid.estimation.problem import Problem
 from jitterid.systems.structures import ModelStructure
 
 T, N, NOISE = 0.5, 80, 0.02
@@ -166,7 +167,7 @@ def test_an_inner_closed_form_for_another_map_is_not_used():
 def test_moment_derivatives_are_the_inner_ones_free_rows(data):
     """The wrapper's dm_k/dtheta through the modal fast path against a second route: the
     inner structure's at the same system, rows of the free parameters."""
-    f = default_frequencies(N, T)
+    f = ji.default_frequencies(N, T)
     law = ji.Uniform(0.3)
     c = ji.Constrained(ji.PolePairGain(), fixed={"pi": 2.0})
     mine = jacobians.moment_derivatives(
@@ -227,7 +228,9 @@ def test_a_fixed_parameter_gives_the_fit_without_it(data, method, fixed, referee
 
 @pytest.mark.parametrize(
     ("method", "family"),
-    [(m, f) for m in METHODS for f in (False, True) if not (m == "ls" and f)],  # ls: no family
+    [
+        (m, f) for m in method_names() for f in (False, True) if not (m == "ls" and f)
+    ],  # ls: no family
 )
 def test_every_method_fits_a_constrained_structure(data, method, family):
     jitter = (

@@ -12,7 +12,7 @@ import pytest
 import jitterid as ji
 from jitterid import finite_diff
 from jitterid.estimation import jacobians
-from jitterid.estimation.problem import Problem, default_frequencies
+from jitterid.estimation.problem import Problem
 from jitterid.moments.sample import moment_pass, sample_moments
 from jitterid.systems.model import DelayedSignal
 
@@ -80,7 +80,7 @@ def test_moment_derivatives_in_the_delay_against_central_differences(
 ) -> None:
     data = _data(ji.Uniform(0.5), 0.7, seed=3)
     noise = None if method == "gaussian" else 0.01
-    pr = Problem(data, MODEL, jitter, method, default_frequencies(200, 1.0), noise)
+    pr = Problem(data, MODEL, jitter, method, ji.default_frequencies(200, 1.0), noise)
     x = np.array([6.25, -1.5, 2.0, 0.7])
     if isinstance(jitter, ji.JitterFamily):
         x = np.r_[0.5, x]
@@ -107,7 +107,7 @@ def test_likelihood_score_of_the_delay_against_differences(
     jitter: ji.JitterLaw | ji.JitterFamily,
 ) -> None:
     data = _data(ji.Uniform(0.5), 0.7, seed=3)
-    pr = Problem(data, MODEL, jitter, "ml", default_frequencies(200, 1.0), 0.01)
+    pr = Problem(data, MODEL, jitter, "ml", ji.default_frequencies(200, 1.0), 0.01)
     lik = pr.likelihood
     assert lik is not None
     x = np.array([6.25, -1.5, 2.0, 0.7])
@@ -277,7 +277,7 @@ def test_constrained_delayed_model_keeps_the_delay_derivative() -> None:
     assert model.delay_index == 2
     assert ji.Constrained(MODEL, fixed={"delay_s": 0.7}).delay_index is None
     data = _data(ji.Uniform(0.5), 0.7, seed=3)
-    pr = Problem(data, model, ji.Uniform(0.5), "bcls", default_frequencies(200, 1.0), 0.01)
+    pr = Problem(data, model, ji.Uniform(0.5), "bcls", ji.default_frequencies(200, 1.0), 0.01)
     x = np.array([-1.5, 2.0, 0.7])
     dm = jacobians.moment_derivatives(pr, x)[2]
     ref = finite_diff.derivative(

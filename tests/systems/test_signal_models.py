@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import jitterid as ji
-from jitterid.estimation.problem import Problem, default_frequencies
+from jitterid.estimation.problem import Problem
 
 T = 1.0
 TRUTH = np.array([1.5, 0.4, 0.23, 0.3])  # A, phi, f (Hz), c
@@ -96,7 +96,7 @@ def test_moment_derivatives_against_central_differences(jitter, analytic):
     finite-difference route) against central differences of the moments."""
     model = sine(gradient=analytic, slope=analytic)
     data = ji.SampledData(np.linspace(-1, 1, 40), T, None, noise_std=0.05)
-    prob = Problem(data, model, jitter, "gaussian", default_frequencies(40, T), None)
+    prob = Problem(data, model, jitter, "gaussian", ji.default_frequencies(40, T), None)
     x = np.r_[
         {ji.Uniform: [], ji.GaussianFamily: [0.25], ji.SumOfUniformsFamily: [1.6, 0.4]}[
             type(jitter)
