@@ -63,6 +63,9 @@ class ParamLayout:
     bounds: Bounds = ()
 
     def __post_init__(self) -> None:
+        for name in ("jitter", "system", "noise"):  # tuples (e.g. after a JSON round trip)
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        object.__setattr__(self, "bounds", tuple(tuple(map(float, b)) for b in self.bounds))
         if len(self.bounds) != len(self.names):
             raise ValueError(
                 f"bounds must hold one (low, high) pair per parameter {self.names}; "
@@ -155,6 +158,22 @@ class ParamLayout:
             One of :data:`BLOCKS`.
         """
         return np.asarray(x, float)[self.slice(block)]
+
+    def replace(self, x: Any, block: str, values: Any) -> FloatArray:
+        """A copy of ``x`` (a vector in layout order) with ``block`` set to ``values``.
+
+        Parameters
+        ----------
+        x : array_like
+            A vector in layout order.
+        block : str
+            One of :data:`BLOCKS`.
+        values : array_like
+            The block's new values.
+        """
+        out = np.array(x, dtype=float)
+        out[self.slice(block)] = np.asarray(values, dtype=float)
+        return out
 
     def lower_upper(self) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bounds as two arrays."""

@@ -27,7 +27,7 @@ noise parameters as *plug-in* values held fixed (``pinned``), with NaN standard 
 
 WBCLS weights: as for OE (:mod:`jitterid.estimation.problem`), R is frozen at ``weights_at``
 (the BCLS/GLS start with the plug-in noise model, then re-frozen once at the first WBCLS
-estimate, :func:`jitterid.estimation.boxjenkins.fit_bj`): the literal (20) with R(theta)
+estimate, :class:`jitterid.estimation.boxjenkins.BoxJenkinsRoute`): the literal (20) with R(theta)
 inside the search, having no ln det R, is minimised partly by inflating R and is biased.
 ``weights_at=None`` keeps the literal form, for comparison.
 
@@ -69,6 +69,7 @@ from .covariance import _steps
 from .estimators import BCLS, Estimator, as_estimator
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
+from .search import SearchOptions
 
 __all__ = ["BJProblem", "bj_covariance"]
 
@@ -76,6 +77,13 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
 PROBES = 16  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
+
+
+# Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
+# the search stops: 1e-6 units of V moves the estimate by ~1e-3 standard errors.
+NEWTON_TOL = 1e-6
+STALL_TOL = 1e-3  # decrement below which "no step decreases V" is the rounding floor
+STALL_GAIN = 1e-4  # stop when the last accepted steps (search.STALL_WINDOW) gained less
 
 
 @dataclass(eq=False)
@@ -143,8 +151,25 @@ class BJProblem:
         self.bounds = lay.bounds
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
         self._oe = Problem(
-            self.data, self.structure, self.jitter, BCLS.name, self.freqs, None, with_variances=True
+            self.data, self.structure, self.jitter, BCLS(), self.freqs, None, with_variances=True
         )
+
+    # ------------------------------------------------------------------ for the search
+    def search_options(self, tol: float | None = None) -> SearchOptions:
+        """The Newton adapter's options: logs of unbounded rates and squares of noise stds
+        (:class:`~jitterid.estimation.search.Coordinates`), Newton decrement NEWTON_TOL (or
+        ``tol``, e.g. the loose noise and GLS stages), a stall of the criterion (a white
+        record's noise pole running off) and exhausted damping below STALL_TOL taken as
+        converged."""
+        t = NEWTON_TOL if tol is None else tol
+        return SearchOptions(t, True, STALL_GAIN if tol is None else max(STALL_GAIN, t), STALL_TOL)
+
+    def search_residuals(self, x: FloatArray) -> FloatArray:
+        """:meth:`residuals` (the search protocol's name)."""
+        return self.residuals(x)
+
+    def release(self) -> None:
+        """Nothing to drop between stages: the caches are per point and small."""
 
     @property
     def n_jitter(self) -> int:

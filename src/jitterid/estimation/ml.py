@@ -8,30 +8,18 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .._memory import trim
 from ..jitter.laws import JitterFamily
-from ..moments.modal import clear_plans
-from .problem import Problem
-from .result import FitStatus
+from .problem import Problem, free_moment_plans
+from .search import Outcome, register_search
+from .status import FitStatus
 
-__all__ = ["run_ml"]
+__all__ = ["likelihood_adapter", "run_ml"]
 
 FloatArray = NDArray[np.float64]
 
 #: A jitter std below this fraction of another scored start's counts as zero jitter (where
 #: the likelihood, even in the scale, has a vanishing gradient).
 _DEGENERATE = 1e-3
-#: records from this many samples free the moment plans before the likelihood's search
-FREE_PLANS_FROM = 100_000
-
-
-def free_moment_plans(N: int) -> None:
-    """On a record of at least ``FREE_PLANS_FROM`` samples, drop the moments' segment plans
-    (~640 MB at N = 1e6) and return the freed pages to the system; what needs the moments
-    later (the checks' model mean) rebuilds them."""
-    if N >= FREE_PLANS_FROM:
-        clear_plans()
-        trim()
 
 
 def _residual_std(problem: Problem, x0: FloatArray) -> float:
@@ -190,3 +178,22 @@ def run_ml(
     if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
     return x, cost, status, msg, nfev
+
+
+@register_search("likelihood")
+def likelihood_adapter(
+    problem: Problem,
+    x0: FloatArray,
+    max_nfev: int,
+    free: NDArray[np.bool_] | None = None,
+    tol: float | None = None,
+) -> Outcome:
+    """The search adapter of the exact likelihood (:data:`jitterid.estimation.search
+    .SEARCHES`, key ``"likelihood"``): :func:`run_ml` from ``x0`` clipped to the bounds.
+    ``free`` and ``tol`` are not used (the likelihood's search has its own tolerances and
+    searches every parameter)."""
+    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    x0 = np.clip(x0, lo, hi)
+    if x0.size == 0:
+        return Outcome(x0, problem.objective(x0), FitStatus.CONVERGED, "no free parameters", 1)
+    return Outcome(*run_ml(problem, x0, max_nfev))
