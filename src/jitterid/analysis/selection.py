@@ -932,7 +932,7 @@ def select_order(
     noise_known = fit_kwargs.get("noise_std")
     if noise_known is None:
         noise_known = data.noise_std
-    exact = est.name == "ml"
+    exact = est.exact_likelihood
     rows: list[OrderRow] = []
     counted: list[bool] = []
     for lab, s in zip(_labels(structures), structures, strict=True):
@@ -945,7 +945,7 @@ def select_order(
     if noise_counted:
         rows = [_with_noise_counted(r, data.N) for r in rows]
     chosen, reason = _choose(rows, criterion)
-    tests = _tests(rows) if est.name in ("ml", "gaussian") else ()
+    tests = _tests(rows) if est.is_likelihood else ()
     return OrderSelection(
         rows=tuple(rows),
         chosen=chosen,

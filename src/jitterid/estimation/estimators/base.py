@@ -194,6 +194,13 @@ class Estimator:
     # :func:`jitterid.fit` drives every estimator through the same sequence (module
     # :mod:`jitterid.estimation.fit`); these say what the estimator needs of each step.
     @property
+    def is_likelihood(self) -> bool:
+        """The criterion is -2 ln of a likelihood (exact, or the Gaussian one of the sample
+        moments): its inverse observed information is a covariance (``"oim"``), and its
+        differences between nested models are likelihood-ratio statistics."""
+        return "oim" in self.cov_types
+
+    @property
     def search(self) -> str:
         """The search adapter's key in :data:`jitterid.estimation.search.SEARCHES`."""
         return "least_squares" if self.least_squares else "newton"
