@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["BLOCKS", "ParamLayout", "did_you_mean"]
+__all__ = ["BLOCKS", "ParamLayout", "count_params", "did_you_mean"]
 
 FloatArray = NDArray[np.float64]
 Bounds = tuple[tuple[float, float], ...]
@@ -241,6 +241,25 @@ class ParamLayout:
         if not np.all(np.isfinite(out)):
             raise ValueError(f"{name} must be finite; got {out.tolist()}")
         return out
+
+
+def count_params(part: Any) -> int:
+    """The number of parameters ``part`` (a jitter family, a structure, a noise structure;
+    a known law, a known system or None: 0) adds to a layout, as :meth:`ParamLayout.build`
+    counts them.
+
+    Parameters
+    ----------
+    part : object
+        A part of a problem.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> count_params(ji.SumOfUniformsFamily()), count_params(ji.Uniform(0.5))
+    (2, 0)
+    """
+    return len(getattr(part, "param_names", ()) or ())
 
 
 def did_you_mean(name: str, names: Sequence[str]) -> str:

@@ -57,6 +57,7 @@ from ..estimation.fit import fit
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
+from ..params import count_params
 from ..systems.model import Model
 from ..systems.structures import Delayed, KnownSystem, ModelStructure, PolePairGain, RationalModel
 from ..systems.tf import TransferFunction
@@ -713,7 +714,7 @@ def _fit_row(
             error = ""
     _warned(notes, "the fit", caught)
     if res is None:
-        n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+        n_jit = count_params(jitter)
         k = n_jit + len(structure.param_names)
         return OrderRow(lab, structure, k, None, error=error, notes=tuple(notes)), False
     loglik, counted = float("nan"), False

@@ -173,7 +173,7 @@ class BJProblem:
 
     @property
     def n_jitter(self) -> int:
-        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+        return len(self.layout.jitter)
 
     @property
     def n_system(self) -> int:

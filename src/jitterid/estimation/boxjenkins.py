@@ -39,6 +39,7 @@ from scipy.optimize import least_squares
 from .._checks import real_array
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..noise.models import KnownNoise, NoiseModel, NoiseStructure, as_noise_structure
+from ..params import count_params
 from ..simulate import SampledData
 from ..systems.model import Model
 from ..systems.structures import ModelStructure, as_structure
@@ -307,7 +308,7 @@ class BoxJenkinsRoute:
                 f"a known input; {type(structure).__name__} is a signal model: fit it with "
                 "noise=None"
             )
-        nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+        nj = count_params(jitter)
         check_data(data, len(structure.param_names) + nj)
         nstruct = as_noise_structure(noise)
         f = (

@@ -61,6 +61,7 @@ from scipy import stats
 from ..data import SampledData
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
+from ..params import count_params
 from ..systems.constrained import Constrained
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
@@ -277,7 +278,7 @@ class PostContext:
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
-    return len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    return count_params(jitter)
 
 
 def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitStatus, str]:

@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 from .._checks import real_array
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..params import count_params
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
 from .checks import SCREEN_SAMPLES, PostContext, Scaling, check_data
@@ -144,7 +145,7 @@ class OutputErrorRoute:
             )
         if est.ignores_jitter and not structure.param_names:
             raise ValueError(f"method {est.name!r} with a known system has nothing to estimate")
-        n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+        n_jit = count_params(jitter)
         check_data(data, n_jit + len(structure.param_names), structure.uses_input)
         check_fit_resources(data, structure, jitter, est)  # memory up front (resources.py)
         f = (

@@ -168,7 +168,7 @@ class Problem:
 
     @property
     def n_jitter(self) -> int:
-        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+        return len(self.layout.jitter)
 
     def split(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]:
         """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``.

@@ -56,6 +56,7 @@ from ..data import SampledData
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.quadrature import panels_per_sample, relative_cuts
+from ..params import count_params
 from ..systems.model import Model, Signal
 
 __all__: list[str] = []
@@ -186,7 +187,7 @@ def check_fit(
     (``estimator``: the :class:`~jitterid.estimation.estimators.Estimator`; the exact
     likelihood's quadrature rule counts where it has one)."""
     method = estimator.name
-    n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    n_jit = count_params(jitter)
     P = n_jit + len(structure.param_names)
     N = data.N
     need = moment_bytes(N, P)
