@@ -125,7 +125,8 @@ class Problem:
     _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
     _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
     _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = field(init=False, default=None)
-    _plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
+    # the moments' last node plan with its key (jacobians._plan)
+    plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
     _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
@@ -219,7 +220,24 @@ class Problem:
         self._cache.clear()
         self._dcache = None
         self._split = None
-        self._plan_memo = None
+        self.plan_memo = None
+
+    def recall(self, key: bytes) -> _Derivatives | None:
+        """The derivatives remembered for the point with bytes ``key`` (:meth:`derivatives`
+        of the last point), or None."""
+        if self._dcache is not None and self._dcache[0] == key:
+            return self._dcache[1]
+        return None
+
+    def remember(self, key: bytes, out: _Derivatives | None) -> None:
+        """Keep ``out`` (the derivatives at the point with bytes ``key``) and its moments as
+        the last point's; None forgets the last point's derivatives."""
+        if out is None:
+            self._dcache = None
+            return
+        self._dcache = (key, out)
+        self._cache.clear()
+        self._cache[key] = out[0]
 
     def difference_grid(self) -> tuple[FloatArray, NDArray[np.intp]]:
         """Distinct f - psi over the frequency set, and the index of each pair (for R_Y)."""
