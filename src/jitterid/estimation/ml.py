@@ -46,23 +46,24 @@ def _candidates(problem: Problem, x0: FloatArray) -> list[FloatArray]:
     variance (:func:`_residual_std`), all with x0's system and noise parameters."""
     jitter = problem.jitter
     assert isinstance(jitter, JitterFamily)
-    nj = problem.n_jitter
+    lay = problem.layout
+    nj = len(lay.jitter)
     scale = jitter.scale_index
     out = [x0]
 
     def add(params: FloatArray) -> None:
-        cand = x0.copy()
-        cand[:nj] = np.clip(params, lo[:nj], hi[:nj])
+        cand = lay.replace(x0, "jitter", np.clip(params, *jitter_bounds))
         if not any(np.allclose(cand, c, rtol=1e-9, atol=0) for c in out):
             out.append(cand)
 
-    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    lo, hi = lay.lower_upper()
+    jitter_bounds = (lay.block(lo, "jitter"), lay.block(hi, "jitter"))
     defaults = [np.asarray(js, float) for js in jitter.default_starts(problem.data.T)]
     if scale is None:
         for js in defaults:
             add(js)
         return out
-    std0 = jitter.law(x0[:nj].tolist()).std
+    std0 = jitter.law(lay.block(x0, "jitter").tolist()).std
     std_r = _residual_std(problem, x0)
 
     def at_std(params: FloatArray, std: float) -> FloatArray:  # the law is that of a xi
@@ -77,7 +78,7 @@ def _candidates(problem: Problem, x0: FloatArray) -> list[FloatArray]:
         for js in defaults:
             add(at_std(js, std0))
     if std_r > 0 and not 0.5 < std0 / std_r < 2:  # BCLS's std is not that of the residuals
-        for js in [x0[:nj], *defaults]:
+        for js in [lay.block(x0, "jitter"), *defaults]:
             add(at_std(js, std_r))
     return out
 
