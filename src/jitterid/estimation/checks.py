@@ -18,7 +18,7 @@ point, so the parameters, criterion and covariance map back exactly), so that th
 optimisers' absolute tolerances do not depend on the units of the data.
 
 After the search (:func:`post_checks`; the OE search of :func:`jitterid.fit` and the
-Box-Jenkins one, :func:`jitterid.estimation.boxjenkins.fit_bj`) a converged search whose
+Box-Jenkins one, :class:`jitterid.estimation.boxjenkins.BoxJenkinsRoute`) a converged search whose
 answer cannot be trusted gets its own non-success
 :class:`~jitterid.estimation.result.FitStatus`, and a message that says what to try:
 
@@ -61,10 +61,11 @@ from scipy import stats
 from ..data import SampledData
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
+from ..params import count_params
 from ..systems.constrained import Constrained
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
-from .result import FitStatus
+from .status import FitStatus
 
 __all__: list[str] = []
 
@@ -277,7 +278,7 @@ class PostContext:
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
-    return len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    return count_params(jitter)
 
 
 def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitStatus, str]:

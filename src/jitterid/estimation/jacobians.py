@@ -38,12 +38,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import partial
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
+from ..data import SampledData
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.modal import (
@@ -57,12 +58,36 @@ from ..moments.modal import (
 )
 from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
-from ..systems.model import Signal
+from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure
 from ..systems.tf import Response, TransferFunction
 
-if TYPE_CHECKING:
-    from .problem import Problem
+Derivatives = tuple[SampleMoments, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+
+
+class Problem(Protocol):
+    """What the moments and their derivatives read of their problem
+    (:class:`jitterid.estimation.problem.Problem`, which keeps their memos)."""
+
+    data: SampledData
+    structure: Model
+    jitter: JitterLaw | JitterFamily
+    plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None
+
+    @property
+    def n_jitter(self) -> int: ...
+    @property
+    def names(self) -> tuple[str, ...]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]: ...
+    @property
+    def needs_variances(self) -> bool: ...
+    @property
+    def estimates_noise(self) -> bool: ...
+    def split(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]: ...
+    def recall(self, key: bytes) -> Derivatives | None: ...
+    def remember(self, key: bytes, out: Derivatives | None) -> None: ...
+
 
 __all__: list[str] = []
 
@@ -92,11 +117,11 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
     p = tf._modal[2]
     rate = float(np.max(np.abs(p))) if p.size else 0.0  # Response.rate for this input
     key = (np.asarray(x[: problem.n_jitter], float).tobytes() + panel_layout(law, p).key, rate)
-    memo = problem._plan_memo
+    memo = problem.plan_memo
     if memo is not None and memo[0][0] == key[0] and memo[1].law == law:
         return memo[1]
     plan = cached_plan(law, d.T, d.N, d.u, rate, p)
-    problem._plan_memo = (key, plan)
+    problem.plan_memo = (key, plan)
     return plan
 
 
@@ -230,9 +255,10 @@ def moment_derivatives(
     """
     x = np.asarray(x, float)
     key = x.tobytes()
-    if problem._dcache and problem._dcache[0] == key:
-        return problem._dcache[1]
-    problem._dcache = None  # free the last point's (P, N) arrays before making new ones
+    known = problem.recall(key)
+    if known is not None:
+        return known
+    problem.remember(key, None)  # free the last point's (P, N) arrays before making new ones
     law, sig, noise = problem.split(x)
     d = problem.data
     nj, ns = problem.n_jitter, len(problem.structure.param_names)
@@ -317,9 +343,7 @@ def moment_derivatives(
             dv[i] = (mi.var - mom.var) / h
     if not need_var:
         out = (mom, np.empty(0), dm, np.empty((P, 0)))
-        problem._dcache = (key, out)
-        problem._cache.clear()
-        problem._cache[key] = mom
+        problem.remember(key, out)
         return out
     w, floored = _floored(problem, x, mom.var)
     dw = dv
@@ -327,7 +351,5 @@ def moment_derivatives(
         dw[-1] = 2 * noise
     dw[:, floored] = 0.0
     out = (mom, w, dm, dw)
-    problem._dcache = (key, out)
-    problem._cache.clear()
-    problem._cache[key] = mom
+    problem.remember(key, out)
     return out

@@ -97,7 +97,7 @@ from .._memory import trim
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
-from ..params import ParamLayout
+from ..params import ParamLayout, count_params
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import Response, TransferFunction
@@ -928,7 +928,7 @@ class ExactLikelihood:
 
     @property
     def n_jitter(self) -> int:
-        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+        return count_params(self.jitter)
 
     def split(self, x: ArrayLike) -> tuple[JitterLaw, Signal, float]:
         """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``.

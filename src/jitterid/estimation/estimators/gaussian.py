@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from ...noise.covariance import toeplitz_products
 from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
+from .leastsquares import BCLS
 
 __all__ = ["GaussianCriterion"]
 
@@ -38,6 +39,7 @@ class GaussianCriterion(Estimator):
     """
 
     name = "gaussian"
+    first_stage_class = BCLS
     rank = 5
     equation = "notes 3"
     cov_types = ("sandwich", "robust", "oim", "none")
