@@ -34,7 +34,7 @@ from jitterid.experiments import ExperimentError, load_experiment, packaged_path
 from jitterid.experiments.bj import spectra_figure
 from jitterid.experiments.report import markdown_report
 from jitterid.experiments.runner import realize, seed_streams
-from jitterid.noise.covariance import autocovariance_derivatives
+from jitterid.moments.noise_covariance import autocovariance_derivatives
 
 T, N = 1.0, 200
 TRUTH = np.array([6.25, -1.5, 2.0])

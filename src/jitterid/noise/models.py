@@ -26,7 +26,8 @@ stationary law, from which the first state is drawn. The white measurement noise
 structure (2a) is the separate ``noise_std`` of :func:`jitterid.simulate` and
 :func:`jitterid.fit`; ``noise=None`` there is the OE case.
 
-The covariance of the *jittered* samples v(kT + tau_k) is in :mod:`jitterid.noise.covariance`.
+The covariance of the *jittered* samples v(kT + tau_k) is a moment of the jitter:
+:mod:`jitterid.moments.noise_covariance`.
 """
 
 from __future__ import annotations
