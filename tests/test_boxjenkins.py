@@ -60,7 +60,7 @@ def data_with(noise_model, seed, *, white=0.01, law=None, n=N):
 
 def test_autocovariance_and_spectrum_follow_from_the_impulse_response():
     """(N1): r_v(t) = lambda int_0^inf h(s) h(s + t) ds, and (N2): int S_v df = r_v(0)."""
-    _, r, p = RESONANT.tf._modal
+    _, r, p = RESONANT.tf.modal
 
     def h(s):
         return float(np.real(np.sum(r * np.exp(p * s))))

@@ -543,22 +543,11 @@ def clear_plans() -> None:
 
 
 # ---------------------------------------------------------------------------- tables (M1)
-def kept_modal(tf: TransferFunction) -> tuple[float, ComplexArray, ComplexArray, IntArray]:
-    """(D, rho, p, columns): poles with Im p >= 0, rho doubled for a complex pair.
-
-    The same convention as the likelihood's node signal, so that the tables and the modal
-    sensitivities of :mod:`jitterid.estimation.likelihood` line up column by column.
-    """
-    d, r, p = tf._modal
-    cols = np.flatnonzero(p.imag >= 0)
-    pk = p[cols]
-    return d, r[cols] * np.where(pk.imag > 0, 2.0, 1.0), pk, cols
-
-
 def modal_sensitivity(
     structure: ModelStructure, theta: FloatArray, tf: TransferFunction
 ) -> tuple[FloatArray, ComplexArray, ComplexArray]:
-    """d(D, rho, p)/dtheta over the kept poles (the convention of :func:`kept_modal`).
+    """d(D, rho, p)/dtheta over the kept poles (the convention of
+    :meth:`jitterid.systems.tf.ModalForm.kept`).
 
     For a simple pole p of G = num / den: dp = -dden(p) / den'(p); the residue
     r = num(p) / den'(p) gives dr = (num'(p) dp + dnum(p)) / den'(p) - r (den''(p) dp +
@@ -573,7 +562,7 @@ def modal_sensitivity(
     n = tf.den.size
     num, den = padded(tf.num, n), tf.den
     dnum, dden = structure.coefficient_derivatives(theta, n)
-    _, _, p, _ = kept_modal(tf)
+    _, _, p, _ = tf.modal.kept()
     # Polynomials and their first two derivatives at the poles as products with Vandermonde
     # rows: one matrix product per quantity for all parameters (np.polyval per parameter
     # costs more than the arithmetic at these sizes).
@@ -640,7 +629,7 @@ class DerivativeTables:
 def tables(tf: TransferFunction, u: PiecewiseConstant) -> Tables:
     """What the coefficients c_j = u_j G(0), beta_jp = rho_p (x_p(t_j) + u_j / p) of (M1) need,
     over the segments of :func:`merged_input` (the rows of the plans)."""
-    d, rho, p, _ = kept_modal(tf)
+    d, rho, p, _ = tf.modal.kept()
     g0 = d - float(np.sum(rho / p).real) if p.size else d
     um = merged_input(u)
     return Tables(um.levels, tf.kept_switch_states(um), g0, rho, p, d)
@@ -657,7 +646,7 @@ def derivative_tables(
     drho (x + u_j / p) + rho (dx/dp - u_j / p^2) dp (x_p(t_j) depends on theta through p only;
     dx/dp from :meth:`TransferFunction.switch_state_sensitivity`).
     """
-    _, rho, p, _ = kept_modal(tf)
+    _, rho, p, _ = tf.modal.kept()
     dd, drho, dp = dmodal
     dg0 = dd - np.sum(drho / p - rho * dp / p**2, axis=1).real if p.size else dd
     return DerivativeTables(tf.kept_switch_state_sensitivity(merged_input(u)), dg0, drho, dp)
