@@ -95,7 +95,7 @@ from .. import finite_diff
 from .._checks import count, positive, real_array
 from .._memory import trim
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
+from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
 from ..params import ParamLayout
 from ..systems.model import Model, Signal
@@ -495,25 +495,25 @@ class _Nodes:
 
 
 def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
-    """law.pdf(tau); for :class:`SumOfUniforms` from its exact piecewise-polynomial form.
+    """law.pdf(tau); for a law that declares :attr:`~jitterid.jitter.laws.JitterLaw.pdf_degree`
+    (:class:`SumOfUniforms`) from its exact piecewise-polynomial form.
 
-    Between consecutive breakpoints that density is a polynomial of degree at most m (m
-    uniforms, plus the window of width 2c at non-integer n), which its Chebyshev interpolant
-    at m + 1 points of ``law.pdf`` reproduces to rounding (Clenshaw, per interval): O(m)
-    operations per point where the B-spline evaluation of ``law.pdf`` costs O(m^2) and more
-    (and a Gauss-Legendre window per point just above an integer n). Like ``law.pdf`` it is
-    evaluated at -|tau| (exactly symmetric).
+    Between consecutive breakpoints that density is a polynomial of degree at most deg (for
+    m uniforms m - 1, plus one with the window of width 2c at non-integer n), which its
+    Chebyshev interpolant at deg + 1 points of ``law.pdf`` reproduces to rounding (Clenshaw,
+    per interval): O(deg) operations per point where the B-spline evaluation of ``law.pdf``
+    costs O(m^2) and more (and a Gauss-Legendre window per point just above an integer n).
+    The law is symmetric: like ``law.pdf`` it is evaluated at -|tau|.
     """
-    if not isinstance(law, SumOfUniforms):
+    deg = law.pdf_degree if isinstance(law, JitterLaw) else None  # None for a stand-in law
+    if deg is None:
         return np.asarray(law.pdf(tau), dtype=float)
-    m, _, c = law.components
-    deg = m if c > 0 else max(m - 1, 0)
     bp = np.asarray(law.breakpoints(), dtype=float)
     bp = bp[bp <= 0.0]
     if bp[-1] < 0.0:
         bp = np.r_[bp, 0.0]
     x = -np.abs(np.asarray(tau, dtype=float))
-    inside = x >= -law.a
+    inside = x >= law.support[0]
     left, right = bp[:-1], bp[1:]
     cheb = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # first-kind points
     pts = 0.5 * (left + right)[:, None] + 0.5 * (right - left)[:, None] * cheb[None, :]
