@@ -63,8 +63,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._checks import nesting_depth
+from .data import SampledData
 from .inputs import Input, PiecewiseConstant
-from .simulate import SampledData
 
 __all__ = [
     "DataFileError",

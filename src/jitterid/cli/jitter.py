@@ -21,7 +21,7 @@ import numpy as np
 
 from ..io import atomic_write, load
 from ..metrology.meter import DEFAULT_LAWS, FAMILY_NAMES, JitterMeasurement, measure_jitter
-from . import main
+from ._main import main
 from .data import _check_out_dir, _clean_errors, _data_arg, _T_opt
 
 __all__ = ["jitter"]

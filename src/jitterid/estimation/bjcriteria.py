@@ -3,7 +3,7 @@
 y_k = s(kT + tau_k; theta) + v(kT + tau_k; eta) + w_k with coloured noise v (eq. (1c),
 :mod:`jitterid.noise.models`) and a white part w_k of std sigma_w (known, or estimated as
 ``noise_std``). The mean is Lemma 1's m_k as for OE; the covariance is Sigma_y of (C2)
-(:mod:`jitterid.noise.covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz
+(:mod:`jitterid.moments.noise_covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz
 covariance of the jittered noise. :class:`BJProblem` gives a criterion what it reads
 (:class:`~jitterid.estimation.estimators.base.ColouredContext`): the moments, Sigma_y, the
 DTFT residual, R = E Sigma_y E^H and its Cholesky factor, and their derivatives. The criteria
@@ -50,9 +50,7 @@ from threadpoolctl import threadpool_limits
 
 from .. import finite_diff
 from ..jitter.laws import JitterFamily, JitterLaw
-from ..moments.reference import dtft
-from ..moments.sample import SampleMoments
-from ..noise.covariance import (
+from ..moments.noise_covariance import (
     JitteredAutocovariance,
     SampleCovariance,
     autocovariance_derivatives,
@@ -60,6 +58,8 @@ from ..noise.covariance import (
     toeplitz_dft,
     toeplitz_dft_diagonal,
 )
+from ..moments.reference import dtft
+from ..moments.sample import SampleMoments
 from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
 from ..simulate import SampledData
@@ -240,7 +240,7 @@ class BJProblem:
     def autocovariance_derivatives(self, x: FloatArray) -> dict[int, tuple[FloatArray, FloatArray]]:
         """d gamma(0..N-1) and d(ar) for each jitter and noise parameter (index into ``x``).
 
-        Noise parameters: in closed form (:func:`jitterid.noise.covariance.
+        Noise parameters: in closed form (:func:`jitterid.moments.noise_covariance.
         autocovariance_derivatives` with :meth:`RationalNoise.mode_derivatives`) when the
         jitter spans at most T. Otherwise, and for jitter-family parameters, by
         :func:`jitterid.finite_diff.derivative` of (C1)-(C3): the near lags are

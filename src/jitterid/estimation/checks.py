@@ -65,6 +65,7 @@ from ..params import count_params
 from ..systems.constrained import Constrained
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
+from .hooks import analysis
 from .status import FitStatus
 
 __all__: list[str] = []
@@ -386,7 +387,7 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
     theta_oe = ctx.oe_system()
     if theta_oe is None or not isinstance(ctx.structure, ModelStructure):
         return None  # detect_jitter needs a system driven by an input
-    from ..analysis.diagnostics import detect_jitter  # diagnostics imports estimation
+    detect_jitter = analysis("detect_jitter")  # registered by jitterid.analysis
 
     try:
         det = detect_jitter(ctx.data, ctx.structure.system(theta_oe))

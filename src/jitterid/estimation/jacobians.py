@@ -60,7 +60,7 @@ from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure
-from ..systems.tf import Response, TransferFunction
+from ..systems.tf import TransferFunction
 
 Derivatives = tuple[SampleMoments, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -99,11 +99,6 @@ _CD_REL = 1e-6  # central differences (models that declare no gradient)
 
 
 # ---------------------------------------------------------------------------- moments
-def _modal_path(sig: object) -> bool:
-    """Whether the fast modal path applies: an LTI response to a piecewise-constant input."""
-    return isinstance(sig, Response) and isinstance(sig.u, PiecewiseConstant)
-
-
 def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> SegmentPlan:
     """The node plan for ``law``: rebuilt only when the law or the panel layout changes.
 
@@ -114,7 +109,7 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
     """
     d = problem.data
     assert isinstance(d.u, PiecewiseConstant)
-    p = tf._modal[2]
+    p = tf.modal.poles
     rate = float(np.max(np.abs(p))) if p.size else 0.0  # Response.rate for this input
     key = (np.asarray(x[: problem.n_jitter], float).tobytes() + panel_layout(law, p).key, rate)
     memo = problem.plan_memo
@@ -129,11 +124,11 @@ def moments(problem: Problem, x: FloatArray) -> SampleMoments:
     """m_k and Var_k at ``x`` (Lemmas 1-2), by the segment path for piecewise-constant inputs."""
     law, sig, _ = problem.split(x)
     d = problem.data
-    if not _modal_path(sig):
+    seg = sig.modal_segments
+    if seg is None:
         return sample_moments(sig, law, d.T, d.N)
-    assert isinstance(sig, Response)
     assert isinstance(d.u, PiecewiseConstant)
-    tf = sig.system
+    tf = seg.system
     d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
     plan, tab = _plan(problem, x, law, tf), tables(tf, d.u)
     need_var = problem.needs_variances
@@ -211,14 +206,14 @@ def _law_derivative(
     assert isinstance(fam, JitterFamily)
     dlaw = _PdfDerivative(fam, x[: problem.n_jitter].tolist(), law, i)
     d = problem.data
-    if _modal_path(sig):
-        assert isinstance(sig, Response)
+    seg = sig.modal_segments
+    if seg is not None:
         assert isinstance(d.u, PiecewiseConstant)
-        p = sig.system._modal[2]
+        p = seg.system.modal.poles
         rate = float(np.max(np.abs(p))) if p.size else 0.0
         plan = SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
         dmean, dvar, _, _ = modal_moments(
-            plan, tables(sig.system, d.u), keep=False, variance=need_var
+            plan, tables(seg.system, d.u), keep=False, variance=need_var
         )
     else:
         mp = moment_pass(sig, dlaw, d.T, d.N, variance=need_var)
@@ -274,13 +269,13 @@ def moment_derivatives(
     a = float(x[scale]) if scale is not None else None
     analytic_scale = False
     mom: SampleMoments
-    if _modal_path(sig) and not (ns > 0 or scale is not None):
+    seg = sig.modal_segments
+    if seg is not None and not (ns > 0 or scale is not None):
         mom = moments(problem, x)  # nothing to differentiate along the modal path
-    elif _modal_path(sig):
-        assert isinstance(sig, Response)
+    elif seg is not None:
         assert isinstance(d.u, PiecewiseConstant)
         assert isinstance(problem.structure, ModelStructure)  # a Response is an LTI structure's
-        tf = sig.system
+        tf = seg.system
         d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
         dtab = (
             derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf))
@@ -318,7 +313,7 @@ def moment_derivatives(
         elif ns:  # declared missing: central differences of the moments (finite_diff)
             for i in range(nj, nj + ns):
                 dm[i], dv[i] = _differenced(problem, x, i, variance=True)
-    if delay is not None and _modal_path(sig):  # the modal rows hold zeros for the delay
+    if delay is not None and seg is not None:  # the modal rows hold zeros for the delay
         dmi, dvi = _differenced(problem, x, nj + delay, variance=need_var)
         dm[nj + delay] = dmi
         if dvi is not None:

@@ -29,6 +29,7 @@ from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.tf import TransferFunction
 from .estimators import Estimator, as_estimator
+from .hooks import analysis
 from .status import FitStatus
 
 __all__ = ["COV_TYPES", "FitResult", "FitStatus"]
@@ -415,7 +416,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.bode_band`.
         """
-        from ..analysis.uncertainty import bode_band
+        bode_band = analysis("bode_band")
 
         return bode_band(self, f_hz, level, **kwargs)
 
@@ -432,7 +433,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.jitter_pdf_band`.
         """
-        from ..analysis.uncertainty import jitter_pdf_band
+        jitter_pdf_band = analysis("jitter_pdf_band")
 
         return jitter_pdf_band(self, tau_s, rng, **kwargs)
 
@@ -448,7 +449,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.physical_quantities`.
         """
-        from ..analysis.quantities import physical_quantities
+        physical_quantities = analysis("physical_quantities")
 
         return physical_quantities(self, level, **kwargs)
 
@@ -465,7 +466,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.step_response`.
         """
-        from ..analysis.responses import step_response
+        step_response = analysis("step_response")
 
         return step_response(self, t_s, level, **kwargs)
 
@@ -482,7 +483,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.impulse_response`.
         """
-        from ..analysis.responses import impulse_response
+        impulse_response = analysis("impulse_response")
 
         return impulse_response(self, t_s, level, **kwargs)
 

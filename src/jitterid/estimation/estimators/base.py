@@ -35,8 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
+    from ...moments.noise_covariance import SampleCovariance
     from ...moments.sample import SampleMoments
-    from ...noise.covariance import SampleCovariance
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
