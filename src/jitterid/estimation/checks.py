@@ -61,7 +61,7 @@ from scipy import stats
 from ..data import SampledData
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
-from ..params import count_params
+from ..params import ParamLayout, count_params
 from ..systems.constrained import Constrained
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
@@ -303,8 +303,7 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
 
 
 def _theta(ctx: PostContext) -> FloatArray:
-    nj = _n_jitter(ctx.jitter)
-    return ctx.x[nj : nj + len(ctx.structure.param_names)]
+    return ParamLayout.build(ctx.jitter, ctx.structure).block(ctx.x, "system")
 
 
 def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:

@@ -58,6 +58,7 @@ from ..moments.modal import (
 )
 from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
+from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure
 from ..systems.tf import TransferFunction
@@ -76,6 +77,8 @@ class Problem(Protocol):
 
     @property
     def n_jitter(self) -> int: ...
+    @property
+    def layout(self) -> ParamLayout: ...
     @property
     def names(self) -> tuple[str, ...]: ...
     @property
@@ -111,7 +114,7 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
     assert isinstance(d.u, PiecewiseConstant)
     p = tf.modal.poles
     rate = float(np.max(np.abs(p))) if p.size else 0.0  # Response.rate for this input
-    key = (np.asarray(x[: problem.n_jitter], float).tobytes() + panel_layout(law, p).key, rate)
+    key = (problem.layout.block(x, "jitter").tobytes() + panel_layout(law, p).key, rate)
     memo = problem.plan_memo
     if memo is not None and memo[0][0] == key[0] and memo[1].law == law:
         return memo[1]
@@ -204,7 +207,7 @@ def _law_derivative(
     sum w' = d(mass)/dtheta_i is zero up to the quadrature error, ~1e-15)."""
     fam = problem.jitter
     assert isinstance(fam, JitterFamily)
-    dlaw = _PdfDerivative(fam, x[: problem.n_jitter].tolist(), law, i)
+    dlaw = _PdfDerivative(fam, problem.layout.block(x, "jitter").tolist(), law, i)
     d = problem.data
     seg = sig.modal_segments
     if seg is not None:
@@ -256,10 +259,12 @@ def moment_derivatives(
     problem.remember(key, None)  # free the last point's (P, N) arrays before making new ones
     law, sig, noise = problem.split(x)
     d = problem.data
-    nj, ns = problem.n_jitter, len(problem.structure.param_names)
+    lay = problem.layout
+    nj, ns = len(lay.jitter), len(lay.system)
+    sys_ = lay.slice("system")
     P = x.size
     dm, dv = np.zeros((P, d.N)), np.zeros((P, d.N))
-    theta = x[nj : nj + ns]
+    theta = lay.block(x, "system")
     # A delay moves the jitter law (DelayedSignal.jitter_equivalent): the law at the nodes is
     # then a shifted one, whose scale and closed-form dp/dtheta are not the family's, so its
     # parameters are differenced; the delay itself moves no coefficient (differenced below).
@@ -289,9 +294,9 @@ def moment_derivatives(
             mom = LazyMoments(mean, partial(_variances, plan, tab))
         else:
             mom = SampleMoments(mean, var)
-        dm[nj : nj + ns] = dms[:ns]
+        dm[sys_] = dms[:ns]
         if dvs is not None:
-            dv[nj : nj + ns] = dvs[:ns]
+            dv[sys_] = dvs[:ns]
         analytic_scale = scale is not None
         if analytic_scale:
             dm[scale] = dms[ns]
@@ -309,7 +314,7 @@ def moment_derivatives(
             analytic_scale = True
         if mp.dmean is not None:
             assert mp.dvar is not None
-            dm[nj : nj + ns], dv[nj : nj + ns] = mp.dmean, mp.dvar
+            dm[sys_], dv[sys_] = mp.dmean, mp.dvar
         elif ns:  # declared missing: central differences of the moments (finite_diff)
             for i in range(nj, nj + ns):
                 dm[i], dv[i] = _differenced(problem, x, i, variance=True)
@@ -320,7 +325,7 @@ def moment_derivatives(
             dv[nj + delay] = dvi
     shape = [i for i in range(nj) if not (analytic_scale and i == scale)]
     grad = (
-        problem.jitter.pdf_gradient(x[:nj].tolist(), np.zeros(0))  # type: ignore[union-attr]
+        problem.jitter.pdf_gradient(lay.block(x, "jitter").tolist(), np.zeros(0))  # type: ignore[union-attr]
         if shape and delay is None
         else None
     )

@@ -1014,7 +1014,7 @@ class ExactLikelihood:
             if self._window_y is None or not np.array_equal(self._window_y, y):
                 self._forget()
                 self._window_y = np.array(y, dtype=float)
-        key = (*x[: self.n_jitter], law.mean)  # a delay shifts the law (Delayed)
+        key = (*self.layout.block(x, "jitter"), law.mean)  # a delay shifts the law (Delayed)
         windowed = self._design is not None and y is not None
         if key not in self._cache:
             if len(self._cache) > 16:
@@ -1368,7 +1368,7 @@ class ExactLikelihood:
             return False  # a delayed model's law is the family's shifted (differenced)
         fam = self.jitter
         assert isinstance(fam, JitterFamily)
-        return fam.pdf_gradient(x[: self.n_jitter].tolist(), np.zeros(0)) is not None
+        return fam.pdf_gradient(self.layout.block(x, "jitter").tolist(), np.zeros(0)) is not None
 
     def _terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
@@ -1422,7 +1422,7 @@ class ExactLikelihood:
             seg = sig.modal_segments
             assert seg is not None
             assert isinstance(self.model, ModelStructure)
-            dmodal = _modal_gradient(self.model, x[nj : nj + ns], seg.system)
+            dmodal = _modal_gradient(self.model, self.layout.block(x, "system"), seg.system)
             dX = _pole_sensitivity(seg.system, self.u) if dmodal is not None else None
         own_gradient = not analytic and ns and sig.has_gradient
         # parameters differenced (forward steps): jitter parameters without an analytic
@@ -1485,7 +1485,9 @@ class ExactLikelihood:
             if closed:
                 lo, hi = law.support
                 tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
-                ratio = self.jitter.pdf_gradient(x[:nj].tolist(), tau)[closed] / law.pdf(tau)  # type: ignore[union-attr,index]
+                theta_j = self.layout.block(x, "jitter").tolist()
+                dp = self.jitter.pdf_gradient(theta_j, tau)  # type: ignore[union-attr]
+                ratio = dp[closed] / law.pdf(tau)  # type: ignore[index]
                 G[rows, closed] = np.add.reduceat(ratio * ev.post, nd.starts, axis=1).T
             A = D * (ev.e / sigma)
             if noise:
