@@ -424,7 +424,10 @@ def measure_record(y: np.ndarray, T: float, options: BatchOptions) -> tuple[Jitt
 
     harmonics = options.harmonics
     if harmonics is None:
-        harmonics = significant_harmonics(y, T, options.frequency)
+        try:
+            harmonics = significant_harmonics(y, T, options.frequency)
+        except ValueError:  # a record the meter refuses too: its own message says why
+            harmonics = 1
     kwargs: dict[str, Any] = {"harmonics": harmonics, "band_hz": options.band_hz}
     if options.method is not None:
         kwargs["method"] = options.method
