@@ -87,6 +87,7 @@ def test_bits_set_the_resolution(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 def test_a_given_frequency_says_no_zones(tmp_path: Path) -> None:
     rec = _csv(tmp_path / "sine.csv", _sine())
     code, text = _run(str(rec), *FAST, "--frequency", "123", "--out", str(tmp_path / "o"))
+    assert code in (0, 3), text
     assert "cannot tell the zone" not in text
     assert "nyquist_zones" not in json.loads((tmp_path / "o" / "jitter.json").read_text())
 
@@ -97,6 +98,7 @@ def test_harmonics_auto_fits_the_distortion(tmp_path: Path) -> None:
     res = json.loads((tmp_path / "auto" / "jitter.json").read_text())
     assert res["harmonics"] == 3
     code, text = _run(str(rec), *FAST, "--harmonics", "1", "--out", str(tmp_path / "one"))
+    assert code in (0, 3), text
     one = json.loads((tmp_path / "one" / "jitter.json").read_text())
     assert one["harmonics"] == 1
     # fitted as a pure sine, the distortion is counted as jitter/noise, and the figures say so
@@ -113,6 +115,7 @@ def test_no_pdf_plot_for_an_undetermined_law(
     rec = _csv(tmp_path / "sine.csv", _sine())
     out = tmp_path / verdict
     code, text = _run(str(rec), *FAST, "--out", str(out), "--plot")
+    assert code in (0, 3), text
     assert (out / "jitter_phase.png").exists()
     assert (out / "jitter_pdf.png").exists() == (verdict == "chosen")
     assert ("jitter_pdf.png not drawn" in text) == (verdict == "undetermined")
