@@ -39,7 +39,7 @@ from contextlib import ExitStack
 from dataclasses import asdict, dataclass
 from itertools import islice
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -298,6 +298,7 @@ def _rows(path: Path, options: BatchOptions) -> Iterator[tuple[np.ndarray, float
     done = 0
     try:
         with ExitStack() as stack:
+            fh: IO[bytes]
             if path.suffix.lower() == ".npy":
                 T = _file_T({}, options.T, path)
                 fh = stack.enter_context(path.open("rb"))
