@@ -24,6 +24,7 @@ import math
 import re
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -266,26 +267,35 @@ def _zone_lines(m: JitterMeasurement) -> list[str]:
 
 
 @contextmanager
-def _heartbeat(what: str, enabled: bool) -> Iterator[None]:
-    """A progress line on stderr for a fit that takes more than 2 s: the elapsed time,
-    refreshed twice a second, so a long fit is never silent."""
+def _heartbeat(what: str, enabled: bool, after_s: float = 2.0) -> Iterator[None]:
+    """A progress line on stderr for a fit that takes more than ``after_s``: the elapsed
+    time, refreshed twice a second on a terminal (every 10 s into a log), so a long fit is
+    never silent. A fit that ends sooner prints nothing."""
     if not enabled:
         yield
         return
     from tqdm import tqdm
 
-    bar = tqdm(
-        total=None,
-        desc=what,
-        bar_format="{desc}: {elapsed} elapsed",
-        delay=2.0,
-        file=sys.stderr,
-        dynamic_ncols=True,
-    )
+    period = 0.5 if sys.stderr.isatty() else 10.0
     stop = threading.Event()
+    bars: list[Any] = []
+    start = time.time()
 
     def beat() -> None:
-        while not stop.wait(0.5):
+        if stop.wait(after_s):
+            return
+        bar = tqdm(
+            total=None,
+            desc=what,
+            bar_format="{desc}: {elapsed} elapsed",
+            file=sys.stderr,
+            dynamic_ncols=True,
+            delay=1e-9,  # no line at creation: the first is drawn below, with the elapsed time
+        )
+        bar.start_t = start  # the elapsed time since the fit began
+        bar.refresh()
+        bars.append(bar)
+        while not stop.wait(period):
             bar.refresh()
 
     thread = threading.Thread(target=beat, daemon=True)
@@ -295,7 +305,8 @@ def _heartbeat(what: str, enabled: bool) -> Iterator[None]:
     finally:
         stop.set()
         thread.join()
-        bar.close()
+        for bar in bars:
+            bar.close()
 
 
 def _is_batch(data_path: str) -> bool:
