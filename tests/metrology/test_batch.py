@@ -196,3 +196,19 @@ def test_bad_workers_and_scheduler(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="scheduler"):
         run_batch(d, tmp_path / "o", OPTS, scheduler="not an address")
     assert os.path.isdir(d)
+
+
+def test_the_batch_benchmark_runs_at_a_tiny_size(tmp_path: Path) -> None:
+    bench = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_batch.py"
+    env = dict(os.environ, PYTHONPATH=SRC)
+    args = ["--records", "2", "--n", "1024", "--workers", "1", "--no-peer", "--out", str(tmp_path)]
+    out = subprocess.run(
+        [sys.executable, str(bench), *args],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+        env=env,
+    ).stdout
+    assert "jitterid batch, 1 worker(s)" in out
+    assert "(0 error rows)" in out
