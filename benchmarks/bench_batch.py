@@ -62,7 +62,7 @@ def main() -> None:
     ap.add_argument("--no-peer", action="store_true", help="skip adctoolbox")
     args = ap.parse_args()
 
-    from jitterid.metrology.batch import BatchOptions, _rows, run_batch
+    from jitterid.experiments.jitter_batch import BatchOptions, _rows, run_batch
 
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
@@ -99,7 +99,7 @@ def main() -> None:
             f"adctoolbox loop, 1 process:   {wall:8.2f} s wall  {args.records / wall:7.2f} "
             f"records/s  {cpu:8.2f} s CPU  (median jitter {np.median(est) * 1e15:.1f} fs)"
         )
-    from jitterid.metrology.batch import BatchStore
+    from jitterid.experiments.jitter_batch import BatchStore
 
     with BatchStore(tables[1], opts, resume=True) as store:
         rows = store.rows()

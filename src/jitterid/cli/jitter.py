@@ -1,6 +1,6 @@
 """``jitterid jitter``: measure the sampling jitter from a record of a sine wave, or a batch.
 
-A thin layer over :func:`jitterid.measure_jitter` and :mod:`jitterid.metrology.batch`:
+A thin layer over :func:`jitterid.measure_jitter` and :mod:`jitterid.experiments.jitter_batch`:
 
 - one record (a data file with a ``y`` column and no input): prints the measurement's
   summary with the converter figures (IEEE 1241), the law's evidence and, when the
@@ -314,7 +314,7 @@ def _is_batch(data_path: str) -> bool:
     if p.is_dir():
         return True
     if p.is_file():
-        from ..metrology.batch import is_multi_record
+        from ..experiments.jitter_batch import is_multi_record
 
         return is_multi_record(p)
     return glob.has_magic(data_path)
@@ -481,7 +481,7 @@ def jitter(
             raise click.UsageError("--plot draws one record's figures; it is not for a batch")
     if out_dir is not None:
         _check_out_dir(out_dir)
-    from ..metrology.batch import BatchOptions
+    from ..experiments.jitter_batch import BatchOptions
 
     options = BatchOptions(
         method=method,
@@ -501,7 +501,7 @@ def jitter(
 
 
 def _single(data_path: str, options: Any, out_dir: Path | None, plot: bool, progress: bool) -> None:
-    from ..metrology.batch import measure_record
+    from ..experiments.jitter_batch import measure_record
     from ..metrology.reading import law_evidence
 
     with _clean_errors(f"cannot use the record {data_path}"):
@@ -548,8 +548,8 @@ def _batch(
     resume: bool,
     progress: bool,
 ) -> None:
+    from ..experiments.jitter_batch import run_batch
     from ..experiments.store import StoreError
-    from ..metrology.batch import run_batch
     from .reproduce import _default_workers
 
     try:
@@ -566,7 +566,7 @@ def _batch(
         raise click.ClickException(str(exc)) from None
     except (ValueError, OSError) as exc:
         raise click.ClickException(f"cannot run the batch {data_path}: {exc}") from None
-    from ..metrology.batch import BatchStore
+    from ..experiments.jitter_batch import BatchStore
 
     with BatchStore(summary.store, options, resume=True) as store:
         rows = store.rows()

@@ -9,7 +9,7 @@ compared against. They are pure numpy/scipy and usable on their own.
 (SNR, SINAD, ENOB, THD, SFDR, the noise floor, the jitter-limited SNR) and the
 two-frequency separation of aperture jitter from noise; :mod:`jitterid.metrology.reading`
 how firmly the law is chosen and the jitter each Nyquist zone implies;
-:mod:`jitterid.metrology.batch` a table of many records, resumable, on Dask.
+:mod:`jitterid.experiments.jitter_batch` a table of many records, resumable, on Dask.
 """
 
 from .converter import (

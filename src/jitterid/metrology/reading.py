@@ -135,10 +135,8 @@ def law_evidence(m: JitterMeasurement, margin: float = LAW_MARGIN_BIC) -> LawEvi
 
 
 def _std(m: JitterMeasurement, name: str) -> str:
-    from .meter import _time
-
     c = next(c for c in m.laws if c.name == name)
-    return _time(c.jitter_std_s)
+    return f"{c.jitter_std_s:.4g} s"
 
 
 @dataclass(frozen=True)

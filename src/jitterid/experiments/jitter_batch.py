@@ -45,13 +45,13 @@ import numpy as np
 
 from .. import __version__
 from .._threads import single_thread
-from ..experiments.store import SqliteStore, StoreError
 from ..io import TIME_UNITS, atomic_write, parse_time
+from .store import SqliteStore, StoreError
 
 if TYPE_CHECKING:
     from dask.distributed import Client
 
-    from .meter import JitterMeasurement
+    from ..metrology.meter import JitterMeasurement
 
 __all__ = [
     "BATCH_COLUMNS",
@@ -370,7 +370,7 @@ def measurement_row(ref: RecordRef, m: JitterMeasurement, n: int) -> dict[str, A
     n : int
         The record's length.
     """
-    from .reading import law_evidence
+    from ..metrology.reading import law_evidence
 
     lo, hi = m.interval(0.95)
     row = _nan_row(ref)
@@ -420,8 +420,8 @@ def measure_record(y: np.ndarray, T: float, options: BatchOptions) -> tuple[Jitt
     (JitterMeasurement, int)
         The measurement with its converter figures, and the harmonics modelled.
     """
-    from .converter import significant_harmonics
-    from .meter import measure_jitter
+    from ..metrology.converter import significant_harmonics
+    from ..metrology.meter import measure_jitter
 
     harmonics = options.harmonics
     if harmonics is None:
@@ -622,7 +622,7 @@ def run_batch(
     """
     from tqdm import tqdm
 
-    from ..experiments.runner import _check_address
+    from .runner import _check_address
 
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
@@ -669,7 +669,7 @@ def _execute(
     """The tasks' rows in completion order: here, or a few per worker in flight on Dask."""
     if count <= 0:
         return
-    from ..experiments.runner import dask_client
+    from .runner import dask_client
 
     n = workers if scheduler is not None else min(workers, count)
     with ExitStack() as stack:

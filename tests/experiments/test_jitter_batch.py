@@ -13,8 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jitterid.experiments.store import StoreError
-from jitterid.metrology.batch import (
+from jitterid.experiments.jitter_batch import (
     BATCH_COLUMNS,
     BatchOptions,
     BatchStore,
@@ -22,6 +21,7 @@ from jitterid.metrology.batch import (
     is_multi_record,
     run_batch,
 )
+from jitterid.experiments.store import StoreError
 
 T, N, F, SIGMA = 1e-3, 256, 123.0, 50e-6
 OPTS = BatchOptions(method="gaussian", laws=("gaussian",), harmonics=1)
@@ -151,7 +151,7 @@ def test_a_source_without_records_is_refused(tmp_path: Path, source: str, words:
 _KILLER = """
 import os, signal, sys
 sys.path.insert(0, {src!r})
-from jitterid.metrology.batch import BatchOptions, run_batch
+from jitterid.experiments.jitter_batch import BatchOptions, run_batch
 count = 0
 def on_row(row):
     global count
