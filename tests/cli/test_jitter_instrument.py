@@ -178,3 +178,21 @@ def test_a_batch_needs_out(tmp_path: Path) -> None:
     code, text = _run(str(tmp_path), *FAST)
     assert code == 2
     assert "--out" in text
+
+
+def test_a_long_fit_says_it_is_running(capsys: pytest.CaptureFixture[str]) -> None:
+    import time
+
+    from jitterid.cli.jitter import _heartbeat
+
+    seen = ""
+    with _heartbeat("measuring", True, after_s=0.0):
+        for _ in range(6000):  # until the timer's first line (at most a minute)
+            seen += capsys.readouterr().err
+            if "measuring:" in seen:
+                break
+            time.sleep(0.01)
+    assert "measuring: 0 s elapsed" in seen
+    with _heartbeat("measuring", False, after_s=0.0):
+        pass
+    assert capsys.readouterr().err == ""

@@ -268,34 +268,41 @@ def _zone_lines(m: JitterMeasurement) -> list[str]:
 
 @contextmanager
 def _heartbeat(what: str, enabled: bool, after_s: float = 2.0) -> Iterator[None]:
-    """A progress line on stderr for a fit that takes more than ``after_s``: the elapsed
-    time, refreshed twice a second on a terminal (every 10 s into a log), so a long fit is
-    never silent. A fit that ends sooner prints nothing."""
+    """The elapsed time of a fit that takes more than ``after_s``, on stderr, so that a long
+    fit is never silent: on a terminal a line refreshed twice a second and cleared at the
+    end; into a log (not a terminal) a plain line every 10 s. A fit that ends sooner
+    prints nothing."""
     if not enabled:
         yield
         return
     from tqdm import tqdm
 
-    period = 0.5 if sys.stderr.isatty() else 10.0
     stop = threading.Event()
     bars: list[Any] = []
     start = time.time()
+    tty = sys.stderr.isatty()
 
     def beat() -> None:
         if stop.wait(after_s):
             return
+        if not tty:
+            while True:
+                click.echo(f"{what}: {time.time() - start:.0f} s elapsed", err=True)
+                if stop.wait(10.0):
+                    return
         bar = tqdm(
             total=None,
             desc=what,
             bar_format="{desc}: {elapsed} elapsed",
             file=sys.stderr,
             dynamic_ncols=True,
+            leave=False,
             delay=1e-9,  # no line at creation: the first is drawn below, with the elapsed time
         )
         bar.start_t = start  # the elapsed time since the fit began
         bar.refresh()
         bars.append(bar)
-        while not stop.wait(period):
+        while not stop.wait(0.5):
             bar.refresh()
 
     thread = threading.Thread(target=beat, daemon=True)
