@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -61,8 +61,24 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import positive, real_array
 from .sinefit import periodogram_peak, sine_fit_4
 
-if TYPE_CHECKING:
-    from .meter import JitterMeasurement
+
+class JitterMeasurement(Protocol):
+    """What the figures read of a :class:`jitterid.metrology.meter.JitterMeasurement` (a
+    protocol here: the meter, above this module, builds on the figures)."""
+
+    @property
+    def amplitude(self) -> float: ...
+    @property
+    def frequency(self) -> float: ...
+    @property
+    def jitter_std(self) -> float: ...
+    @property
+    def noise_std(self) -> float: ...
+    @property
+    def fit(self) -> Any: ...
+
+    def interval(self, level: float = ...) -> tuple[float, float]: ...
+
 
 __all__ = [
     "ApertureSeparation",

@@ -19,12 +19,30 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from ..estimation.result import FitStatus
 
-if TYPE_CHECKING:
-    from .meter import JitterMeasurement
+
+class JitterMeasurement(Protocol):
+    """What the reading reads of a :class:`jitterid.metrology.meter.JitterMeasurement` (a
+    protocol here: the meter, above this module, adds its lines to its summary)."""
+
+    @property
+    def T(self) -> float: ...
+    @property
+    def family(self) -> str: ...
+    @property
+    def frequency(self) -> float: ...
+    @property
+    def jitter_std(self) -> float: ...
+    @property
+    def laws(self) -> Any: ...
+    @property
+    def converter(self) -> Any: ...
+
+    def interval(self, level: float = ...) -> tuple[float, float]: ...
+
 
 __all__ = [
     "LAW_MARGIN_BIC",
