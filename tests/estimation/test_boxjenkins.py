@@ -1,7 +1,8 @@
 """Box-Jenkins fits under jitter (jitterid.estimation.boxjenkins): the BJ/JBJ estimators
 against OE and the truth, estimator objects on the coloured-noise path, units, honest statuses
-and bad input. The noise models and the covariance of jittered noise samples are tested in
-tests/noise/, the BJ criteria and their derivatives in tests/estimation/test_bj_criteria.py."""
+and bad input. The noise models are tested in tests/noise/, the covariance of jittered noise
+samples in tests/moments/test_noise_covariance.py, the BJ criteria and their derivatives in
+tests/estimation/test_bj_criteria.py."""
 
 import dataclasses
 

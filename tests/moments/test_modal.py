@@ -17,7 +17,7 @@ def test_table_sums_equal_the_counts_product() -> None:
     """The per-piece table sums equal the sparse counts-times-tables product they replace."""
     u = ji.telegraph_input(220.0, rng=3)
     G = ji.TransferFunction([1.0, 3.0], [1.0, 0.8, 4.0])
-    plan = SegmentPlan(SumOfUniforms(6.4, 0.45), 1.0, 200, u, 2.0, poles=G._modal[2])
+    plan = SegmentPlan(SumOfUniforms(6.4, 0.45), 1.0, 200, u, 2.0, poles=G.modal.poles)
     tab = tables(G, u)
     for pc in plan.chunks():
         tabs = [_PoleTable.make(complex(p), pc.std, True) for p in tab.p]
@@ -56,7 +56,7 @@ def test_a_gaussian_plan_serves_every_sigma_of_its_band():
     tf = structure.system(theta)
     tab = _modal.tables(tf, u)
     dtab = _modal.derivative_tables(tf, u, _modal.modal_sensitivity(structure, theta, tf))
-    p = tf._modal[2]
+    p = tf.modal.poles
     _modal.clear_plans()
     first = _modal.cached_plan(ji.Gaussian(0.0801), T, n, u, 1.5, p)
     _modal.modal_moments(first, tab)  # builds and keeps the nodes

@@ -100,7 +100,7 @@ def test_a_fast_damped_pole_is_graded_after_switches_not_everywhere():
     n = 40
     u = _lab_input(n)
     fast = ji.TransferFunction([1.0, 2.0], np.polymul([1.0, 3.0, 4.0, 2.0], [1 / 4e5, 1.0]))
-    plan = _modal.SegmentPlan(law, T, n, u, 4e5, poles=fast._modal[2])
+    plan = _modal.SegmentPlan(law, T, n, u, 4e5, poles=fast.modal.poles)
     nodes = sum(pc.nodes for pc in plan.chunks(False))
     assert nodes / n < 400  # uniform panels of 1 / |p| would need 2.7e6 per sample
     mom = sample_moments(fast.response(u), law, T, n)
@@ -117,7 +117,7 @@ def test_a_moderately_fast_pole_graded_matches_uniform_short_panels():
     n = 30
     u = _lab_input(n)
     sys_ = ji.TransferFunction([400.0], np.polymul([1.0, 2.0], [1.0, 400.0]))  # poles -2, -400
-    assert panel_layout(law, sys_._modal[2]).grade.size > 0
+    assert panel_layout(law, sys_.modal.poles).grade.size > 0
     resp = sys_.response(u)
     mom = sample_moments(resp, law, T, n)
     mean, var = np.empty(n), np.empty(n)  # the old rule: every panel <= 1 / 400

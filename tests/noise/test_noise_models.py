@@ -14,7 +14,7 @@ Z_MAX = 4.5  # |z| bound for Monte Carlo comparisons (two-sided p = 7e-6 per com
 
 def test_autocovariance_and_spectrum_follow_from_the_impulse_response():
     """(N1): r_v(t) = lambda int_0^inf h(s) h(s + t) ds, and (N2): int S_v df = r_v(0)."""
-    _, r, p = RESONANT_NOISE.tf._modal
+    _, r, p = RESONANT_NOISE.tf.modal
 
     def h(s):
         return float(np.real(np.sum(r * np.exp(p * s))))

@@ -1,4 +1,4 @@
-"""The covariance of jittered coloured-noise samples (jitterid.noise.covariance): the lag
+"""The covariance of jittered coloured-noise samples (jitterid.moments.noise_covariance): the lag
 autocovariance against brute-force Monte Carlo, the sampled spectrum against the aliased
 sum, the O(N) banded Sigma_y and its DFT forms against dense linear algebra, and the closed-form
 derivatives against central differences."""
@@ -9,7 +9,7 @@ from helpers import OU_NOISE, RESONANT_NOISE, central_differences, table2_data
 from scipy import integrate
 
 import jitterid as ji
-from jitterid.noise.covariance import autocovariance_derivatives
+from jitterid.moments.noise_covariance import autocovariance_derivatives
 
 T = 1.0
 TRUTH = np.array([6.25, -1.5, 2.0])
