@@ -22,9 +22,9 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 # Build the sdist and wheel, install the wheel into a fresh virtual environment and run the
-# README's example there (tests/test_wheel.py; downloads the dependencies).
+# README's example there (tests/docs/test_wheel.py; downloads the dependencies).
 test-wheel: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow tests/test_wheel.py
+	$(BIN)/python -m pytest -q -m slow tests/docs/test_wheel.py
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow

@@ -55,6 +55,14 @@ from .jitter.laws import (
 )
 from .jitter.regular import DualDirac, DualDiracFamily, GeneralizedNormal, GeneralizedNormalFamily
 from .metrology.meter import JitterMeasurement, alias_likelihoods, measure_jitter
+from .moments.noise_covariance import (
+    JitteredAutocovariance,
+    SampleCovariance,
+    coloured_dft_covariance,
+    coloured_dft_pseudo_covariance,
+    jittered_autocovariance,
+    sample_covariance,
+)
 from .moments.reference import dirichlet, dtft
 from .moments.sample import (
     SampleMoments,
@@ -62,14 +70,6 @@ from .moments.sample import (
     dft_pseudo_covariance,
     expected_dft,
     sample_moments,
-)
-from .noise.covariance import (
-    JitteredAutocovariance,
-    SampleCovariance,
-    coloured_dft_covariance,
-    coloured_dft_pseudo_covariance,
-    jittered_autocovariance,
-    sample_covariance,
 )
 from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
 from .params import ParamLayout

@@ -34,7 +34,7 @@ from .._checks import count, real_array
 from ..data import SampledData
 from ..estimation.covariance import noise_variance_ml
 from ..estimation.result import FitResult
-from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
 from ..systems.tf import TransferFunction
 
@@ -726,7 +726,7 @@ def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
     tol = _level(tol)
     if not isinstance(jitter, JitterLaw):
         raise TypeError(f"jitter must be a jitter law; got {type(jitter).__name__}")
-    if isinstance(jitter, NoJitter) or jitter.std == 0:
+    if jitter.std == 0:  # a point mass (NoJitter, or a law shifted from it)
         return float("inf")
     # |phi| ~ 1 - 2 pi^2 sigma^2 f^2 near 0: bracket around that guess, then refine.
     guess = np.sqrt(2 * tol) / (2 * np.pi * jitter.std)

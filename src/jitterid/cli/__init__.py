@@ -8,50 +8,10 @@ reported on one line as an internal error (exit 1) for the user to report.
 
 from __future__ import annotations
 
-from typing import Any
-
-import click
-
-__all__ = ["main"]
-
-#: The first words of the last-resort message (tests look for it: it marks a missed case).
-INTERNAL = "internal error"
-
-
-class _Group(click.Group):
-    """A click group whose unexpected exceptions end in one line, not a traceback."""
-
-    def invoke(self, ctx: click.Context) -> Any:
-        try:
-            return super().invoke(ctx)
-        except (click.exceptions.ClickException, click.exceptions.Exit, click.Abort):
-            raise
-        except KeyboardInterrupt:
-            raise click.Abort() from None
-        except MemoryError:
-            raise click.ClickException(
-                "out of memory; use fewer samples, a smaller model or a machine with more "
-                "memory (JITTERID_MEMORY_BUDGET sets the budget checked up front)"
-            ) from None
-        except RecursionError:
-            raise click.ClickException(
-                "an input is nested too deeply to be read; check the files given"
-            ) from None
-        except Exception as exc:  # noqa: BLE001 - the last resort: one line, not a traceback
-            msg = " ".join(str(exc).split())[:500]
-            raise click.ClickException(
-                f"{INTERNAL} ({type(exc).__name__}: {msg}); please report this with the "
-                "command line that caused it"
-            ) from None
-
-
-@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="jitterid")
-def main() -> None:
-    """Identify continuous-time systems from samples with random sampling-time jitter."""
-
-
-# Command modules register themselves on ``main`` when imported (one line each below).
+# The group lives in ._main; the command modules register themselves on it when imported.
 from . import data as _data  # noqa: F401
 from . import jitter as _jitter  # noqa: F401
 from . import reproduce as _reproduce  # noqa: F401
+from ._main import INTERNAL, main
+
+__all__ = ["INTERNAL", "main"]

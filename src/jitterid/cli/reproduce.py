@@ -25,7 +25,7 @@ from ..experiments.report import markdown_report
 from ..experiments.runner import dask_client, run_experiment, store_path
 from ..experiments.store import Store, StoreError
 from ..io import atomic_write
-from . import main
+from ._main import main
 
 if TYPE_CHECKING:
     from dask.distributed import Client

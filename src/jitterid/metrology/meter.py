@@ -49,8 +49,10 @@ from .adequacy import (
     residual_lines,
     tone_significance,
 )
+from .converter import ConverterFigures, converter_figures  # meterio (issue 26, item 3)
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
+from .reading import summary_extras  # meterio (issue 26, item 5)
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
@@ -212,6 +214,9 @@ class JitterMeasurement:
         The jitter split from the per-sample phase error
         (:mod:`jitterid.metrology.phase`): RJ rms, PJ amplitude and frequency, total, and
         whether the jitter is correlated from sample to sample (a pure tone only).
+    converter : ConverterFigures or None
+        SNR, SINAD, ENOB, THD, SFDR and the jitter-limited SNR of the record
+        (:meth:`with_converter`; None until then).
 
     Examples
     --------
@@ -254,6 +259,28 @@ class JitterMeasurement:
     jitter_var_stderr: float = math.nan
     noise_floor: float | None = None
     decomposition: JitterDecomposition | None = None
+    converter: ConverterFigures | None = field(default=None, repr=False)  # meterio
+
+    def with_converter(
+        self, y: ArrayLike, *, full_scale: float | None = None, harmonics: int = 5
+    ) -> JitterMeasurement:
+        """This measurement with its converter figures (:mod:`jitterid.metrology.converter`).
+
+        Parameters
+        ----------
+        y : array_like, shape (N,)
+            The record the measurement was made on.
+        full_scale : float, optional
+            The converter's full-scale range, peak to peak, in units of y.
+        harmonics : int
+            The highest harmonic fitted for the figures (5: HD2-HD5).
+        """
+        import dataclasses
+
+        figs = converter_figures(
+            y, self.T, measurement=self, full_scale=full_scale, harmonics=harmonics
+        )
+        return dataclasses.replace(self, converter=figs)
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """Normal-approximation interval of the jitter std, cut at 0: on the variance's
@@ -313,6 +340,7 @@ class JitterMeasurement:
                     f"     f = {a.frequency_hz:.8g} Hz  ln L = {a.loglik:12.3f}  "
                     f"(ln L - best = {a.loglik - best:9.3f})  std = {_time(a.jitter_std_s)}"
                 )
+        lines.extend(summary_extras(self))  # meterio: the law's evidence, converter figures
         return "\n".join(lines)
 
     def __str__(self) -> str:
