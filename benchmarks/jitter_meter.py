@@ -31,6 +31,15 @@ plots RMSE / sigma against theta, one panel per (N, noise), with sqrt(CRB) / sig
     python benchmarks/jitter_meter.py --quick            # N = 1000, 10 records a setting
     python benchmarks/jitter_meter.py                    # the full study (long)
     python benchmarks/jitter_meter.py --records 200 --sizes 1000 --methods ieee1057 adctoolbox
+    python benchmarks/jitter_meter.py --instrument       # issue 26: N = 2^16, 1 GHz at 7 GS/s
+    python benchmarks/jitter_meter.py --shapes           # the law-free route, 4 laws
+
+``--instrument`` runs the instrument-scale comparison of issue 26 instead (no sqlite, one
+run, the peer in the same process): N = 2^16, a coherent ~1 GHz tone (J prime to N) at
+7 GS/s, amplitude 0.49, Gaussian jitter of 1 fs .. 10 ps, with no additive noise and with
+50 uV; per setting the bias, RMSE and 95 % coverage of ``measure_jitter(y, T,
+method="gaussian")`` and the RMSE of ``adctoolbox.analyze_error_by_phase``, and the CPU
+seconds per record of each (``time.process_time``, the same records, alternating).
 """
 
 from __future__ import annotations
@@ -396,6 +405,106 @@ def make_figure(con, methods, grid, laws, records, with_crb, path: Path) -> None
 # ----------------------------------------------------------------------------- main
 
 
+def instrument_study(records: int, sizes: list[int]) -> None:
+    """Issue 26's instrument-scale comparison (see the module doc, ``--instrument``)."""
+    fs = 7e9
+    Ti = 1 / fs
+    have_peer = adctoolbox_version() is not None
+    print(
+        f"# instrument scale: fs = 7 GS/s, amplitude 0.49, {records} records a setting; "
+        f"adctoolbox {adctoolbox_version() or 'absent'}"
+    )
+    print(
+        f"{'N':>7} {'sigma':>7} {'noise':>6} {'ji bias':>8} {'ji rmse':>8} {'cover':>6} "
+        f"{'peer bias':>9} {'peer rmse':>9} {'rmse ratio':>10} {'ji ms':>7} {'peer ms':>7} "
+        f"{'cpu ratio':>9}"
+    )
+    for n in sizes:
+        J = round(1e9 * n * Ti) | 1
+        while math.gcd(J, n) != 1:
+            J += 2
+        f0 = J / (n * Ti)
+        for sigma in (1e-15, 10e-15, 100e-15, 1e-12, 10e-12):
+            for noise in (0.0, 50e-6):
+                est, cover, peer, t_ji, t_peer = [], 0, [], 0.0, 0.0
+                for rep in range(records):
+                    rng = np.random.default_rng(
+                        [26, n, round(sigma * 1e18), round(noise * 1e9), rep]
+                    )
+                    tau = rng.normal(0.0, sigma, n)
+                    phi = rng.uniform(-math.pi, math.pi)
+                    y = 0.49 * np.sin(2 * math.pi * f0 * (np.arange(n) * Ti + tau) + phi)
+                    y = y + rng.normal(0.0, noise, n) if noise else y
+                    c0 = time.process_time()
+                    m = jitterid.measure_jitter(y, Ti, method="gaussian")
+                    c1 = time.process_time()
+                    lo, hi = m.interval()
+                    est.append(m.jitter_std / sigma)
+                    cover += lo <= sigma <= hi
+                    t_ji += c1 - c0
+                    if have_peer:
+                        c0 = time.process_time()
+                        peer.append(adctoolbox_jitter(y, Ti) / sigma)
+                        t_peer += time.process_time() - c0
+                e = np.array(est)
+                rmse = float(np.sqrt(np.mean((e - 1) ** 2)))
+                if have_peer:
+                    p = np.array(peer)
+                    prmse = float(np.sqrt(np.mean((p - 1) ** 2)))
+                    peer_txt = (
+                        f"{p.mean() - 1:+9.4f} {prmse:9.4f} {rmse / prmse:10.3f} "
+                        f"{1e3 * t_ji / records:7.1f} {1e3 * t_peer / records:7.1f} "
+                        f"{t_ji / t_peer:9.2f}"
+                    )
+                else:
+                    peer_txt = f"{'-':>9} {'-':>9} {'-':>10} {1e3 * t_ji / records:7.1f}"
+                print(
+                    f"{n:>7} {sigma:>7.0e} {noise:>6.0e} {e.mean() - 1:+8.4f} {rmse:8.4f} "
+                    f"{cover / records:6.2f} {peer_txt}"
+                )
+
+
+def _shape_draw(law: str, rng: np.random.Generator, s: float, n: int) -> np.ndarray:
+    """Phase jitter (rad) of std ``s`` for :func:`shapes_study`."""
+    if law == "uniform":
+        return rng.uniform(-s * math.sqrt(3), s * math.sqrt(3), n)
+    if law == "dual_dirac":
+        rj = s / 3
+        return math.sqrt(s * s - rj * rj) * rng.choice([-1.0, 1.0], n) + rj * rng.normal(0, 1, n)
+    if law == "scale_mixture":  # two Gaussians of std ratio 0.6 : 1.28, kurtosis 4.2
+        sc = np.where(rng.random(n) < 0.5, 0.6, 1.28) / math.sqrt((0.36 + 1.28**2) / 2)
+        return s * sc * rng.normal(0, 1, n)
+    return s * rng.normal(0, 1, n)
+
+
+def shapes_study(records: int, n: int) -> None:
+    """The law-free moment route on non-Gaussian laws (``--shapes``): bias and coverage of
+    ``measure_jitter(y, T, method="gaussian")`` (default laws: law-free), a 123 Hz tone at
+    T = 1 ms, amplitude 1, offset 0.1, noise 1e-2, frequency unknown."""
+    Ts, F = 1e-3, 123.0
+    print(f"# law-free moment route, N = {n}, {records} records a cell")
+    print(f"{'law':<14} {'theta':>6} {'bias':>8} {'rmse':>7} {'cover':>6} {'flagged':>7}")
+    for law in ("uniform", "dual_dirac", "gaussian", "scale_mixture"):
+        for theta in (0.05, 0.3, 0.6, 1.0):
+            sig = theta / (2 * math.pi * F)
+            est, cover, flagged = [], 0, 0
+            for rep in range(records):
+                rng = np.random.default_rng([27, LAWS.get(law, 3), round(theta * 100), rep])
+                t = np.arange(n) * Ts + _shape_draw(law, rng, theta, n) / (2 * math.pi * F)
+                y = np.sin(2 * math.pi * F * t + rng.uniform(0, 2 * math.pi)) + 0.1
+                y = y + rng.normal(0, 1e-2, n)
+                m = jitterid.measure_jitter(y, Ts, method="gaussian")
+                lo, hi = m.interval()
+                est.append(m.jitter_std / sig)
+                cover += lo <= sig <= hi
+                flagged += bool(m.findings)
+            e = np.array(est)
+            print(
+                f"{law:<14} {theta:>6g} {e.mean() - 1:+8.4f} {np.sqrt(np.mean((e - 1) ** 2)):7.4f} "
+                f"{cover / records:6.2f} {flagged:>7d}"
+            )
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="N = 1000 only, few records")
@@ -408,7 +517,23 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--db", type=Path, help="sqlite file of per-record results")
     ap.add_argument("--figure", type=Path, help="PNG path ('none' for no figure)")
     ap.add_argument("--fresh", action="store_true", help="discard stored results first")
+    ap.add_argument(
+        "--shapes",
+        action="store_true",
+        help="the law-free moment route on uniform, dual-Dirac, Gaussian, mixture jitter",
+    )
+    ap.add_argument(
+        "--instrument",
+        action="store_true",
+        help="issue 26's instrument-scale comparison (N = 2^16, 1 GHz at 7 GS/s) instead",
+    )
     args = ap.parse_args(argv)
+    if args.instrument:
+        instrument_study(args.records or 16, args.sizes or [2**16])
+        return
+    if args.shapes:
+        shapes_study(args.records or 100, (args.sizes or [1000])[0])
+        return
 
     grid = dict(QUICK if args.quick else FULL)
     for name in ("records", "sizes", "thetas", "noises"):

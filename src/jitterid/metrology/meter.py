@@ -1,21 +1,23 @@
 """The jitter meter: the sampling jitter's std, law and interval from a sine record.
 
 :func:`measure_jitter` fits a :class:`~jitterid.systems.tones.SineWave` with the jitter law
-estimated (the JOE structure (2c) with a signal model, the paper's (1a)), by the exact
-likelihood (notes 4), for each candidate jitter family, and keeps the family with the
-lowest BIC. Starting values, in the order a test engineer trusts them:
+estimated (the JOE structure (2c) with a signal model, the paper's (1a)). In order:
 
 1. the frequency: the periodogram's peak refined by the IEEE 1057 four-parameter fit
-   (:mod:`jitterid.metrology.sinefit`), or the given one;
-2. jitter and noise std's: the IEEE 1057 slope regression of the squared residuals on the
-   squared slope; the amplitude divided by the damping exp(-(2 pi f sigma)^2 / 2) that the
-   jitter puts on the fitted sine (Lemma 1: E[sin(w (t + tau))] = chi(w) sin(w t));
-3. the exact Gaussian criterion (closed-form moments, O(N)), then the exact likelihood.
-
-With a band above the Nyquist frequency (equivalent-time sampling) every alias
-f0 + m/T or m/T - f0 in the band is fitted; without jitter they fit the samples equally
-well, with jitter each damps the sine by its own |chi(2 pi f)| (the paper's Section 3.4),
-and the likelihood ranks them (:attr:`JitterMeasurement.aliases`).
+   (:mod:`jitterid.metrology.sinefit`), or the given one; with a band, its aliases there
+   (a tie with the jitter's scale free: one is fitted, the others follow);
+2. the tone test and the folding check (:mod:`jitterid.metrology.adequacy`): a record with
+   no tone, or a tone that cannot show jitter, is not measured further;
+3. the moment route (:mod:`jitterid.metrology.moments`): the closed-form per-sample mean
+   and variance of a jittered tone, fitted in a few passes (the answer of
+   ``method="gaussian"``, law-free when several laws are given, and the likelihood's start
+   and its numeric noise floor);
+4. (``method="ml"``) the exact likelihood (notes 4) for each candidate family, the lowest
+   BIC kept;
+5. the adequacy checks on the chosen fit (rails, lines in the residual), the per-sample
+   phase error (:mod:`jitterid.metrology.phase`: periodic and coloured jitter, the RJ/PJ
+   decomposition, a Newey-West interval for a coloured jitter), and the status: what was
+   found and what to do, never ``CONVERGED`` beside a NaN standard error.
 """
 
 from __future__ import annotations
@@ -33,14 +35,30 @@ from ..estimation.fit import fit
 from ..estimation.likelihood import ExactLikelihood
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
+from ..moments.sample import sample_moments
 from ..systems.model import Model
 from ..systems.tones import SineWave
+from ._format import time_text as _time
+from .adequacy import (
+    ALPHA_TONE,
+    Finding,
+    SpectralLine,
+    folding_check,
+    quantisation_step,
+    rail_check,
+    residual_lines,
+    tone_significance,
+)
 from .converter import ConverterFigures, converter_figures  # meterio (issue 26, item 3)
+from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
+from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .reading import summary_extras  # meterio (issue 26, item 5)
-from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
+from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
+    "ALIAS_FITS",
     "FAMILY_NAMES",
+    "MAX_ALIASES",
     "AliasCandidate",
     "JitterMeasurement",
     "LawCandidate",
@@ -52,10 +70,19 @@ FloatArray = NDArray[np.float64]
 
 #: Fewest samples and whole periods a record must hold.
 MIN_SAMPLES = 32
-#: The default noise floor, relative to the record's rms (see measure_jitter, resolution).
-_RESOLUTION_FLOOR = 1e-4
 #: ln L difference below which two aliases are a tie.
 _ALIAS_TIE = 1e-3
+#: Most aliases a band may hold (see measure_jitter, band_hz).
+MAX_ALIASES = 1000
+#: Aliases :func:`alias_likelihoods` fits by the exact likelihood (the best by a one-pass
+#: score).
+ALIAS_FITS = 4
+#: Evaluations of one fit of the Gaussian criterion, CPU units per second of the closed-form
+#: tone moments (N H^2 (2H + 3) per evaluation; measured: N = 400, H = 16, 26 evaluations,
+#: 6.1 s), and the most CPU-s a harmonic fit may cost before it is refused.
+_EVALS_PER_FIT = 30
+_UNITS_PER_SECOND = 2.0e7
+_COST_LIMIT = 120.0
 #: Families tried by default, by name (see measure_jitter, laws).
 DEFAULT_LAWS = ("gaussian", "uniform", "dual-dirac")
 
@@ -149,7 +176,10 @@ class JitterMeasurement:
     law : JitterLaw
         The fitted jitter law of the chosen family.
     family : str
-        The chosen family's name (lowest BIC among :attr:`laws`).
+        The chosen family's name (lowest BIC among :attr:`laws`); ``"law-free"`` where the
+        moment route measured the std without assuming a law (``method="gaussian"`` with
+        several laws: :attr:`law` is then the Gaussian of that std, the shape is in the
+        message).
     laws : tuple of LawCandidate
         Every family tried.
     aliases : tuple of AliasCandidate
@@ -163,6 +193,27 @@ class JitterMeasurement:
         The IEEE 1057 slope-regression jitter std the search started from (for comparison).
     T : float
         The nominal sampling interval (s).
+    findings : tuple of Finding
+        What the model-adequacy checks found (:mod:`jitterid.metrology.adequacy`): empty
+        for a record that is one jittered tone; each finding's message says what to do.
+    tone_p_value : float
+        The tone test's p-value (below 1e-3: a tone stands out of the record).
+    harmonics_fitted : int
+        Harmonics in the fitted model (those significant in the record, up to the asked).
+    quantisation_step : float or None
+        The record's quantisation step where its values lie on a grid, else None.
+    jitter_var, jitter_var_stderr : float
+        The jitter's variance (s^2, unclipped: it may be below 0 where the record does not
+        resolve the jitter) and its standard error, where the moment route measured it
+        (``method="gaussian"``); NaN otherwise. :meth:`interval` then takes the interval on
+        the variance's scale, one-sided where it reaches 0.
+    noise_floor : float or None
+        The physical noise floor (the ``resolution`` given, or the quantisation step /
+        sqrt(12) of a quantised record); None for a float record, which has none.
+    decomposition : JitterDecomposition or None
+        The jitter split from the per-sample phase error
+        (:mod:`jitterid.metrology.phase`): RJ rms, PJ amplitude and frequency, total, and
+        whether the jitter is correlated from sample to sample (a pure tone only).
     converter : ConverterFigures or None
         SNR, SINAD, ENOB, THD, SFDR and the jitter-limited SNR of the record
         (:meth:`with_converter`; None until then).
@@ -200,6 +251,14 @@ class JitterMeasurement:
     message: str
     slope_regression_std: float
     T: float
+    findings: tuple[Finding, ...] = ()
+    tone_p_value: float = math.nan
+    harmonics_fitted: int = 1
+    quantisation_step: float | None = None
+    jitter_var: float = math.nan
+    jitter_var_stderr: float = math.nan
+    noise_floor: float | None = None
+    decomposition: JitterDecomposition | None = None
     converter: ConverterFigures | None = field(default=None, repr=False)  # meterio
 
     def with_converter(
@@ -224,13 +283,17 @@ class JitterMeasurement:
         return dataclasses.replace(self, converter=figs)
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
-        """Normal-approximation interval of the jitter std, cut at 0.
+        """Normal-approximation interval of the jitter std, cut at 0: on the variance's
+        scale where :attr:`jitter_var_stderr` is known (then one-sided, [0, upper], where
+        the record does not resolve the jitter), else on the std's.
 
         Parameters
         ----------
         level : float, optional
             Coverage, in (0, 1).
         """
+        if math.isfinite(self.jitter_var_stderr) and math.isfinite(self.jitter_var):
+            return std_interval(self.jitter_var, self.jitter_var_stderr, level)
         if not 0 < level < 1:
             raise ValueError(f"level must lie in (0, 1); got {level!r}")
         from scipy.stats import norm
@@ -257,6 +320,12 @@ class JitterMeasurement:
             f"  IEEE 1057 slope regression (start): {_time(self.slope_regression_std)}",
             "  families (lowest BIC chosen):",
         ]
+        if self.decomposition is not None:
+            lines.insert(-1, f"  decomposition     {self.decomposition.summary()}")
+        if self.findings:
+            at = lines.index("  families (lowest BIC chosen):")
+            found = [f"  finding ({f.kind}): {f.message}" for f in self.findings]
+            lines[at:at] = found
         for c in self.laws:
             mark = "*" if c.name == self.family else " "
             lines.append(
@@ -278,16 +347,6 @@ class JitterMeasurement:
         return self.summary()
 
 
-def _time(x: float) -> str:
-    """A time in s with an SI prefix."""
-    if not np.isfinite(x):
-        return "nan"
-    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9), ("ps", 1e-12)):
-        if abs(x) >= scale or unit == "ps":
-            return f"{x / scale:.4g} {unit}"
-    return f"{x:.4g} s"  # pragma: no cover
-
-
 def _record(y: ArrayLike) -> FloatArray:
     yv = real_array(y, "y", ndim=1)
     if yv.size < MIN_SAMPLES:
@@ -305,8 +364,22 @@ def _start(
     y: FloatArray, T: float, f0: float, band: tuple[float, float]
 ) -> tuple[FloatArray, float, float, float]:
     """(sine start [A, phase, f, c], jitter std start, noise std start, slope-regression std)."""
+    theta, sj, sv, reg, _ = _start_fit(y, T, f0, band)
+    return theta, sj, sv, reg
+
+
+def _start_fit(
+    y: FloatArray,
+    T: float,
+    f0: float,
+    band: tuple[float, float],
+    fit4: SineFit | None = None,
+) -> tuple[FloatArray, float, float, float, SineFit]:
+    """:func:`_start` and the IEEE 1057 four-parameter fit it started from (``fit4``: that
+    fit, where it is already at hand)."""
     t = np.arange(y.size, dtype=float) * T
-    fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
+    if fit4 is None:
+        fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
     if not fit4.converged:
         raise ValueError(
             f"the four-parameter sine fit did not converge from {f0:g} Hz ({fit4.message}); "
@@ -323,7 +396,37 @@ def _start(
     sv = max(sv, 1e-3 * resid, 1e-9 * fit4.amplitude)
     damping = math.exp(-0.5 * (w * sj) ** 2)
     theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
-    return theta, sj, sv, float(reg.jitter_std)
+    return theta, sj, sv, float(reg.jitter_std), fit4
+
+
+def _start_moments(
+    y: FloatArray,
+    T: float,
+    f0: float,
+    band: tuple[float, float],
+    fit4: SineFit | None = None,
+) -> tuple[FloatArray, float, float, float, SineFit, MomentFit]:
+    """:func:`_start_fit` for a pure tone with the slope regression read off the moment
+    route (:attr:`MomentFit.slope_regression_std`: the same regression, one pass fewer),
+    and that Gaussian moment fit."""
+    t = np.arange(y.size, dtype=float) * T
+    if fit4 is None:
+        fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
+    if not fit4.converged:
+        raise ValueError(
+            f"the four-parameter sine fit did not converge from {f0:g} Hz ({fit4.message}); "
+            "give the frequency (frequency=...) or check that y is a sine record"
+        )
+    mf = moment_route(y, T, fit4, "gaussian")
+    w = 2 * math.pi * fit4.frequency
+    sj = mf.slope_regression_std if np.isfinite(mf.slope_regression_std) else 0.0
+    sj = max(sj, 1e-3 / w)
+    resid = float(np.std(fit4.residuals))
+    sv = mf.slope_regression_noise_std if np.isfinite(mf.slope_regression_noise_std) else 0.0
+    sv = max(sv, 1e-3 * resid, 1e-9 * fit4.amplitude)
+    damping = math.exp(-0.5 * (w * sj) ** 2)
+    theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
+    return theta, sj, sv, float(mf.slope_regression_std), fit4, mf
 
 
 def _fit_one(
@@ -335,22 +438,28 @@ def _fit_one(
     sv: float,
     method: str = "ml",
     other: tuple[FloatArray, float, float] | None = None,
+    gauss: FitResult | None = None,
 ) -> FitResult:
     """The Gaussian criterion from the IEEE starts, then (``method="ml"``) the exact
     likelihood from the better of its end and the IEEE start (by the likelihood itself:
     the second-moment criterion can trade jitter for noise where the law is far from
     Gaussian). With ``other`` (the sine, jitter std and noise std of another family's fit)
     the likelihood is also maximised from there, and the better end kept: a law far from
-    the other's can have a local optimum in phase and frequency near it."""
+    the other's can have a local optimum in phase and frequency near it. ``gauss``: the
+    Gaussian route's fit where it is already known (the moment route's)."""
     x0 = np.r_[family.start_for_std(sj), theta, sv]
-    gauss = fit(data, model, family, method="gaussian", start=x0)
+    if gauss is None:
+        gauss = fit(data, model, family, method="gaussian", start=x0)
     if method == "gaussian":
         return gauss
     xg = np.asarray(gauss.x, dtype=float).copy()
     cands = [x0]
+    lo_noise = data.resolution or 0.0
     if gauss.success and np.all(np.isfinite(xg)):
         if not xg[-1] > 0.1 * sv:  # the Gaussian criterion put the noise at its bound 0
-            xg[-1] = sv
+            xg[-1] = max(sv, lo_noise)
+        x0 = np.r_[x0[:-1], max(float(x0[-1]), lo_noise)]
+        cands = [x0]
         cands.insert(0, xg)
     lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
     scored: list[tuple[float, int, FloatArray]] = []
@@ -376,19 +485,117 @@ def _fit_one(
     return out
 
 
-def _resolution(y: FloatArray, given: float | None) -> float:
-    """The noise floor: ``given``, else the record's quantisation step / sqrt(12), at least
-    1e-6 of its rms (see :func:`measure_jitter`)."""
+def _resolution(given: float | None, step: float | None) -> float | None:
+    """The physical noise floor: ``given``, else the record's quantisation step / sqrt(12)
+    where its values lie on a grid, else None (a float record has none)."""
     if given is not None:
         return positive(given, "resolution")
-    vals = np.unique(y)
-    step = float(np.min(np.diff(vals))) if vals.size > 1 else 0.0
-    rms = float(np.sqrt(np.mean((y - np.mean(y)) ** 2)))
-    return max(step / math.sqrt(12.0), _RESOLUTION_FLOOR * rms)
+    return step / math.sqrt(12.0) if step else None
+
+
+def _ml_floor(physical: float | None, mf: MomentFit | None, amplitude: float) -> float:
+    """The noise floor the likelihood's search needs (its quadrature wants a noise std
+    > 0): the physical one, or, on a float record, 3 % of the jitter's own spread of the
+    samples (a noise variance 1e-3 of the jitter's, which moves the jitter std by less
+    than that: its estimate is not changed by the floor), at least 1e-9 of the amplitude."""
+    spread = 0.0
+    if mf is not None and math.isfinite(mf.phase_var) and mf.phase_var > 0:
+        spread = abs(amplitude) * math.sqrt(0.5 * mf.phase_var)
+    numeric = max(0.03 * spread, 1e-9 * abs(amplitude))
+    return max(physical or 0.0, numeric)
 
 
 def _stderr(result: FitResult, name: str) -> float:
     return float(result.stderr.get(name, float("nan")))
+
+
+def _alias_frequencies(base: float, T: float, band: tuple[float, float]) -> list[float]:
+    """Every alias m/T + base and m/T - base (m integer) of the baseband frequency ``base``
+    inside ``band``, in O(count): refused before anything is built when there are more than
+    :data:`MAX_ALIASES` (the jitter scale free makes them a tie: fitting them tells nothing)."""
+    lo, hi = band
+    fs = 1.0 / T
+    counts = [
+        math.floor((hi - s * base) / fs) - math.ceil((lo - s * base) / fs) + 1 for s in (1, -1)
+    ]
+    total = sum(max(c, 0) for c in counts)
+    if total > MAX_ALIASES:
+        raise ValueError(
+            f"band_hz = ({lo:g}, {hi:g}) holds about {total:.3g} aliases of the record's "
+            f"frequency {base:.6g} Hz (one every {0.5 * fs:g} Hz on average): with the jitter's "
+            "scale free they fit the samples equally (each with its own jitter std, f times the "
+            f"std being what the samples show), so they cannot be ranked; at most {MAX_ALIASES} "
+            "are listed. Narrow band_hz to the Nyquist zone you know, or give frequency="
+        )
+    out: list[float] = []
+    for s in (1, -1):
+        m0 = math.ceil((lo - s * base) / fs)
+        for m in range(m0, m0 + max(counts[s == -1], 0)):
+            f = m * fs + s * base
+            if lo <= f <= hi and f > 0:
+                out.append(f)
+    out.sort()
+    uniq = [f for i, f in enumerate(out) if i == 0 or f - out[i - 1] > 1e-9 * fs]
+    if not uniq:
+        raise ValueError(
+            f"no alias of the record's frequency {base:g} Hz (+ m/T, T = {T:g} s) lies in "
+            f"band_hz = ({lo:g}, {hi:g}); widen the band or check T"
+        )
+    return uniq
+
+
+def _harmonics_present(y: FloatArray, T: float, f: float, H: int) -> int:
+    """The highest harmonic h <= H whose least-squares amplitude at h f is significant
+    (Wald test of its cosine and sine coefficients, p < 1e-3 / H), at least 1. The normal
+    equations are summed over chunks, so a long record costs O(N H) and little memory."""
+    if H == 1:
+        return 1
+    n = y.size
+    k = 2 * H + 1
+    gram = np.zeros((k, k))
+    rhs = np.zeros(k)
+    w = 2 * math.pi * f * np.arange(1, H + 1)
+    for a in range(0, n, 1 << 15):
+        t = np.arange(a, min(a + (1 << 15), n), dtype=float) * T
+        X = np.empty((t.size, k))
+        X[:, 0] = 1.0
+        ph = np.outer(t, w)
+        X[:, 1::2] = np.cos(ph)
+        X[:, 2::2] = np.sin(ph)
+        gram += X.T @ X
+        rhs += X.T @ y[a : a + t.size]
+    try:
+        coef = np.linalg.solve(gram, rhs)
+        inv = np.linalg.inv(gram)
+    except np.linalg.LinAlgError:
+        return 1
+    ss = float(y @ y - coef @ rhs)
+    s2 = max(ss / max(n - k, 1), 1e-300)
+    best = 1
+    for h in range(2, H + 1):
+        i = slice(2 * h - 1, 2 * h + 1)
+        c = coef[i]
+        try:
+            wald = float(c @ np.linalg.solve(inv[i, i] * s2, c))
+        except np.linalg.LinAlgError:
+            continue
+        if math.exp(-0.5 * min(wald, 1400.0)) < 1e-3 / H:
+            best = h
+    return best
+
+
+def _check_cost(N: int, H: int, n_fits: int) -> None:
+    """Refuse a fit whose closed-form moments would cost more than :data:`_COST_LIMIT`
+    (O(N H^3) per evaluation: H^2 tone pairs, 2 H + 2 parameters), with the estimate."""
+    units = float(N) * H * H * (2 * H + 3) * _EVALS_PER_FIT * n_fits
+    seconds = units / _UNITS_PER_SECOND
+    if seconds > _COST_LIMIT:
+        raise ValueError(
+            f"harmonics={H} on N = {N} samples would cost about {seconds:.3g} CPU-s "
+            f"({n_fits} fit(s) of the Gaussian criterion; its moments cost N H^3 per "
+            f"evaluation): the record holds {H} significant harmonics. Fit fewer "
+            "(harmonics=...), or a shorter record"
+        )
 
 
 def measure_jitter(
@@ -403,6 +610,14 @@ def measure_jitter(
     resolution: float | None = None,
 ) -> JitterMeasurement:
     """Measure the sampling jitter from a record of a sine wave.
+
+    Before it reports, the meter checks that the record is one jittered tone
+    (:mod:`jitterid.metrology.adequacy`): that a tone stands out of the record at all
+    (else ``NOT_SIGNIFICANT``), that its alias is not on a multiple of fs/2 nor sampled at
+    too few phases (else ``UNIDENTIFIABLE``), that no samples are piled at the rails
+    (clipping) and that the residual holds no spectral line the model lacks (a second
+    tone, distortion: ``LACK_OF_FIT``), and that the jitter std has a standard error
+    (else ``UNIDENTIFIABLE``). :attr:`JitterMeasurement.findings` lists what was found.
 
     Parameters
     ----------
@@ -423,27 +638,34 @@ def measure_jitter(
         samples is above the noise: dual-Dirac records measured with Gaussian and uniform
         families only came out 6 % low (the uniform family chosen), 0.5 % with it.
     band_hz : (float, float), optional
-        Where the frequency lies, in Hz; every alias of the record's frequency in the band
-        is fitted and the one with the highest likelihood kept (:attr:`JitterMeasurement.
-        aliases` lists them all). Without jitter the aliases are indistinguishable.
+        Where the frequency lies, in Hz. Every alias f0 + m/T, m/T - f0 in the band fits the
+        samples equally well when the jitter's scale is free (the samples see f times the
+        jitter std): one is fitted and :attr:`JitterMeasurement.aliases` lists each with
+        the jitter std it implies; with more than one the status is ``UNIDENTIFIABLE``. A
+        band holding more than :data:`MAX_ALIASES` aliases is refused.
     harmonics : int
-        Harmonics of the sine model (1: a pure sine; more for a distorted source).
+        Harmonics of the sine model (1: a pure sine; more for a distorted source). Only
+        those up to the highest one significant in the record are fitted (the message says
+        so); a fit whose cost would exceed about a minute is refused with its estimate.
     method : {"ml", "gaussian"}
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound; its cost grows
-        as N times the quadrature nodes per sample (about 100). ``"gaussian"``: the exact
-        Gaussian criterion on the samples' closed-form means and variances (Lemmas 1-2),
-        O(N) with a small constant, consistent for any law in the family and close to
-        efficient where the jitter's phase spread 2 pi f sigma is small (the samples are
-        then nearly Gaussian); its errors are the exact sandwich. For long records. It fits
-        the first of ``laws`` only (its criterion sees the law through chi(w) and chi(2 w)
-        alone and does not rank laws; the message says so).
+        as N times the quadrature nodes per sample (about 100). ``"gaussian"``: for a pure
+        tone the moment route (:func:`jitterid.metrology.moments.moment_route`: the IEEE
+        1057 fit, then the closed-form variance profile by reweighted least squares, a few
+        passes over the record, its interval a sandwich that holds for any law and noise);
+        with several laws given (the default) it measures the std law-free (the law's
+        shape from the fourth moment; ``family`` is ``"law-free"``), with one it assumes
+        that law (gaussian or uniform). With harmonics, the exact Gaussian criterion on the
+        closed-form moments of the first law.
     resolution : float, optional
         The smallest noise std the record can have (the converter's LSB / sqrt(12)), in
-        units of y. Default: the record's own quantisation step (the smallest gap between
-        its distinct values) over sqrt(12), and at least 1e-4 of its rms. Where the jitter
-        dominates, the likelihood's noise std runs down to this floor (the noise-free
-        jittered sine explains the samples as well): the fit then says AT_BOUND for
-        ``noise_std``, and the jitter std is the one given the noise at its floor.
+        units of y. Default: the record's own quantisation step over sqrt(12) where its
+        values lie on a grid (:func:`jitterid.metrology.adequacy.quantisation_step`), and
+        none for a float record (a simulator's record can be noise-free; the moment route
+        needs no floor, and the likelihood's search stops at 3 % of the jitter's own
+        spread, which does not move the jitter: the status stays CONVERGED and the message
+        says the noise is below what the record resolves). AT_BOUND only where a bound
+        changes the jitter estimate.
 
     Returns
     -------
@@ -453,8 +675,8 @@ def measure_jitter(
     ------
     ValueError
         A record that is too short, not finite or constant, an unknown law, a band with no
-        alias of the record's frequency, or a sine fit that does not converge; each
-        message names the fix.
+        alias of the record's frequency or with too many, a harmonic fit too costly, or a
+        sine fit that does not converge; each message names the fix.
 
     Examples
     --------
@@ -474,24 +696,59 @@ def measure_jitter(
         raise ValueError(f"method must be 'ml' or 'gaussian'; got {method!r}")
     if isinstance(laws, str):
         laws = (laws,)
-    note = ""
+    try:
+        laws = tuple(laws)
+    except TypeError:
+        raise TypeError(
+            f"laws must be a sequence of family names such as ['gaussian']; got {laws!r}"
+        ) from None
+    if isinstance(harmonics, bool) or not isinstance(harmonics, (int, np.integer)):
+        raise TypeError(f"harmonics must be a whole number >= 1; got {harmonics!r}")
+    if not 1 <= harmonics <= 64:
+        raise ValueError(f"harmonics must lie in 1..64; got {harmonics}")
+    notes: list[str] = []
+    law_free = False
     if method == "gaussian" and len(laws) > 1:
         # the second-moment criterion sees a law only through chi(w) and chi(2 w): its
         # value does not rank laws (measured: Gaussian records at 2 pi f sigma = 0.5 and 1
-        # came out as 'uniform', 8 % and 25 % low)
-        laws, note = (
-            tuple(laws[:1]),
-            (f"; method='gaussian' fits one law ({laws[0]}): its criterion does not rank laws"),
+        # came out as 'uniform', 8 % and 25 % low). With the law not given, the moment route
+        # measures the std law-free (the shape from the fourth moment)
+        notes.append(
+            "method='gaussian' does not rank laws: with several laws given, the std is "
+            "measured law-free (the law's shape from the fourth moment, its uncertainty in "
+            "the interval); give one law to assume it"
         )
+        laws = ("gaussian",)
+        law_free = True
     known = _families(T)
     unknown = [name for name in laws if name not in known]
     if unknown or not laws:
         raise ValueError(f"laws must name families among {sorted(known)}; got {list(laws)}")
     N = yv.size
-    f_start = positive(frequency, "frequency") if frequency is not None else periodogram_peak(yv, T)
-    data = SampledData(yv, T, None, resolution=_resolution(yv, resolution))
-    if band_hz is not None:
-        cands = SineWave(band_hz=band_hz, harmonics=harmonics).start_frequencies(data)
+    band_given = _band(band_hz)
+    f_start = (
+        positive(frequency, "frequency")
+        if frequency is not None
+        else periodogram_peak(yv, T, oversample=2)
+    )
+    step = quantisation_step(yv) if resolution is None else None
+    physical = _resolution(resolution, step)
+    half_bin = 1.0 / (N * T)
+    # the IEEE 1057 fit at the start: the tone test, and (aliases) the baseband frequency
+    try:
+        base_fit: SineFit | None = sine_fit_4(
+            yv, np.arange(N, dtype=float) * T, f_start, frequency_bounds=_near(f_start, half_bin)
+        )
+    except ValueError:  # the start aliases to DC or Nyquist: no sine can be fitted there
+        base_fit = None
+    if band_given is not None:
+        f_base = (
+            abs(float(base_fit.frequency))
+            if base_fit is not None and base_fit.converged
+            else f_start
+        )
+        base = _baseband(f_base, T)
+        cands = _alias_frequencies(base, T, band_given)
     else:
         cands = [f_start]
     cycles = cands[0] * N * T
@@ -500,44 +757,80 @@ def measure_jitter(
             f"the record holds {cycles:.3g} periods of its sine; at least 2 are needed "
             "(record longer, or give frequency= if the sine is faster than it looks)"
         )
-    half_bin = 1.0 / (N * T)
-    # every alias with the family chosen on the first one; then the families on the best
-    first_family = laws[0]
-    alias_fits: list[tuple[float, FitResult]] = []
-    alias_starts: list[tuple[FloatArray, float, float]] = []
-    slope_std = float("nan")
-    for fc in cands:
-        lo = max(fc - 4 * half_bin, 0.5 * fc)
-        band = (lo, fc + 4 * half_bin)
-        theta, sj, sv, slope_std_c = _start(yv, T, fc, band)
-        model = SineWave(band_hz=band, harmonics=harmonics)
-        theta_h = _harmonic_start(model, yv, T, theta)
-        res = _fit_one(data, model, known[first_family], theta_h, sj, sv, method)
-        alias_fits.append((fc, res))
-        alias_starts.append((theta_h, sj, sv))
-        if len(alias_fits) == 1 or res.cost < min(r.cost for _, r in alias_fits[:-1]):
-            slope_std = slope_std_c
-    i_best = min(range(len(alias_fits)), key=lambda i: alias_fits[i][1].cost)
-    best = alias_fits[i_best][1]
-    theta_b, sj_b, sv_b = alias_starts[i_best]
-    aliases = tuple(
-        AliasCandidate(float(r.params["frequency_hz"]), -0.5 * r.cost, r.jitter_std)
-        for _, r in alias_fits
+    p_tone = (
+        tone_significance(yv, float(base_fit.residuals @ base_fit.residuals))
+        if base_fit is not None
+        else 1.0
     )
+    # the aliases are a tie with the jitter scale free: fit one (the given frequency's, else
+    # the lowest), the others follow from it (f sigma is what the samples see)
+    fc = min(cands, key=lambda f: abs(f - f_start)) if frequency is not None else cands[0]
+    band = _near(fc, half_bin)
+    folding = folding_check(fc, T, N)
+    hopeless = p_tone >= ALPHA_TONE or folding is not None
+    H = _harmonics_present(yv, T, fc, harmonics) if not hopeless else 1
+    if harmonics > H:
+        notes.append(
+            f"harmonics {H + 1}..{harmonics} are not significant in the record: {H} fitted"
+        )
+    fam_names = laws[:1] if hopeless else laws
+    route = "gaussian" if hopeless else method
+    try:
+        same = base_fit if (fc == f_start and base_fit is not None) else None
+        mf_start: MomentFit | None = None
+        if harmonics == 1 and not hopeless:
+            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(yv, T, fc, band, same)
+        else:
+            theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band, same)
+    except ValueError as exc:
+        if p_tone < ALPHA_TONE:
+            raise
+        raise ValueError(
+            f"no tone stands out of the record (the periodogram's peak, {fc:.6g} Hz, is not "
+            f"a sine that can be fitted: {exc}); check that the test signal reaches the "
+            "converter, or give frequency= if the tone is known"
+        ) from None
+    model = SineWave(band_hz=band, harmonics=H)
+    # the moment route (a few passes, law-free variance profile) for a pure tone: the
+    # answer of method="gaussian", the likelihood's start and its numeric noise floor
+    mf: MomentFit | None = None
+    if H == 1:
+        first = fam_names[0] if fam_names[0] in ROUTE_LAWS else "gaussian"
+        if law_free and route == "gaussian":
+            first = "free"
+        mf = mf_start if first == "gaussian" and mf_start is not None else None
+        mf = mf or moment_route(yv, T, fit4, first)
+    floor = _ml_floor(physical, mf, float(fit4.amplitude))
+    data = SampledData(yv, T, None, resolution=floor)
+    theta_h = _harmonic_start(model, yv, T, theta)
+    first_family = fam_names[0]
+    gauss_first = None
+    if (
+        mf is not None
+        and (mf.law == first_family or (mf.law == "free" and first_family == "gaussian"))
+        and math.isfinite(mf.jitter_var)
+    ):
+        gauss_first = _moment_result(mf, known[first_family], model, physical)
+    fast_done = route == "gaussian" and gauss_first is not None
+    if not fast_done:
+        _check_cost(N, H, len(fam_names))
+    if gauss_first is not None and fast_done:
+        best = gauss_first
+    else:
+        best = _fit_one(data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first)
     # the other families at the chosen alias: from its IEEE starts and from the first
     # family's fit, the better end kept
     fitted: dict[str, FitResult] = {first_family: best}
-    chosen_model = best.structure
     sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
-    for name in laws[1:]:
+    for name in fam_names[1:]:
         fitted[name] = _fit_one(
             data,
-            chosen_model,
+            model,
             known[name],
-            theta_b,
-            sj_b,
-            sv_b,
-            method,
+            theta_h,
+            sj,
+            sv,
+            route,
             other=(sine, best.jitter_std, float(best.x[-1])),
         )
     cands_law = []
@@ -555,29 +848,78 @@ def measure_jitter(
     status, message = r.status, r.message
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
-    message += note
-    lls = sorted((a.loglik for a in aliases), reverse=True)
-    if len(lls) > 1 and lls[0] - lls[1] < _ALIAS_TIE:
+    status, message = _noise_floor_status(status, message, r, floor, physical, mf)
+    f_fit = float(r.params["frequency_hz"])
+    aliases = tuple(
+        AliasCandidate(f_fit + (f - fc), -0.5 * r.cost, r.jitter_std * f_fit / (f_fit + f - fc))
+        for f in cands
+    )
+    on_route = fast_done and mf is not None and r is gauss_first
+    if on_route:
+        assert mf is not None
+        resid, sd = mf.residuals, np.sqrt(np.maximum(mf.variance, 0.0))
+    else:
+        resid, sd = _model_residuals(yv, T, r)
+    jstd, jse = r.jitter_std, r.jitter_std_stderr
+    jvar, jvar_se = math.nan, math.nan
+    if on_route:
+        assert mf is not None
+        jstd, jse, jvar, jvar_se = (
+            mf.jitter_std,
+            mf.jitter_std_stderr,
+            mf.jitter_var,
+            mf.jitter_var_stderr,
+        )
+    # the per-sample phase error: periodic and coloured jitter (informational findings;
+    # a coloured jitter's interval is widened to its Newey-West value)
+    decomposition: JitterDecomposition | None = None
+    info: list[Finding] = []
+    if not hopeless and H == 1:
+        decomposition, info, widened = _phase_findings(yv, T, r, resid, sd, jstd, mf)
+        if widened is not None and mf is not None:
+            if on_route:
+                jstd, jse, jvar, jvar_se = (
+                    widened.jitter_std,
+                    widened.jitter_std_stderr,
+                    widened.jitter_var,
+                    widened.jitter_var_stderr,
+                )
+            elif mf.jitter_var_stderr > 0:
+                # the likelihood assumes independent samples: widen its standard error by
+                # the moment route's Newey-West / independent-sample ratio
+                jse *= max(widened.jitter_var_stderr / mf.jitter_var_stderr, 1.0)
+    lsb = step if step else (physical * math.sqrt(12.0) if physical else None)
+    pj_f = decomposition.pj_frequency_hz if decomposition and decomposition.periodic else None
+    findings = _adequacy(
+        yv, T, resid, sd, float(r.params["frequency_hz"]), step, p_tone, folding, lsb, pj_f
+    )
+    findings = (*findings, *info)
+    status, message = _judge(status, message, r, findings)
+    if status is FitStatus.CONVERGED and info:
+        message += "; " + "; ".join(f.message for f in info)
+    if len(aliases) > 1 and status is FitStatus.CONVERGED:
         status = FitStatus.UNIDENTIFIABLE
         message = (
-            f"the frequency is not identified among {len(lls)} aliases in band_hz (their ln L "
-            f"differ by {lls[0] - lls[1]:.2g}): with the jitter's scale free, the samples see "
-            "only f times the jitter std, so each alias fits with its own jitter std. Give "
-            "the frequency (frequency=...), or rank the aliases under a known jitter law "
+            f"the frequency is not identified among {len(aliases)} aliases in band_hz: with "
+            "the jitter's scale free, the samples see only f times the jitter std, so each "
+            "alias fits equally with its own jitter std (listed). Give the frequency "
+            "(frequency=...), or rank the aliases under a known jitter law "
             "(alias_likelihoods)"
         )
+    if notes:
+        message += "; " + "; ".join(notes)
     return JitterMeasurement(
-        jitter_std=r.jitter_std,
-        jitter_std_stderr=r.jitter_std_stderr,
+        jitter_std=jstd,
+        jitter_std_stderr=jse,
         noise_std=float(r.params["noise_std"]),
         noise_std_stderr=_stderr(r, "noise_std"),
-        frequency=float(r.params["frequency_hz"]),
+        frequency=f_fit,
         frequency_stderr=_stderr(r, "frequency_hz"),
         amplitude=float(r.params["amplitude"]),
         phase_rad=float(r.params["phase_rad"]),
         offset=float(r.params["offset"]),
         law=r.jitter_law,
-        family=chosen.name,
+        family="law-free" if (on_route and mf is not None and mf.law == "free") else chosen.name,
         laws=tuple(cands_law),
         aliases=aliases,
         fit=r,
@@ -585,7 +927,318 @@ def measure_jitter(
         message=message,
         slope_regression_std=slope_std,
         T=T,
+        findings=findings,
+        tone_p_value=p_tone,
+        harmonics_fitted=H,
+        quantisation_step=step,
+        jitter_var=jvar,
+        jitter_var_stderr=jvar_se,
+        noise_floor=physical,
+        decomposition=decomposition,
     )
+
+
+def _band(band_hz: tuple[float, float] | None) -> tuple[float, float] | None:
+    if band_hz is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in band_hz)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"band_hz must be a pair (low, high) in Hz; got {band_hz!r}") from exc
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise ValueError(f"band_hz must satisfy 0 <= low < high < inf (Hz); got {band_hz!r}")
+    return (lo, hi)
+
+
+def _near(f: float, half_bin: float) -> tuple[float, float]:
+    """The frequency search interval around a start: four half-bins either side."""
+    return (max(f - 4 * half_bin, 0.5 * f), f + 4 * half_bin)
+
+
+def _baseband(f: float, T: float) -> float:
+    x = (f * T) % 1.0
+    return (1.0 - x if x > 0.5 else x) / T
+
+
+def _moment_result(
+    mf: MomentFit, family: JitterFamily, model: SineWave, physical: float | None
+) -> FitResult:
+    """The moment route's estimate as a :class:`FitResult` of ``model`` (parameters, a
+    diagonal heteroscedasticity-consistent covariance, the Gaussian criterion as cost)."""
+    per_std = float(family.start_for_std(1.0)[0])  # the family's scale per unit std
+    lo, hi = family.bounds[0]
+    std = min(max(mf.jitter_std, lo / per_std), hi / per_std)
+    noise = math.sqrt(max(mf.noise_var, 0.0))
+    noise_se = (
+        mf.noise_var_stderr / (2 * noise)
+        if noise > 0 and mf.noise_var - 1.96 * mf.noise_var_stderr > 0
+        else 0.5 * math.sqrt(mf.noise_var_stderr)
+    )
+    x = np.array([std * per_std, mf.amplitude, mf.phase_rad, mf.frequency_hz, mf.offset, noise])
+    se = np.array(
+        [
+            mf.jitter_std_stderr * per_std,
+            mf.amplitude_stderr,
+            mf.phase_stderr,
+            mf.frequency_stderr,
+            mf.offset_stderr,
+            noise_se,
+        ]
+    )
+    names = (*family.param_names, *model.param_names, "noise_std")
+    resolved = mf.jitter_var - 1.96 * mf.jitter_var_stderr > 0
+    msg = (
+        "moment route: IEEE 1057 fit, then the closed-form variance profile by reweighted "
+        "least squares (law-free sandwich errors)"
+    )
+    if not resolved:
+        msg += (
+            "; the jitter is below what the record resolves: its interval is one-sided (interval())"
+        )
+    if mf.noise_var - 1.96 * mf.noise_var_stderr <= (physical or 0.0) ** 2:
+        msg += "; the additive noise is not resolved (the record is noise-free within its errors)"
+    if mf.law == "free" and math.isfinite(mf.kurtosis):
+        msg += f"; law-free: the jitter's kurtosis {mf.kurtosis:.2f} (Gaussian 3, uniform 1.8)"
+    if mf.note:
+        msg += "; " + mf.note
+    return FitResult(
+        method="gaussian",
+        names=names,
+        x=x,
+        cost=mf.criterion,
+        status=FitStatus.CONVERGED,
+        message=msg,
+        nfev=0,
+        system=None,
+        jitter_law=family.law([float(x[0])]),
+        noise_std=noise,
+        freqs=np.zeros(0),
+        cov=np.diag(se**2),
+        cov_type="robust",
+        structure=model,
+        jitter_model=family,
+    )
+
+
+def _noise_floor_status(
+    status: FitStatus,
+    message: str,
+    r: FitResult,
+    floor: float,
+    physical: float | None,
+    mf: MomentFit | None,
+) -> tuple[FitStatus, str]:
+    """AT_BOUND only where the noise floor changes the jitter estimate: a noise std on the
+    likelihood's numeric floor (a float record) or on the physical one, with the jitter
+    std inside the moment route's interval (which no floor touches), is a boundary
+    solution, not a failure: CONVERGED, with the noise reported as below its floor."""
+    if status is not FitStatus.AT_BOUND or "noise_std" not in r.params:
+        return status, message
+    v = float(r.params["noise_std"])
+    if v > floor * (1 + 1e-6):
+        return status, message
+    if mf is not None and math.isfinite(mf.jitter_var_stderr):
+        lo, hi = std_interval(mf.jitter_var, mf.jitter_var_stderr, 0.99)
+        if not lo <= r.jitter_std <= hi:
+            return status, message
+    what = (
+        f"the physical floor {floor:.3g} (resolution)"
+        if physical is not None and floor <= physical * (1 + 1e-9)
+        else f"the likelihood's numeric floor {floor:.3g} (3 % of the jitter's spread)"
+    )
+    return FitStatus.CONVERGED, (
+        f"converged with the noise std below what the record resolves: it stops at {what}, "
+        "which does not change the jitter std (the moment route, which no floor touches, "
+        "agrees)"
+    )
+
+
+def _phase_findings(
+    y: FloatArray,
+    T: float,
+    r: FitResult,
+    resid: FloatArray,
+    sd: FloatArray,
+    total_std: float,
+    mf: MomentFit | None,
+) -> tuple[JitterDecomposition, list[Finding], MomentFit | None]:
+    """The phase-error analysis of the chosen fit: the decomposition, its informational
+    findings, and (a coloured jitter) the moment fit ``mf`` again with a Newey-West
+    covariance."""
+    f0 = float(r.params["frequency_hz"])
+    N = y.size
+    phase_k = 2 * math.pi * f0 * T * np.arange(N, dtype=float) + float(r.params["phase_rad"])
+    mean = y - resid
+    Ad = math.sqrt(2.0 * float(np.mean((mean - np.mean(mean)) ** 2)))
+    dec, _ = phase_error_analysis(resid, sd**2, phase_k, Ad, f0, T, total_std)
+    out: list[Finding] = []
+    widened: MomentFit | None = None
+    if dec.periodic:
+        out.append(
+            Finding(
+                "periodic-jitter",
+                dec.pj_p_value,
+                f"periodic jitter found in the per-sample phase error: {dec.summary()}",
+            )
+        )
+    if dec.coloured:
+        lags = newey_west_lags(N, dec.decay)
+        dec = JitterDecomposition(**{**dec.__dict__, "hac_lags": lags})
+        if mf is not None:
+            widened = moment_route(y, T, _fit4_of(mf), mf.law, hac_lags=lags)
+        out.append(
+            Finding(
+                "coloured-jitter",
+                dec.whiteness_p_value,
+                "the jitter is correlated from sample to sample (lag-1 autocorrelation of the "
+                f"phase error {dec.lag1_autocorrelation:.2f}, whiteness p = "
+                f"{dec.whiteness_p_value:.2g}): the rms is still right, and its interval is "
+                f"the Newey-West one ({lags} lags) in place of the independent-sample one",
+            )
+        )
+    return dec, out, widened
+
+
+def _fit4_of(mf: MomentFit) -> SineFit:
+    """The four-parameter fit a moment fit was made from (its sine and residuals)."""
+    return SineFit(
+        amplitude=mf.damped_amplitude,
+        phase=mf.phase_rad,
+        frequency=mf.frequency_hz,
+        offset=mf.offset,
+        a=mf.damped_amplitude * math.sin(mf.phase_rad),
+        b=mf.damped_amplitude * math.cos(mf.phase_rad),
+        residuals=mf.residuals,
+        iterations=0,
+        converged=True,
+        message="the moment fit's sine",
+    )
+
+
+def _model_residuals(y: FloatArray, T: float, r: FitResult) -> tuple[FloatArray, FloatArray]:
+    """y - E y and the per-sample std (jitter and noise) of a fitted tone model."""
+    sig = r.signal()
+    mp = sig.jitter_moments(r.jitter_law, T, y.size) if hasattr(sig, "jitter_moments") else None
+    if mp is None or mp.var is None:  # pragma: no cover - every tone signal has them
+        mom = sample_moments(sig, r.jitter_law, T, y.size)
+        mean, var = mom.mean, mom.var
+    else:
+        mean, var = mp.mean, mp.var
+    noise = float(r.params.get("noise_std", 0.0))
+    return y - mean, np.sqrt(np.maximum(var, 0.0) + noise**2)
+
+
+def _adequacy(
+    y: FloatArray,
+    T: float,
+    resid: FloatArray,
+    sd: FloatArray,
+    f0: float,
+    step: float | None,
+    p_tone: float,
+    folding: Finding | None,
+    lsb: float | None = None,
+    pj_frequency: float | None = None,
+) -> tuple[Finding, ...]:
+    """The findings of :mod:`jitterid.metrology.adequacy` on the chosen fit (its residuals
+    y - E y and per-sample std); ``lsb``: the converter's step, detected or from the given
+    resolution (lines below half of it are the quantiser's own)."""
+    out: list[Finding] = []
+    if folding is not None:
+        out.append(folding)
+    if p_tone >= ALPHA_TONE:
+        out.append(
+            Finding(
+                "no-tone",
+                p_tone,
+                f"no tone stands out of the record (F test of the sine against the offset "
+                f"alone, p = {p_tone:.2g} after the choice among {y.size // 2} bins): the "
+                "record is noise, or the tone is below it; check that the test signal reaches "
+                "the converter, record longer, or give frequency= if the tone is known",
+            )
+        )
+    if out:
+        return tuple(out)
+    rail = rail_check(y, step, y - resid, sd)
+    if rail is not None:
+        out.append(rail)
+    lines = residual_lines(resid, sd, T, f0, step=lsb)
+    if pj_frequency is not None:  # the periodic jitter's sidebands h f0 +- m f_p: not spurs
+        bin_hz = 1.0 / (y.size * T)
+        # (and at the odd harmonics' too: the residual is normalised by a std that varies
+        # with cos 2 phi, which mixes the sidebands up by 2 f0)
+        sidebands = [
+            _baseband(h * f0 + sgn * m * pj_frequency, T)
+            for h in (1, 3, 5, 7)
+            for m in (1, 2, 3)
+            for sgn in (1, -1)
+        ]
+        lines = tuple(
+            ln for ln in lines if min(abs(ln.frequency_hz - sb) for sb in sidebands) > 1.5 * bin_hz
+        )
+    if lines:
+        out.append(_lines_finding(lines))
+    return tuple(out)
+
+
+def _lines_finding(lines: tuple[SpectralLine, ...]) -> Finding:
+    parts = []
+    harmonics = sorted({ln.harmonic for ln in lines if ln.harmonic >= 2})
+    for ln in lines[:4]:
+        what = (
+            f"harmonic {ln.harmonic}"
+            if ln.harmonic >= 2
+            else ("the tone itself" if ln.harmonic == 1 else "not a harmonic")
+        )
+        parts.append(
+            f"{ln.frequency_hz:.6g} Hz ({what}, amplitude {ln.amplitude:.3g}, "
+            f"{ln.power_ratio:.3g} x the floor)"
+        )
+    more = f" and {len(lines) - 4} more" if len(lines) > 4 else ""
+    if harmonics and all(ln.harmonic >= 2 for ln in lines):
+        fix = (
+            f"the source or the converter distorts (or clips) the tone: fit harmonics="
+            f"{max(harmonics)}, or lower the amplitude if the record is clipped"
+        )
+    else:
+        fix = (
+            "the record holds a second tone or spur besides the fitted one (or the tone is "
+            "modulated): filter the source, or remove the spur before measuring"
+        )
+    return Finding(
+        "lines",
+        lines[0].p_value,
+        f"the residual holds spectral lines the model lacks: {'; '.join(parts)}{more} "
+        f"(largest p = {lines[0].p_value:.2g}): {fix}; the jitter std would absorb them",
+    )
+
+
+def _judge(
+    status: FitStatus, message: str, r: FitResult, findings: tuple[Finding, ...]
+) -> tuple[FitStatus, str]:
+    """The measurement's status: the findings first (a record that is not one jittered tone
+    is not measured, whatever the search said), then a standard error that cannot be
+    computed (never CONVERGED next to a NaN)."""
+    kinds = {f.kind: f for f in findings}
+    for kind, st in (
+        ("folding", FitStatus.UNIDENTIFIABLE),
+        ("no-tone", FitStatus.NOT_SIGNIFICANT),
+        ("clipping", FitStatus.LACK_OF_FIT),
+        ("lines", FitStatus.LACK_OF_FIT),
+    ):
+        if kind in kinds:
+            rest = [f.message for f in findings if f.kind != kind]
+            msg = kinds[kind].message + ("; also: " + "; ".join(rest) if rest else "")
+            return st, msg
+    se = r.jitter_std_stderr
+    if status is FitStatus.CONVERGED and not (math.isfinite(se) and se > 0):
+        return FitStatus.UNIDENTIFIABLE, (
+            f"the jitter std's standard error cannot be computed ({se:g}): the information "
+            "matrix is singular at the estimate, so the interval is unknown; the record may "
+            "not show the jitter (too little, or hidden by noise): record longer or at a "
+            "higher tone frequency"
+        )
+    return status, message
 
 
 def _harmonic_start(model: SineWave, y: FloatArray, T: float, theta: FloatArray) -> FloatArray:
@@ -633,7 +1286,11 @@ def alias_likelihoods(
     Returns
     -------
     tuple of AliasCandidate
-        One per alias, highest likelihood first; ``jitter_std_s`` is the known law's std.
+        Highest likelihood first; ``jitter_std_s`` is the known law's std. Every alias is
+        ranked in one pass by the Gaussian log-likelihood of its start under the known law
+        (the closed-form moments, O(N)); the :data:`ALIAS_FITS` best are fitted by the
+        exact likelihood and returned (a band with more than :data:`MAX_ALIASES` aliases is
+        refused).
 
     Examples
     --------
@@ -655,19 +1312,39 @@ def alias_likelihoods(
             f"{type(jitter).__name__}"
         )
     data = SampledData(yv, T, None, noise_std=noise_std)
-    cands = SineWave(band_hz=band_hz).start_frequencies(data)
+    band = _band(band_hz)
+    if band is None:
+        raise ValueError("band_hz must be a pair (low, high) in Hz holding the aliases")
+    t = np.arange(yv.size, dtype=float) * T
+    f_p = periodogram_peak(yv, T)
     half_bin = 1.0 / (yv.size * T)
-    out = []
+    fit0 = sine_fit_4(yv, t, f_p, frequency_bounds=_near(f_p, half_bin))
+    cands = _alias_frequencies(
+        _baseband(abs(float(fit0.frequency)) if fit0.converged else f_p, T), T, band
+    )
+    # one pass each: the Gaussian log-likelihood of the alias's start under the known law
+    # (closed-form moments); the likelihood is maximised for the best few only
+    starts = []
     for fc in cands:
-        band = (max(fc - 4 * half_bin, 0.5 * fc), fc + 4 * half_bin)
-        theta, _, sv, _ = _start(yv, T, fc, band)
-        fit4 = sine_fit_4(yv, np.arange(yv.size, dtype=float) * T, fc, frequency_bounds=band)
+        near = _near(fc, half_bin)
+        theta, _, sv, _ = _start(yv, T, fc, near)
+        fit4 = sine_fit_4(yv, t, fc, frequency_bounds=near)
         # the fitted sine is the true one damped by chi(2 pi f) (Lemma 1): undo it
         chi = complex(np.asarray(jitter.cf(np.array([fit4.frequency])))[0]).conjugate()
         if abs(chi) > 1e-3:
             theta[0] = fit4.amplitude / abs(chi)
             theta[1] = fit4.phase - float(np.angle(chi))
-        model = SineWave(band_hz=band)
+        model = SineWave(band_hz=near)
+        noise = float(noise_std) if noise_std is not None else sv
+        mp = model.signal(theta).jitter_moments(jitter, T, yv.size)
+        assert mp is not None
+        assert mp.var is not None
+        v = np.maximum(mp.var, 0.0) + noise**2 + 1e-300
+        score = -0.5 * float(np.sum(np.log(v) + (yv - mp.mean) ** 2 / v))
+        starts.append((score, fc, model, theta, sv))
+    starts.sort(key=lambda s: -s[0])
+    out = []
+    for _, _, model, theta, sv in starts[:ALIAS_FITS]:
         x0 = theta if noise_std is not None else np.r_[theta, sv]
         r = fit(data, model, jitter, method="ml", start=x0)
         out.append(

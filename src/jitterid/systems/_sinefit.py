@@ -212,13 +212,17 @@ def _lsq(design: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray[n
     return coef, ratio
 
 
-def _fit3_centered(
-    y: NDArray[np.float64], tc: NDArray[np.float64], omega: float
-) -> tuple[float, float, float, float]:
+_Fit3 = tuple[float, float, float, float, NDArray[np.float64], NDArray[np.float64]]
+
+
+def _fit3_centered(y: NDArray[np.float64], tc: NDArray[np.float64], omega: float) -> _Fit3:
     """Least squares ``alpha cos(omega tc) + beta sin(omega tc) + c``; returns
-    (alpha, beta, c, ssr)."""
+    (alpha, beta, c, ssr, residuals, design [cos, sin, 1])."""
     ph = omega * tc
-    design = np.column_stack((np.cos(ph), np.sin(ph), np.ones_like(tc)))
+    design = np.empty((tc.size, 3))
+    np.cos(ph, out=design[:, 0])
+    np.sin(ph, out=design[:, 1])
+    design[:, 2] = 1.0
     coef, ratio = _lsq(design, y)
     if ratio < _COND_LIMIT:
         f = omega / (2 * np.pi)
@@ -230,7 +234,7 @@ def _fit3_centered(
         )
     alpha, beta, c = (float(v) for v in coef)
     res = y - design @ coef
-    return alpha, beta, c, float(res @ res)
+    return alpha, beta, c, float(res @ res), res, design
 
 
 def _wrap(phase: float) -> float:
@@ -246,28 +250,26 @@ def _result(
     iterations: int,
     converged: bool,
     message: str,
+    known: _Fit3 | None = None,
 ) -> SineFit:
+    """The fit at ``omega``; ``known``: :func:`_fit3_centered`'s answer there, if at hand."""
     tc = t - tm
-    alpha, beta, c, _ = _fit3_centered(y, tc, omega)
+    alpha, beta, c, _, resid, _ = known if known is not None else _fit3_centered(y, tc, omega)
     amplitude = math.hypot(alpha, beta)
     # alpha cos(w tc) + beta sin(w tc) = A sin(w tc + atan2(alpha, beta)); refer to t = 0
     phase = _wrap(math.atan2(alpha, beta) - omega * tm)
-    fit = SineFit(
+    return SineFit(
         amplitude=amplitude,
         phase=phase,
         frequency=omega / (2 * np.pi),
         offset=c,
         a=amplitude * math.sin(phase),
         b=amplitude * math.cos(phase),
-        residuals=np.empty(0),
+        residuals=resid,
         iterations=iterations,
         converged=converged,
         message=message,
     )
-    ph = omega * tc
-    resid = y - (alpha * np.cos(ph) + beta * np.sin(ph) + c)
-    object.__setattr__(fit, "residuals", resid)
-    return fit
 
 
 def sine_fit_4(
@@ -356,11 +358,12 @@ def sine_fit_4(
     tc = tt - tm
     half_span = float(np.max(np.abs(tc)))
     omega = 2 * np.pi * f0
-    alpha, beta, _, ssr = _fit3_centered(arr, tc, omega)
-    ones = np.ones_like(tc)
+    last = _fit3_centered(arr, tc, omega)
+    alpha, beta, _, ssr, _, base = last
+    design = np.empty((tc.size, 4))
+    tcs = tc / half_span
     for it in range(1, int(max_iterations) + 1):
-        ph = omega * tc
-        cos_, sin_ = np.cos(ph), np.sin(ph)
+        cos_, sin_ = base[:, 0], base[:, 1]
         amp = math.hypot(alpha, beta)
         if amp <= 1e-12 * float(np.max(np.abs(arr))):
             return _result(
@@ -375,9 +378,8 @@ def sine_fit_4(
                 "T)",
             )
         dscale = half_span * amp  # the frequency column, scaled to O(1)
-        design = np.column_stack(
-            (cos_, sin_, ones, (tc / half_span) * (-alpha * sin_ + beta * cos_) / amp)
-        )
+        design[:, :3] = base
+        np.multiply(tcs, (-alpha * sin_ + beta * cos_) / amp, out=design[:, 3])
         coef, ratio = _lsq(design, arr)
         if ratio < _COND_LIMIT:
             return _result(
@@ -407,9 +409,10 @@ def sine_fit_4(
         accepted = False
         for _ in range(30):
             try:
-                a_new, b_new, _, ssr_new = _fit3_centered(arr, tc, new)
+                trial = _fit3_centered(arr, tc, new)
             except ValueError as exc:
-                return _result(arr, tt, tm, omega, it - 1, False, f"iteration {it}: {exc}")
+                return _result(arr, tt, tm, omega, it - 1, False, f"iteration {it}: {exc}", last)
+            a_new, b_new, _, ssr_new, _, _ = trial
             if ssr_new <= ssr * (1 + 1e-12) + 1e-300:
                 accepted = True
                 break
@@ -417,7 +420,7 @@ def sine_fit_4(
             new = omega + step
         if not accepted:
             if abs(step) * half_span <= tol:
-                return _result(arr, tt, tm, omega, it - 1, True, "converged (at the minimum)")
+                return _result(arr, tt, tm, omega, it - 1, True, "converged (at the minimum)", last)
             return _result(
                 arr,
                 tt,
@@ -429,6 +432,7 @@ def sine_fit_4(
                 "start is probably on another peak: start from periodogram_peak(y, T)",
             )
         omega, alpha, beta, ssr = new, a_new, b_new, ssr_new
+        last, base = trial, trial[5]
         if abs(step) * half_span <= tol:
             msg = f"converged in {it} iteration(s)"
             explained = 1.0 - ssr / float(np.sum((arr - arr.mean()) ** 2))
@@ -438,7 +442,7 @@ def sine_fit_4(
                     "variance: a start far from the sine's frequency stops on a side lobe; "
                     "check frequency0"
                 )
-            return _result(arr, tt, tm, omega, it, True, msg)
+            return _result(arr, tt, tm, omega, it, True, msg, last)
     return _result(
         arr,
         tt,
