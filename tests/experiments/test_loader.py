@@ -112,11 +112,6 @@ def test_ls_cannot_estimate_a_jitter_family():
         parse_experiment(data, "tiny.toml")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="jitterid.estimation.problem.METHODS is frozen when problem.py is imported, so the "
-    "loader does not see an estimator registered later (issue 23: one registration)",
-)
 def test_an_estimator_registered_after_import_is_accepted_at_load_time(estimator_registry):
     """The methods are checked against the library's registered estimators when the file is
     read: a name unknown until its estimator is registered is refused, then accepted."""

@@ -40,8 +40,8 @@ from ..analysis.diagnostics import (
 )
 from ..analysis.selection import OrderSelection, select_order
 from ..data import SampledData
+from ..estimation.estimators import method_names
 from ..estimation.fit import fit as fit_model
-from ..estimation.problem import METHODS
 from ..inputs import telegraph_input, zoh_input
 from ..io import TIME_UNITS, Dataset, atomic_write, load, parse_time, save_data, save_input
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
@@ -476,7 +476,7 @@ def _params_line(res: object) -> str:
     "continues with the chosen one.",
 )
 @click.option("--jitter", "jitter_spec", required=True, help=JITTER_HELP)
-@click.option("--method", type=click.Choice(METHODS), default="bcls", show_default=True)
+@click.option("--method", type=click.Choice(method_names()), default="bcls", show_default=True)
 @click.option(
     "--noise-std", type=float, callback=_nonneg, help="Known measurement-noise std (y units)."
 )

@@ -32,18 +32,17 @@ from ..moments.sample import SampleMoments, difference_grid, moment_pass
 from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from . import jacobians as _jacobians
-from .estimators import Estimator, as_estimator, method_names
+from .estimators import Estimator, as_estimator
 from .likelihood import ExactLikelihood
 from .resources import check_mode_rate
 from .search import SearchOptions
 
-__all__ = ["METHODS", "Problem", "default_frequencies", "free_moment_plans"]
+__all__ = ["Problem", "default_frequencies", "free_moment_plans"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 _Derivatives = tuple[SampleMoments, FloatArray, FloatArray, FloatArray]
 
-METHODS = method_names()  # the registered estimators (jitterid.estimation.estimators)
 
 
 #: records from this many samples free the moment plans before the likelihood's search

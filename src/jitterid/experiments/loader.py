@@ -2,8 +2,9 @@
 
 A typo or a bad value fails at once with an :class:`ExperimentError` naming the file and
 the dotted key (``table2.toml: sampling.N must be an integer >= 4; got 0``), before any
-work starts. Methods are checked against :data:`jitterid.estimation.problem.METHODS` when the file
-is loaded, so a method added to the library is accepted without a change here.
+work starts. Methods are checked against the registry
+(:func:`jitterid.estimation.estimators.method_names`) when the file is loaded, so a method
+added to the library is accepted without a change here.
 """
 
 from __future__ import annotations
@@ -18,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._checks import TooLargeError, allocation, nesting_depth
-from ..estimation import boxjenkins
-from ..estimation import problem as criteria
+from ..estimation.estimators import coloured_method_names, method_names
 from ..jitter import registry
 from ._schema import ExperimentError, Section, _show
 from .config import (
@@ -319,8 +319,9 @@ def _case(sec: Section) -> Case:
 def _methods(sec: Section, jitter_model: str, system: SystemSpec, noise: bool) -> tuple[str, ...]:
     methods = sec.texts("methods")
     # Box-Jenkins estimators (a [noise] section): "bj-<criterion>" and "jbj-<criterion>".
-    bj = [p + m for p in BJ_PREFIXES for m in boxjenkins.BJ_METHODS] if noise else []
-    known = [*criteria.METHODS, *bj]
+    # (the registry is asked now, so that an estimator registered after import is known)
+    bj = [p + m for p in BJ_PREFIXES for m in coloured_method_names()] if noise else []
+    known = [*method_names(), *bj]
     for i, m in enumerate(methods):
         if m not in known:
             close = difflib.get_close_matches(m, known, n=1, cutoff=0.5)
