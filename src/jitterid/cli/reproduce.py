@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
@@ -22,7 +21,7 @@ from ..experiments import (
 from ..experiments.bj import spectra_figure
 from ..experiments.loader import MAX_RUNS
 from ..experiments.report import markdown_report
-from ..experiments.runner import dask_client, run_experiment, store_path
+from ..experiments.runner import dask_client, default_workers, run_experiment, store_path
 from ..experiments.store import Store, StoreError
 from ..io import atomic_write
 from . import main
@@ -35,13 +34,6 @@ __all__ = ["reproduce", "run"]
 FIGURES = ("fig1", "fig2", "fig3", "fig4", "fig5")
 STUDIES = ("bj",)  # beyond the paper: Table 2's system with coloured noise (issue 7)
 TARGETS = (*PAPER_EXPERIMENTS, *FIGURES, *STUDIES, "all")
-
-
-def _default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
 
 
 def _common(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -171,7 +163,7 @@ def _options(
 ) -> _Options:
     return _Options(
         out if out is not None else default_out,
-        workers if workers is not None else _default_workers(),
+        workers if workers is not None else default_workers(),
         scheduler,
         resume,
         not no_progress,
