@@ -51,6 +51,7 @@ import json
 import math
 import os
 import re
+import stat
 import tempfile
 import zipfile
 from collections.abc import Callable, Mapping
@@ -926,10 +927,34 @@ def parse_time(text: str | float, default_unit: str = "s", name: str = "time") -
 
 def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = False) -> Path:
     """Write ``path`` all at once: ``write(fh)`` fills a temporary file in the same folder,
-    which then replaces ``path`` (no partial or 0-byte file is ever left behind)."""
+    which then replaces ``path`` (no partial or 0-byte file is ever left behind).
+
+    The file gets the permissions an ordinary ``open(path, "w")`` would give: those of the
+    file it replaces, or for a new file ``0o666`` less the process's umask (0644 under the
+    usual umask 022, as the SQLite store), not the 0600 of a bare temporary file.
+
+    Parameters
+    ----------
+    path : Path
+        The file to (re)write.
+    write : callable
+        ``write(fh)`` writes the content into the open file object ``fh``.
+    binary : bool, default False
+        Open ``fh`` in binary mode (else text, UTF-8, no newline translation).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        mode = 0o666 & ~_umask()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, mode)
         fh: IO[Any] = (
             os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
         )
@@ -943,6 +968,19 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
             os.unlink(tmp)
         raise
     return path
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where the system allows (Linux
+    ``/proc/self/status``: setting it to read it back is not thread-safe)."""
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)  # pragma: no cover - not Linux
+    os.umask(mask)  # pragma: no cover
+    return mask  # pragma: no cover
 
 
 def _to_unit(seconds: float, unit: str) -> float | str:
