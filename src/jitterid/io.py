@@ -973,11 +973,10 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
 def _umask() -> int:
     """The process's umask, read without changing it where the system allows (Linux
     ``/proc/self/status``: setting it to read it back is not thread-safe)."""
-    with contextlib.suppress(OSError, ValueError):
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
+    with contextlib.suppress(OSError, ValueError), open("/proc/self/status", "rb") as fh:
+        for line in fh:
+            if line.startswith(b"Umask:"):
+                return int(line.split()[1], 8)
     mask = os.umask(0o022)  # pragma: no cover - not Linux
     os.umask(mask)  # pragma: no cover
     return mask  # pragma: no cover
