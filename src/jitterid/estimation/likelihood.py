@@ -94,6 +94,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import finite_diff
 from .._checks import count, positive, real_array
 from .._memory import trim
+from .._state import CachesAreNotState, cache_field
 from ..inputs import Input, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
@@ -755,7 +756,7 @@ def _fits(rule: _Rule, design: tuple[Signal, float] | None, sig: Signal, sigma: 
 
 # ---------------------------------------------------------------------------- the likelihood
 @dataclass(eq=False)
-class ExactLikelihood:
+class ExactLikelihood(CachesAreNotState):
     """The exact log-likelihood (L1) of N jittered samples as a function of the parameters.
 
     Parameters
@@ -831,14 +832,16 @@ class ExactLikelihood:
     _profile: _SlopeProfile | None = field(init=False, default=None, repr=False)
     _design: tuple[Signal, float] | None = field(init=False, default=None, repr=False)
     _window_y: FloatArray | None = field(init=False, default=None, repr=False)
-    _pieces: _Held | None = field(init=False, default=None, repr=False)
-    _cache: dict[tuple[float, ...], _Rule] = field(init=False, default_factory=dict)
-    _memo: tuple[bytes, bool, FloatArray, tuple[FloatArray, FloatArray, FloatArray]] | None = field(
-        init=False, default=None, repr=False
+    # caches (what _forget drops): made again from the design when needed, never pickled
+    # (cache_field returns a dataclasses.Field, which RUF009 does not know)
+    _pieces: _Held | None = cache_field()  # noqa: RUF009
+    _cache: dict[tuple[float, ...], _Rule] = cache_field(default_factory=dict)  # noqa: RUF009
+    _memo: tuple[bytes, bool, FloatArray, tuple[FloatArray, FloatArray, FloatArray]] | None = (
+        cache_field()
     )
     _spares: list[
         tuple[tuple[Signal, float] | None, _Held | None, dict[tuple[float, ...], _Rule]]
-    ] = field(init=False, default_factory=list, repr=False)
+    ] = cache_field(default_factory=list)  # noqa: RUF009
 
     def __post_init__(self) -> None:
         self.structure = as_structure(self.structure)

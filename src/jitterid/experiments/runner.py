@@ -473,7 +473,10 @@ def local_cluster(workers: int, dashboard_address: str | None = None) -> LocalCl
     if dashboard_address is not None:
         return LocalCluster(dashboard_address=dashboard_address, **kwargs)
     # The worker processes (started by the nannies) take the configuration set here.
-    no_routes = {"distributed.scheduler.http.routes": [], "distributed.worker.http.routes": []}
+    no_routes: dict[str, list[str]] = {
+        "distributed.scheduler.http.routes": [],
+        "distributed.worker.http.routes": [],
+    }
     with dask.config.set(no_routes):
         return LocalCluster(dashboard_address="127.0.0.1:0", **kwargs)
 

@@ -52,6 +52,7 @@ from scipy.linalg import cho_solve_banded, cholesky_banded, matmul_toeplitz
 from scipy.linalg.lapack import dtbtrs
 
 from .._checks import count, positive, real_array
+from .._state import CachesAreNotState
 from ..inputs import Input
 from ..jitter.laws import JitterLaw
 from ..moments.quadrature import _relative_cuts
@@ -139,7 +140,7 @@ def _new_rule(
 
 
 @dataclass(frozen=True)
-class JitteredAutocovariance:
+class JitteredAutocovariance(CachesAreNotState):
     """gamma(m) = Cov(v_k, v_{k+m}) of jittered samples of v, eqs. (C1) and (C3).
 
     Attributes
@@ -399,7 +400,7 @@ def _band(SL: FloatArray, SR: FloatArray, gam: FloatArray, D: FloatArray, width:
 
 
 @dataclass(frozen=True, eq=False)
-class SampleCovariance:
+class SampleCovariance(CachesAreNotState):
     """Sigma_y = diag(d) + Toeplitz(gamma) of eq. (C2), with the O(N) operations of (C4).
 
     Parameters
