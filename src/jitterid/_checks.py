@@ -44,6 +44,25 @@ def positive(x: float, name: str, *, allow_zero: bool = False) -> float:
     return val
 
 
+#: Range of a sampling interval (s). Inside it the model's time scale 1/T and its powers (the
+#: coefficients of a rational model, the frequencies) are finite doubles; outside it (say
+#: T = 1e-300 s) they overflow deep inside the estimators, so T is refused up front.
+T_RANGE_S = (1e-24, 1e24)
+
+
+def sampling_interval(T: float, name: str = "T") -> float:
+    """Return ``T`` as a float if it is a sampling interval inside :data:`T_RANGE_S`."""
+    val = positive(T, name)
+    lo, hi = T_RANGE_S
+    if not lo <= val <= hi:
+        raise ValueError(
+            f"{name} = {val:g} s is outside the range of sampling intervals jitterid handles "
+            f"[{lo:g}, {hi:g}] s; give the times in another unit (e.g. ms or us, scaling the "
+            "model's parameters with them)"
+        )
+    return val
+
+
 def finite(x: float, name: str) -> float:
     """Return ``x`` as a float if it is a finite real number, else raise."""
     try:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ._checks import positive, real_array
+from ._checks import positive, real_array, sampling_interval
 from .inputs import Input
 
 __all__ = ["SampledData"]
@@ -62,7 +62,7 @@ class SampledData:
         y = real_array(self.y, "y", ndim=1)
         if y.size < 4:
             raise ValueError(f"y must hold at least 4 samples; got {y.size}")
-        T = positive(self.T, "T")
+        T = sampling_interval(self.T, "T")
         if self.u is not None and not isinstance(self.u, Input):
             raise TypeError(f"u must be a jitterid input or None; got {type(self.u).__name__}")
         if self.noise_std is not None:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import generator, positive, real_array
+from ._checks import generator, positive, real_array, sampling_interval
 
 __all__ = [
     "Input",
@@ -30,6 +30,21 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+
+def known_input(u: object, name: str = "u") -> Input:
+    """``u`` if it is a jitterid input, else a TypeError naming ``name`` and the fix."""
+    if isinstance(u, Input):
+        return u
+    hint = (
+        " (an array of input values: wrap it, zoh_input(values, T) holds each for T)"
+        if isinstance(u, (np.ndarray, list, tuple))
+        else ""
+    )
+    raise TypeError(
+        f"{name} must be a jitterid input (zoh_input, telegraph_input, Multisine or "
+        f"PiecewiseConstant); got {type(u).__name__}{hint}"
+    )
 
 
 class Input:
@@ -325,7 +340,7 @@ def zoh_input(samples: ArrayLike, T: float, start: float = 0.0) -> PiecewiseCons
     >>> u.times.tolist(), u.levels.tolist()
     ([0.0, 0.5, 1.0, 1.5], [0.0, 1.0, -1.0])
     """
-    T = positive(T, "T")
+    T = sampling_interval(T, "T")
     u = real_array(samples, "samples", ndim=1)
     if u.size < 1:
         raise ValueError("samples must hold at least one value")

@@ -34,7 +34,7 @@ from .._checks import count, real_array
 from ..data import SampledData
 from ..estimation.covariance import noise_variance_ml
 from ..estimation.result import FitResult
-from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter, known_law
 from ..moments.sample import sample_moments
 from ..systems.tf import TransferFunction
 
@@ -694,11 +694,7 @@ def ls_gain_factor(jitter: JitterLaw, f: ArrayLike) -> FloatArray:
     >>> ji.ls_gain_factor(ji.Uniform(0.05), [0.0, 1.0, 5.0]).round(4).tolist()
     [1.0, 0.9836, 0.6366]
     """
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(
-            "jitter must be a jitter law such as Uniform(0.5) or Gaussian(0.1); "
-            f"got {type(jitter).__name__}"
-        )
+    jitter = known_law(jitter)
     freqs = real_array(f, "f")
     return np.asarray(np.abs(jitter.cf(freqs)), dtype=float)
 
@@ -724,8 +720,7 @@ def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
     0.781
     """
     tol = _level(tol)
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     if isinstance(jitter, NoJitter) or jitter.std == 0:
         return float("inf")
     # |phi| ~ 1 - 2 pi^2 sigma^2 f^2 near 0: bracket around that guess, then refine.

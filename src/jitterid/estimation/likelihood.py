@@ -92,11 +92,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
-from .._checks import count, positive, real_array
+from .._checks import count, positive, real_array, sampling_interval
 from .._memory import trim
 from .._state import CachesAreNotState, cache_field
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms
+from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms, known_law
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
 from ..params import ParamLayout
 from ..systems.model import Model, Signal
@@ -852,7 +852,7 @@ class ExactLikelihood(CachesAreNotState):
             )
         if self.u is not None and not isinstance(self.u, Input):
             raise TypeError(f"u must be a jitterid input or None; got {type(self.u).__name__}")
-        self.T = positive(self.T, "T")
+        self.T = sampling_interval(self.T, "T")
         self.N = count(self.N, "N", minimum=1)
         if self.noise_std is not None:
             self.noise_std = positive(self.noise_std, "noise_std")
@@ -1720,8 +1720,7 @@ def log_density(
     """
     if not isinstance(system, TransferFunction):
         raise TypeError(f"system must be a TransferFunction; got {type(system).__name__}")
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     yv = real_array(y, "y", ndim=1)
     lik = ExactLikelihood(system, jitter, u, T, yv.size, noise_std, order=order, panel=panel)
     return lik.logpdf(np.zeros(0), yv)

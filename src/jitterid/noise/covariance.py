@@ -54,7 +54,7 @@ from scipy.linalg.lapack import dtbtrs
 from .._checks import count, positive, real_array
 from .._state import CachesAreNotState
 from ..inputs import Input
-from ..jitter.laws import JitterLaw
+from ..jitter.laws import JitterLaw, known_law
 from ..moments.quadrature import _relative_cuts
 from ..moments.reference import dtft
 from ..moments.sample import covariance_from_variances, sample_moments
@@ -247,8 +247,7 @@ def jittered_autocovariance(
     """
     if not isinstance(noise, NoiseModel):
         raise TypeError(f"noise must be a NoiseModel; got {type(noise).__name__}")
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitterid jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     T = positive(T, "T")
     c, p = noise.modes
     lo, hi = (float(v) for v in jitter.support)
