@@ -20,7 +20,7 @@ from ..experiments import (
 )
 from ..experiments.bj import spectra_figure
 from ..experiments.loader import MAX_RUNS
-from ..experiments.report import markdown_report
+from ..experiments.report import markdown_report, nothing_converged
 from ..experiments.runner import dask_client, default_workers, run_experiment, store_path
 from ..experiments.store import Store, StoreError
 from ..io import atomic_write
@@ -98,6 +98,8 @@ class _Options:
     progress: bool
     share: bool = True
     client: Client | None = None  # one Dask client for every table of the command
+    # the studies of the command in which no fit converged (the command then exits with 3)
+    empty: list[str] = dataclasses.field(default_factory=list)
 
 
 def _study(exp: Experiment, opt: _Options, command: str) -> Store:
@@ -149,7 +151,22 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
         f"{exp.name}: {summary.total} realizations ({summary.already_done} already stored, "
         f"{summary.new} new, {rate:.2f}/s) -> {summary.store}, {report}, {csv_path}"
     )
+    if nothing_converged(exp, estimates):
+        opt.empty.append(exp.name)
     return store
+
+
+def _exit_if_empty(opt: _Options) -> None:
+    """Exit with status 3 (as ``jitterid fit`` does for a fit that did not converge) when a
+    study produced no converged fit: its report says why, first."""
+    if opt.empty:
+        names = ", ".join(opt.empty)
+        click.echo(
+            f"error: no fit converged in {names}; the report says how they ended "
+            f"({opt.out / (opt.empty[0] + '.md')})",
+            err=True,
+        )
+        raise click.exceptions.Exit(3)
 
 
 def _options(
@@ -200,7 +217,8 @@ def reproduce(
     once), exported to OUT/tableN.csv and reported with the paper's numbers side by side in
     OUT/tableN.md. Figure 5 uses the Table 2 results (and runs Table 2 if they are missing).
     'bj' (not in 'all') is Table 2's system with coloured noise, OE against Box-Jenkins
-    estimators: OUT/bj.md and the noise spectra OUT/bj_spectra.png.
+    estimators: OUT/bj.md and the noise spectra OUT/bj_spectra.png. Exit status 3 when no
+    fit of a table converged (its report says how they ended, first).
     """
     if print_toml:
         if target not in (*PAPER_EXPERIMENTS, *STUDIES):
@@ -219,6 +237,7 @@ def reproduce(
         raise click.ClickException(str(exc)) from None
     except OSError as exc:  # a figure or index that cannot be written
         raise click.ClickException(f"cannot write into {opt.out}: {exc}") from None
+    _exit_if_empty(opt)
 
 
 def _with_client(opt: _Options, stack: ExitStack) -> _Options:
@@ -306,7 +325,8 @@ def run(
     """Run the Monte Carlo study defined in EXPERIMENT (a TOML file).
 
     Start from a packaged definition: `jitterid reproduce table2 --print-toml > my.toml`.
-    The file is checked completely before any work starts.
+    The file is checked completely before any work starts. Exit status 3 when no fit
+    converged (the report says how they ended, first).
     """
     try:
         exp = load_experiment(experiment)
@@ -317,3 +337,4 @@ def run(
     _check_scheduler(scheduler)
     opt = _options(out, Path("out") / exp.name, workers, scheduler, resume, no_progress, no_share)
     _study(exp, opt, _command(["run", str(experiment)], exp.runs, opt.out)).close()
+    _exit_if_empty(opt)
