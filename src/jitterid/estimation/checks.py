@@ -45,7 +45,13 @@ answer cannot be trusted gets its own non-success
   20 bcls fits; no false alarm in 120 correctly specified paper-setting fits);
 * ``NOT_SIGNIFICANT``: the fitted model does not explain significantly more of y than the
   zero model (an F test of the residual sums of squares at the 1e-3 level): the data carry
-  no detectable response to the input (e.g. pure noise).
+  no detectable response to the input (e.g. pure noise), or a gain fixed at 0 by the user
+  makes the model's output zero. It is also what a non-finite covariance reports when the
+  fit explains nothing (the other parameters then have no information by construction).
+
+A covariance that was asked for (``PostContext.cov_requested``) and is NaN throughout is a
+singular information matrix (``UNIDENTIFIABLE``), never "not computed": NaN standard errors
+are never next to ``CONVERGED`` unless ``cov_type="none"`` asked for none.
 """
 
 from __future__ import annotations
@@ -274,6 +280,10 @@ class PostContext:
     # likelihood's -2 ln p_k over its first SCREEN_SAMPLES samples), for a cheap first look
     # at points far from the estimate on a long record (None: every point in full)
     screen: Callable[[FloatArray], FloatArray] | None = None
+    # whether a covariance was asked for (cov_type other than "none"): then a covariance
+    # that is NaN throughout is a failure (a singular information matrix), not "not
+    # computed". None: not said (an all-NaN covariance is then taken as not computed)
+    cov_requested: bool | None = None
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
@@ -412,7 +422,7 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
         )
     cov = np.asarray(ctx.cov, float)
     p = ctx.x.size
-    if p == 0 or np.all(np.isnan(cov)):  # "none" or nothing free
+    if p == 0 or (np.all(np.isnan(cov)) and not ctx.cov_requested):  # "none"
         return None
     on = np.array(
         [_near(v, lo) or _near(v, hi) for v, (lo, hi) in zip(ctx.x, ctx.bounds, strict=True)]
@@ -428,6 +438,10 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
         return None
     d = np.diag(c)
     if not np.all(np.isfinite(c)) or np.any(d <= 0):
+        # a model that explains nothing has no information on its other parameters: say that
+        insignificant = _not_significant(ctx)
+        if insignificant is not None:
+            return insignificant
         bad = [n for n, v in zip(names, d, strict=True) if not (np.isfinite(v) and v > 0)]
         return FitStatus.UNIDENTIFIABLE, (
             "the information matrix is singular (no finite covariance for "
@@ -530,8 +544,18 @@ def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
     )
 
 
+def _has_gain(structure: Model) -> bool:
+    """Whether the model scales its output by gain parameters, free or set by the user (a
+    :class:`~jitterid.Constrained` structure whose gain is fixed, e.g. to 0, has none free)."""
+    inner = structure.structure if isinstance(structure, Constrained) else structure
+    return bool(inner.gain_params)
+
+
 def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
-    if not ctx.structure.param_names or not ctx.structure.gain_params:
+    """An F test of the fit against the zero model (module doc), for every model with a gain,
+    free or fixed: a gain fixed at 0 (``Constrained(..., fixed={"k0": 0})``) leaves a model
+    that explains nothing, whatever its other parameters."""
+    if not ctx.structure.param_names or not _has_gain(ctx.structure):
         return None
     y = ctx.data.y
     try:
@@ -548,6 +572,18 @@ def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
     pval = float(stats.f.sf(fstat, p, dof))
     if pval < SIGNIFICANCE:
         return None
+    st = ctx.structure
+    if isinstance(st, Constrained):
+        names = st.structure.param_names
+        zero = [names[i] for i in st.structure.gain_params if st.fixed.get(names[i]) == 0]
+        if zero:
+            return FitStatus.NOT_SIGNIFICANT, (
+                f"the fitted model explains no significant part of y (F test against the zero "
+                f"model: F = {fstat:.3g}, p = {pval:.2g} >= {SIGNIFICANCE:g}): its gain "
+                f"{', '.join(zero)} is fixed at 0, so its output is zero whatever the other "
+                "parameters (which the data then cannot determine). Fix the gain to a non-zero "
+                "value or leave it free"
+            )
     return FitStatus.NOT_SIGNIFICANT, (
         f"the fitted model explains no significant part of y (F test against the zero model: "
         f"F = {fstat:.3g}, p = {pval:.2g} >= {SIGNIFICANCE:g}): the data show no detectable "
