@@ -16,11 +16,19 @@ __all__: list[str] = []
 
 
 def real_array(x: ArrayLike, name: str, *, ndim: int | None = None) -> NDArray[np.float64]:
-    """Return ``x`` as a finite float array, or raise naming ``name``."""
+    """Return ``x`` as a finite float array, or raise naming ``name`` (complex values are
+    refused, not cast: dropping the imaginary part would be a silent wrong answer)."""
     try:
-        arr = np.asarray(x, dtype=float)
+        raw = np.asarray(x)
+        complex_values = raw.dtype.kind == "c"
+        arr = np.asarray(raw.real if complex_values else raw, dtype=float)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be an array of real numbers; got {type(x).__name__}") from exc
+    if complex_values:
+        raise TypeError(
+            f"{name} must be real; got complex values. Give the real quantity that was "
+            f"measured (e.g. {name}.real, or abs({name}) for a magnitude)"
+        )
     if ndim is not None and arr.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-dimensional; got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):

@@ -58,3 +58,16 @@ def test_dft_covariance_estimates_its_memory_before_it_starts(monkeypatch):
         ji.dft_covariance(G, u, ji.Uniform(0.02), 0.1, 40, f, noise_std=0.01)
     R = ji.dft_covariance(G, u, ji.Uniform(0.02), 0.1, 40, f[:100], noise_std=0.01)
     assert R.shape == (100, 100)
+
+
+def test_complex_samples_are_refused_not_cast():
+    """Complex y was accepted with a ComplexWarning that dropped the imaginary part."""
+    y = np.exp(1j * np.arange(20.0))
+    with pytest.raises(TypeError, match=r"y must be real; got complex values.*y\.real"):
+        ji.SampledData(y, 1.0)
+    with pytest.raises(TypeError, match="y must be real"):
+        ji.measure_jitter(y, 1e-3, laws=["gaussian"])
+    with pytest.raises(TypeError, match="samples must be real"):
+        ji.zoh_input(y, T=1.0)
+    ok = ji.SampledData(y.real, 1.0)  # the real part, said explicitly, is fine
+    assert ok.y.dtype == np.float64

@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from ..data import SampledData
-from ..estimation.checks import check_arguments
+from ..estimation.checks import check_arguments, check_method_jitter
 from ..estimation.covariance import noise_variance_ml
 from ..estimation.estimators import Estimator, as_estimator
 from ..estimation.fit import fit
@@ -911,6 +911,7 @@ def select_order(
             f"(UniformFamily(), ...), the same for every candidate; got {type(jitter).__name__}"
         )
     est = as_estimator(method)  # ValueError naming method, before any fit
+    check_method_jitter(est.ignores_jitter, est.name, jitter)  # fit would refuse every one
     est.check_cov_type(fit_kwargs.get("cov_type"))
     if not isinstance(criterion, str) or criterion.lower() not in CRITERIA:
         raise ValueError(f"criterion must be one of {list(CRITERIA)}; got {criterion!r}")

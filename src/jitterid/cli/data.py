@@ -183,6 +183,19 @@ def _file_unit(ds: Dataset) -> str:
     return unit if unit in TIME_UNITS else "s"
 
 
+def _png_path(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """A ``--plot FILE`` option: the figure is written as PNG, so FILE must end in .png
+    (refused before any work; a .txt name got PNG bytes); its folder must be writable."""
+    if value is None:
+        return None
+    if Path(value).suffix.lower() != ".png":
+        raise click.BadParameter(
+            f"{value!r}: the plot is written as a PNG image; give a file name ending in .png"
+        )
+    _check_out_dir(Path(value).parent, "'--plot'")
+    return value
+
+
 def _check_out_dir(out: Path, option: str = "'--out'") -> None:
     """Refuse an output folder that cannot be written, before any work."""
     try:
@@ -405,7 +418,11 @@ def simulate(
 @_T_opt
 @click.option("--level", type=float, default=0.95, show_default=True, callback=_level)
 @click.option(
-    "--plot", "plot_path", type=click.Path(dir_okay=False), help="Write the residual plot (PNG)."
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    callback=_png_path,
+    help="Write the residual plot to this .png file.",
 )
 def detect(
     data_path: str,
@@ -423,8 +440,6 @@ def detect(
     """
     with _param("'--model'"):
         structure = parse_model(model_spec)
-    if plot_path:
-        _check_out_dir(Path(plot_path).parent or Path("."), "'--plot'")
     ds = _load(data_path, input_path, T, None)
     with _clean_errors("the ordinary fit failed"):
         ls = fit_model(ds.data, structure, NoJitter(), "ls")
@@ -839,7 +854,13 @@ def _safe_summary(res: Any) -> str:
     callback=_level,
     help="Tolerated gain bias.",
 )
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write |phi(f)| (PNG).")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    callback=_png_path,
+    help="Write |phi(f)| to this .png file.",
+)
 def bias(
     jitter_spec: str, T: float, fmax: float | None, points: int, tol: float, plot_path: str | None
 ) -> None:

@@ -91,6 +91,8 @@ MAX_CONDITION = 1e10
 #: with a known noise std does not explain the data
 LACK_OF_FIT_RATIO = 3.0
 LACK_OF_FIT_P = 1e-6
+#: a rate bound (rad/s) this many times above 1/(N T) is above every rate the record shows
+_FLOOR_RESOLVED = 100.0
 
 
 # ------------------------------------------------------------------------ before the search
@@ -120,6 +122,17 @@ def check_arguments(noise_std: object, max_nfev: object) -> tuple[float | None, 
     if m is None or not math.isfinite(m) or m < 1 or m != math.floor(m):
         raise ValueError(f"max_nfev must be a positive whole number, e.g. 2000; got {max_nfev!r}")
     return noise_std, int(m)
+
+
+def check_method_jitter(ignores_jitter: bool, method: str, jitter: object) -> None:
+    """Refuse an estimator that ignores the jitter (``ls``) with a jitter family: it cannot
+    estimate the family's parameters (the one rule for :func:`jitterid.fit` and
+    :func:`jitterid.select_order`)."""
+    if ignores_jitter and isinstance(jitter, JitterFamily):
+        raise ValueError(
+            f"method {method!r} ignores the jitter, so it cannot estimate jitter parameters; "
+            "pass a known law (or NoJitter()) or use 'bcls'/'asml'"
+        )
 
 
 def check_data(data: SampledData, n_params: int, uses_input: bool = True) -> None:
@@ -379,6 +392,18 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
                     "criterion's optimum lies beyond it, so the estimate and its error bars "
                     "hold only if the bound is a physical limit; widen or drop it (bounds=, "
                     "--bounds) to see where the optimum is"
+                )
+            record = ctx.data.N * ctx.data.T
+            if name in ("pr", "pi") and abs(b) * record > _FLOOR_RESOLVED:
+                # PolePairGain's floors are rates in rad/s: on data on a slow time scale they
+                # lie far above every rate the record can show
+                return FitStatus.AT_BOUND, (
+                    f"the system parameter {name} = {v:.6g} is on its floor {b:g} rad/s "
+                    f"(PolePairGain's pr_min/pi_min), {abs(b) * record:.3g} times the slowest "
+                    f"rate the record resolves, 1/(N T) = {1 / record:.3g} rad/s: the data are "
+                    f"on a slower time scale than the floors (T = {ctx.data.T:g} s). Give the "
+                    "times in a larger unit, so that T is near 1 (the rates are then per that "
+                    "unit), or PolePairGain(pr_min=..., pi_min=...) below the rates you expect"
                 )
             return FitStatus.AT_BOUND, (
                 f"the system parameter {name} = {v:.6g} is on its bound {b:g}: the optimum lies "
