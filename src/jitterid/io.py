@@ -754,6 +754,7 @@ def load(
     T: float | str | None = None,
     noise_std: float | None = None,
     require_input: bool = True,
+    hold_input: bool = False,
 ) -> Dataset:
     """Read a data file (and its input) into a :class:`Dataset`.
 
@@ -773,6 +774,11 @@ def load(
         False for a signal record with no input (a sine for :func:`jitterid.measure_jitter`):
         a data file without a ``u`` column and no input file then loads with ``data.u``
         None. True (the default) refuses it, since a system fit needs the input.
+    hold_input : bool
+        Hold the input file's last value after its end, for the jitter's tail (as a DAC
+        does, and as a ``u`` column always is): an input file with one value per sample ends
+        one interval after the last sample, before a jittered last instant may fall. The
+        dataset's ``notes`` say so. Default False: the input ends where the file says.
 
     Returns
     -------
@@ -856,6 +862,14 @@ def load(
     else:
         u, itab = _input(input, t0, T_s, n, unit)
         sources.append(Source("input", str(itab.path), _sha256(itab.path)))
+        if hold_input and isinstance(u, PiecewiseConstant):
+            end = max(u.end, T_s * (n - 1 + max(n, _U_TAIL)))
+            u = u.hold_last(end)
+            notes.append(
+                f"the input's last value u = {u.levels[-1]:g} is held after the end of the "
+                f"input file until t = {end:g} s (hold_input), where the jittered last "
+                "instants may fall"
+            )
         u_unit = str(itab.meta.get("u_unit", tab.meta.get("u_unit", "")))
     noise = noise_std if noise_std is not None else tab.meta.get("noise_std")
     if noise is not None:

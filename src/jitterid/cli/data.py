@@ -173,9 +173,15 @@ _T_opt = click.option(
 )
 
 
-def _load(data_path: str, input_path: str | None, T: str | None, noise: float | None) -> Dataset:
+def _load(
+    data_path: str,
+    input_path: str | None,
+    T: str | None,
+    noise: float | None,
+    hold_input: bool = False,
+) -> Dataset:
     with _clean_errors("cannot use the data"):
-        return load(data_path, input_path, T=T, noise_std=noise)
+        return load(data_path, input_path, T=T, noise_std=noise, hold_input=hold_input)
 
 
 def _file_unit(ds: Dataset) -> str:
@@ -557,6 +563,13 @@ def _params_line(res: object) -> str:
     type=click.Path(dir_okay=False),
     help="The input file of --validation, unless it has a 'u' column.",
 )
+@click.option(
+    "--hold-input",
+    is_flag=True,
+    help="Hold the --input file's last value after its end (as a DAC does): an input file "
+    "with one value per sample ends before a jittered last instant may fall, which the fit "
+    "otherwise reports (the jitter's reach past the input's end).",
+)
 def fit(
     data_path: str,
     input_path: str | None,
@@ -576,6 +589,7 @@ def fit(
     criterion: str,
     validation_path: str | None,
     validation_input: str | None,
+    hold_input: bool,
 ) -> None:
     """Fit a continuous-time model to DATA, accounting for sampling jitter.
 
@@ -635,7 +649,7 @@ def fit(
         )
     out_dir = Path(out)
     _check_out_dir(out_dir)
-    ds = _load(data_path, input_path, T, noise_std)
+    ds = _load(data_path, input_path, T, noise_std, hold_input)
     with _param("'--jitter'"):
         jitter = parse_jitter(jitter_spec, time_unit=_file_unit(ds))
     order, chosen = None, None

@@ -93,6 +93,10 @@ LACK_OF_FIT_RATIO = 3.0
 LACK_OF_FIT_P = 1e-6
 #: a rate bound (rad/s) this many times above 1/(N T) is above every rate the record shows
 _FLOOR_RESOLVED = 100.0
+#: a fitted jitter reach within this many T of the input's end was stopped by it (a
+#: converged family search sits on the end to ~1e-8 T; a failed search a few % before it)
+_REACH_CONVERGED = 1e-4
+_REACH_FAILED = 0.05
 
 
 # ------------------------------------------------------------------------ before the search
@@ -135,12 +139,39 @@ def check_method_jitter(ignores_jitter: bool, method: str, jitter: object) -> No
         )
 
 
-def check_data(data: SampledData, n_params: int, uses_input: bool = True) -> None:
+def check_data(
+    data: SampledData,
+    n_params: int,
+    uses_input: bool = True,
+    jitter: JitterLaw | JitterFamily | None = None,
+) -> None:
     """Refuse data that cannot identify anything (module docstring); the input checks only
-    for a model driven by one (``uses_input``, :attr:`jitterid.systems.model.Model.uses_input`)."""
+    for a model driven by one (``uses_input``, :attr:`jitterid.systems.model.Model.uses_input`).
+    With a known jitter law (``jitter``), the input must also last past the jitter's reach
+    after the last sample (:func:`input_reach`)."""
     if uses_input:
         _check_input(data)
+        if isinstance(jitter, JitterLaw):
+            problem = input_reach(data, jitter)
+            if problem is not None:
+                raise ValueError(f"data.u: {problem}")
     _check_y_and_size(data, n_params)
+
+
+def input_reach(
+    data: SampledData, law: JitterLaw, delay_s: float = 0.0, margin: float = 0.0
+) -> str | None:
+    """Why the input does not cover the last jittered sampling instant (N-1) T + the law's
+    reach (less a model's ``delay_s``), or None if it does; ``margin`` (s) also counts a
+    reach within that distance of the end (a search stopped by the end). The one rule of
+    the input's end for every method (:meth:`jitterid.inputs.Input.coverage_message`)."""
+    u = data.u
+    if u is None:
+        return None
+    reach = (data.N - 1) * data.T + float(law.support[1]) - delay_s
+    if reach < u.end - margin:
+        return None
+    return u.coverage_message(reach, "the jitter (the last jittered sampling instant)")
 
 
 def _check_input(data: SampledData) -> None:
@@ -153,9 +184,8 @@ def _check_input(data: SampledData) -> None:
         )
     if t[-1] >= u.end:
         raise ValueError(
-            f"data.u: the input ends at t = {u.end:g} but the samples reach t = {t[-1]:g} "
-            f"(N = {data.N}, T = {data.T:g}); after its end the input is taken as zero, so "
-            "the fit would be wrong. Give the input over the whole record or use fewer samples"
+            f"data.u: {u.coverage_message(t[-1], f'the samples (N = {data.N}, T = {data.T:g})')}"
+            " (after its end the input is taken as zero, so the fit would be wrong)"
         )
     mid = np.minimum(t + 0.5 * data.T, np.nextafter(u.end, -np.inf))
     if not (np.any(u(t) != 0) or np.any(u(mid) != 0)):
@@ -304,10 +334,15 @@ def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
 
 
 def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitStatus, str]:
-    """The status and message after the checks; only a CONVERGED search is re-examined."""
+    """The status and message after the checks; only a CONVERGED search is re-examined (a
+    failed one whose jitter reaches the input's end is told so: :func:`_input_end`)."""
     if status is not FitStatus.CONVERGED:
+        ended = _input_end(ctx, margin=_REACH_FAILED * ctx.data.T)
+        if ended is not None:
+            return status, f"{message}; the likely cause: {ended}"
         return status, message
     checks = (
+        _input_end_reached,
         _at_bound,
         _noise_at_floor,
         _unstable,
@@ -321,6 +356,36 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
         if out is not None:
             return out[0], f"{out[1]} (search: {message})"
     return status, message
+
+
+def _input_end(ctx: PostContext, margin: float) -> str | None:
+    """:func:`input_reach` at the estimate's jitter law (a family's at its estimate)."""
+    if ctx.data.u is None or not ctx.structure.uses_input:
+        return None
+    nj = _n_jitter(ctx.jitter)
+    try:
+        law = (
+            ctx.jitter.law(list(ctx.x[:nj])) if isinstance(ctx.jitter, JitterFamily) else ctx.jitter
+        )
+    except ValueError:
+        return None
+    delay = float(ctx.x[ctx.names.index("delay_s")]) if "delay_s" in ctx.names else 0.0
+    return input_reach(ctx.data, law, delay, margin)
+
+
+def _input_end_reached(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    """A jitter family's scale stopped where its reach meets the input's end: the search
+    could not widen the law further (the moments are not defined past the input), so the
+    estimate is at an artificial bound, not at the criterion's optimum."""
+    if not isinstance(ctx.jitter, JitterFamily):
+        return None
+    ended = _input_end(ctx, margin=_REACH_CONVERGED * ctx.data.T)
+    if ended is None:
+        return None
+    return FitStatus.AT_BOUND, (
+        f"the jitter's estimate stopped where its reach meets the end of the input: {ended}. "
+        "The estimate is held there by the input, not by the data"
+    )
 
 
 def _theta(ctx: PostContext) -> FloatArray:
