@@ -33,6 +33,7 @@ from scipy import optimize, stats
 from .._checks import count, real_array
 from ..data import SampledData
 from ..estimation.covariance import noise_variance_ml
+from ..estimation.estimators import as_estimator
 from ..estimation.result import FitResult
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter, known_law
 from ..moments.sample import sample_moments
@@ -358,7 +359,8 @@ def cross_check_jitter(result: FitResult, detection: JitterDetection) -> JitterC
     Parameters
     ----------
     result : FitResult
-        A jitter-aware fit (a jitter family or a known law).
+        A fit: jitter-aware (a jitter family or a known law), or one that ignores the
+        jitter (``ls``), which is ``"too small"`` wherever the test finds jitter.
     detection : JitterDetection
         :func:`detect_jitter` on the same data (from an ordinary fit).
 
@@ -401,7 +403,16 @@ def cross_check_jitter(result: FitResult, detection: JitterDetection) -> JitterC
     )
     verdict, message = "consistent", ""
     collapsed = std <= CROSS_COLLAPSE * T
-    if p < CROSS_DETECTED_P and (collapsed or std + 2 * se_ok < lo / CROSS_FACTOR):
+    if as_estimator(result.method).ignores_jitter:  # ls: it assumes no jitter, whatever given
+        if p < CROSS_DETECTED_P:
+            verdict = "too small"
+            message = (
+                f"method {result.method!r} ignores the jitter (it fits as if there were none), "
+                f"while {found}: its estimates are biased (the gain is seen as |G| |phi(f)|, low "
+                "at high frequencies); fit with --method bcls, asml, gaussian or ml and a "
+                "--jitter law or family"
+            )
+    elif p < CROSS_DETECTED_P and (collapsed or std + 2 * se_ok < lo / CROSS_FACTOR):
         verdict = "too small"
         head = (
             f"the {what} jitter std is {std:.3g} s"

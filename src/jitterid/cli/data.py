@@ -699,7 +699,7 @@ def fit(
             skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level)
         )
         xc = None
-        if det is not None and method != "ls":
+        if det is not None:  # for ls too: it assumes no jitter, which the test may contradict
             xc = _diagnostic(skipped, "jitter cross-check", lambda: cross_check_jitter(res, det))
         checks: list[Any] = []
         z = _diagnostic(skipped, "residual checks", lambda: standardized_residuals(ds.data, res))

@@ -49,6 +49,10 @@ answer cannot be trusted gets its own non-success
   makes the model's output zero. It is also what a non-finite covariance reports when the
   fit explains nothing (the other parameters then have no information by construction).
 
+* ``OVER_ORDER``: a pole and a zero that cancel, or a pole or zero not told from infinity
+  (:func:`over_order_symptom`, the test :func:`jitterid.select_order` applies to its rows):
+  the model has more poles or zeros than the data support.
+
 A covariance that was asked for (``PostContext.cov_requested``) and is NaN throughout is a
 singular information matrix (``UNIDENTIFIABLE``), never "not computed": NaN standard errors
 are never next to ``CONVERGED`` unless ``cov_type="none"`` asked for none.
@@ -75,6 +79,7 @@ from .result import FitStatus
 __all__: list[str] = []
 
 FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
 
 #: samples needed: at least MIN_SAMPLES_PER_PARAM * P + MIN_SAMPLES_EXTRA
 MIN_SAMPLES_PER_PARAM = 2
@@ -91,6 +96,15 @@ MAX_CONDITION = 1e10
 #: with a known noise std does not explain the data
 LACK_OF_FIT_RATIO = 3.0
 LACK_OF_FIT_P = 1e-6
+#: a pole and a zero closer than this fraction of |p| cancel (a 5 % pair moves the gain by
+#: about 5 % |p| / |Re p|: far below what a model order is for)
+CANCEL_REL = 0.05
+#: a separation |p - z| (or a reciprocal 1/p, 1/z) within this many standard errors of zero
+#: is not distinguished from a cancellation (about 95 % two-sided)
+CANCEL_SE = 2.0
+#: a pole or zero with |p| T above this decays (or acts) within T / 1000 of an input switch:
+#: the samples cannot tell it from a gain, i.e. from one at infinity
+FAST_POLE = 1e3
 #: a rate bound (rad/s) this many times above 1/(N T) is above every rate the record shows
 _FLOOR_RESOLVED = 100.0
 #: a fitted jitter reach within this many T of the input's end was stopped by it (a
@@ -349,6 +363,7 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
         _unidentifiable,
         _local_optimum,
         _not_significant,
+        _over_order,
         _lack_of_fit,
     )
     for check in checks:
@@ -561,6 +576,24 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     return None
 
 
+def _over_order(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    """The over-order symptom of :func:`over_order_symptom` (the test of
+    :func:`jitterid.select_order`'s rows) on a single fit: the system block of the estimate
+    and of its covariance (the scaling of the search moves no pole or zero)."""
+    if not (ctx.structure.param_names and isinstance(ctx.structure, ModelStructure)):
+        return None
+    nj = _n_jitter(ctx.jitter)
+    block = slice(nj, nj + len(ctx.structure.param_names))
+    cov = np.asarray(ctx.cov, float)[block, block]
+    symptom = over_order_symptom(ctx.structure, _theta(ctx), cov, ctx.data.T)
+    if not symptom:
+        return None
+    return FitStatus.OVER_ORDER, (
+        f"over-order model: {symptom}; use a lower order (fewer poles and zeros), or compare "
+        "orders with select_order (jitterid fit with --model repeated)"
+    )
+
+
 def _structure_starts(ctx: PostContext) -> list[tuple[FloatArray, str]]:
     """The estimate with its system parameters replaced by each of the structure's default
     starts (``structure.initial_points(data)``: ``starts(T)`` of an LTI structure), inside
@@ -710,3 +743,109 @@ def _lack_of_fit(ctx: PostContext) -> tuple[FitStatus, str] | None:
         "Try other starts (for a sinusoid, a frequency within 1/(N T) of the periodogram's "
         "peak), another structure or jitter law, or check noise_std and the data's units"
     )
+
+
+# ------------------------------------------------------------------------ over-order
+
+
+def _root_gradients(coef: FloatArray, dcoef: FloatArray) -> tuple[ComplexArray, ComplexArray]:
+    """Roots r_j of the polynomial ``coef`` (highest power first) and dr_j/dtheta, shape
+    (roots, P), from dr/dc_i = -r^(d - i) / c'(r) (a simple root)."""
+    d = coef.size - 1
+    if d < 1:
+        return np.zeros(0, complex), np.zeros((0, dcoef.shape[0]), complex)
+    roots = np.roots(coef).astype(complex)
+    with np.errstate(all="ignore"):
+        deriv = np.polyval(np.polyder(coef), roots)
+        powers = roots[:, None] ** np.arange(d, -1, -1)[None, :]  # (roots, d + 1)
+        dr_dc = -powers / deriv[:, None]
+        grad = dr_dc @ dcoef[:, -coef.size :].T  # (roots, P)
+    return roots, np.asarray(grad, dtype=complex)
+
+
+def _se_abs(v: complex, g: ComplexArray, cov: FloatArray) -> float:
+    """Delta-method standard error of |v| given dv/dtheta = g and Cov theta."""
+    if v == 0 or not np.all(np.isfinite(g)):
+        return float("nan")
+    gr = np.real(np.conj(v) / abs(v) * g)
+    var = float(gr @ cov @ gr)
+    return math.sqrt(var) if math.isfinite(var) and var >= 0 else float("nan")
+
+
+def over_order_symptom(
+    structure: ModelStructure, theta: FloatArray, cov: FloatArray, T: float
+) -> str:
+    """The over-order symptom of an LTI model at ``theta`` with covariance ``cov`` (of the
+    system parameters), or "": a pole and a zero that cancel (|p - z| at most
+    :data:`CANCEL_REL` |p|, or within :data:`CANCEL_SE` standard errors of |p - z|), or a pole
+    or zero indistinguishable from infinity (its reciprocal within :data:`CANCEL_SE`
+    standard errors of 0, or |p| T above :data:`FAST_POLE`). The standard errors come by the
+    delta method through the roots' sensitivities dr/dc = -r^(d - i) / c'(r). The one
+    predicate of :func:`jitterid.select_order` (its rows) and of every fit (``OVER_ORDER``).
+    """
+    if not structure.param_names:
+        return ""
+    theta = np.asarray(theta, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    try:
+        tf = structure.system(theta)
+    except (ValueError, ArithmeticError):
+        return ""
+    n = tf.den.size
+    try:
+        dnum, dden = structure.coefficient_derivatives(theta, n)
+        poles, gp = _root_gradients(np.asarray(tf.den, float), dden)
+        zeros, gz = _root_gradients(np.asarray(tf.num, float), dnum)
+    except (ValueError, ArithmeticError):
+        return ""
+    if not np.all(np.isfinite(cov)):
+        cov = np.full_like(cov, np.nan)
+    found: list[tuple[float, str]] = []  # (how far inside the threshold: smaller is worse, text)
+    for j, p in enumerate(poles):
+        for k, z in enumerate(zeros):
+            d = complex(p - z)
+            se = _se_abs(d, gp[j] - gz[k], cov)
+            limit = max(CANCEL_REL * abs(p), CANCEL_SE * se if math.isfinite(se) else 0.0)
+            if abs(d) <= limit:
+                why = (
+                    f"{abs(d) / se:.2g} standard errors"
+                    if math.isfinite(se) and se > 0
+                    else "no standard error"
+                )
+                if abs(d) <= CANCEL_REL * abs(p):
+                    rel = abs(d) / max(abs(p), 1e-300)
+                    how = f"cancel (|p - z| = {abs(d):.3g} rad/s, {rel:.2g} |p|)"
+                else:  # far apart, but not told apart by the data
+                    how = f"are not told apart (|p - z| = {abs(d):.3g} rad/s is {why})"
+                text = f"pole {_c(p)} and zero {_c(z)} rad/s {how}"
+                found.append((abs(d) / limit if limit > 0 else 0.0, text))
+    for what, roots, grads in (("pole", poles, gp), ("zero", zeros, gz)):
+        for r, g in zip(roots, grads, strict=True):
+            if r == 0:
+                continue
+            inv = 1.0 / complex(r)
+            se = _se_abs(inv, -g / complex(r) ** 2, cov)
+            if abs(r) * T > FAST_POLE:
+                text = (
+                    f"{what} {_c(r)} rad/s acts within T/{abs(r) * T:.3g} (|{what[0]}| T > "
+                    f"{FAST_POLE:g}): the samples cannot tell it from one at infinity"
+                )
+                found.append((0.0, text))
+            elif math.isfinite(se) and abs(inv) <= CANCEL_SE * se:
+                text = (
+                    f"{what} {_c(r)} rad/s is not distinguished from infinity (1/|{what[0]}| = "
+                    f"{abs(inv):.3g} s, {abs(inv) / se:.2g} standard errors from 0)"
+                )
+                found.append((abs(inv) / (CANCEL_SE * se), text))
+    if not found:
+        return ""
+    found.sort(key=lambda item: item[0])
+    more = f" (and {len(found) - 1} more)" if len(found) > 1 else ""
+    return found[0][1] + more
+
+
+def _c(z: complex) -> str:
+    z = complex(z)
+    if abs(z.imag) <= 1e-12 * max(abs(z.real), 1e-300):
+        return f"{z.real:.4g}"
+    return f"{z.real:.4g}{z.imag:+.4g}i"

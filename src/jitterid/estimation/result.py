@@ -84,6 +84,11 @@ class FitStatus(enum.Enum):
         "failed: the residuals are far larger than the model (jitter and the known noise) "
         "allows (see message); try other starts, another structure, or check noise_std"
     )
+    OVER_ORDER = (
+        "failed: the model has more poles or zeros than the data support (a pole and a zero "
+        "that cancel, or one not told from infinity; see message); use a lower order, or "
+        "compare orders with select_order"
+    )
 
     @property
     def success(self) -> bool:
@@ -240,6 +245,20 @@ class FitResult:
             "FitResult.jitter is deprecated; use FitResult.jitter_law", DeprecationWarning, 2
         )
         return self.jitter_law
+
+    @property
+    def ignored_jitter(self) -> str:
+        """Why the jitter law given was not used, or ``""``: a method that ignores the jitter
+        (``ls``) fits as if there were none, whatever law it was given, so its estimates carry
+        the bias that law causes (the gain seen as |G| |phi(f)|)."""
+        given = self.jitter_model
+        if isinstance(given, JitterLaw) and given.std > 0 and self.jitter_law.std == 0:
+            return (
+                f"method {self.method!r} ignores the jitter law given, {given!r}: it fits as if "
+                "there were no jitter, so its estimates carry the bias that law causes (the "
+                "gain is seen as |G| |phi(f)|); use bcls, asml, gaussian or ml to account for it"
+            )
+        return ""
 
     @property
     def jitter_std(self) -> float:
@@ -556,6 +575,9 @@ class FitResult:
         else:
             sd = f"std {self.jitter_std:.4g}, known"
         lines.append(f"  jitter law {self.jitter_law}  ({sd})")
+        ignored = self.ignored_jitter
+        if ignored:
+            lines.append(f"  note: {ignored}")
         fixed = getattr(self.structure, "fixed", None)
         if fixed:  # a Constrained structure: values held, not estimated
             lines.append(
