@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._checks import positive, real_array, sampling_interval
+from ._repr import brief
 from .inputs import Input
 
 __all__ = ["SampledData"]
@@ -83,6 +84,17 @@ class SampledData:
         y.setflags(write=False)
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "T", T)
+
+    def __repr__(self) -> str:
+        parts = [f"y={brief(self.y)}", f"T={self.T!r}"]
+        if self.u is not None:
+            parts.append(f"u={self.u!r}")
+        for name in ("noise_std", "resolution"):
+            if getattr(self, name) is not None:
+                parts.append(f"{name}={getattr(self, name)!r}")
+        if self.instants is not None:
+            parts.append(f"instants={brief(self.instants)}")
+        return f"SampledData({', '.join(parts)})"
 
     @property
     def N(self) -> int:

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._checks import finite, generator, positive, real_array, sampling_interval
+from ._repr import brief
 
 __all__ = [
     "Input",
@@ -174,6 +175,9 @@ class PiecewiseConstant(Input):
         object.__setattr__(self, "start", float(times[0]))
         object.__setattr__(self, "end", float(times[-1]))
 
+    def __repr__(self) -> str:
+        return f"PiecewiseConstant(times={brief(self.times)}, levels={brief(self.levels)})"
+
     @property
     def breaks(self) -> FloatArray:
         """Times where u jumps (the start and every switch), where the output is not smooth."""
@@ -305,6 +309,13 @@ class Multisine(Input):
             object.__setattr__(self, name, val)
         object.__setattr__(self, "end", end)
         object.__setattr__(self, "start", start)
+
+    def __repr__(self) -> str:
+        return (
+            f"Multisine(freqs={brief(self.freqs)}, amplitudes={brief(self.amplitudes)}, "
+            f"end={self.end!r}, phases={brief(self.phases)}, start={self.start!r}, "
+            f"steady_state={self.steady_state!r})"
+        )
 
     @property
     def breaks(self) -> FloatArray:
