@@ -11,7 +11,7 @@ __all__: list[str] = []
 FULL = 6
 
 
-def brief(a: ArrayLike) -> str:
+def brief(a: ArrayLike | None) -> str:
     """``[1.0, 2.0]`` for a short array; ``array(N values in [lo, hi])`` for a long one."""
     arr = np.asarray(a)
     if arr.size <= FULL:
