@@ -192,7 +192,7 @@ def _command(words: list[str], runs: int, out: Path) -> str:
     return " ".join(["jitterid", *words, "--runs", str(runs), "--out", str(out)])
 
 
-@main.command()
+@main.command(short_help="Reproduce the paper's Tables 1-3 and Figures 1-5 (TARGET, or 'all').")
 @click.argument("target", type=click.Choice(TARGETS))
 @_common
 @click.option(
@@ -309,7 +309,7 @@ def _write_figure_index(out: Path) -> None:
     atomic_write(out / "figures.md", lambda fh: fh.write(text))
 
 
-@main.command()
+@main.command(short_help="Run the Monte Carlo study defined in EXPERIMENT (a TOML file).")
 @click.argument("experiment", type=click.Path(dir_okay=False, path_type=Path))
 @_common
 def run(
