@@ -147,6 +147,8 @@ _ORDER_TABLE = np.array(
 )
 _SCORE_STEP = 1e-7  # relative forward step of the differenced scores (finite_diff.forward)
 _FISHER_STEP = 1e-4  # relative central step of (L3) (finite_diff.central_pair)
+_DENSE = 96  # nodes of a sample up to which (L3)'s y-grid sums every node (_log_mixture)
+_BAND = 10.0  # ... beyond, the nodes this many noise std's farther than the nearest
 FISHER_SCALE_STEP = 0.05  # ... or at most this fraction of a parameter's natural scale
 
 
@@ -1644,14 +1646,44 @@ class ExactLikelihood(CachesAreNotState):
                 logs = []
                 for nd, s, sv in per_variant:
                     a, b = _segment(nd, k)
-                    z = nd.logw[a:b] - 0.5 * ((grid[:, None] - s[a:b]) / sv) ** 2
-                    top = np.max(z, axis=1)
-                    lse = top + np.log(np.sum(np.exp(z - top[:, None]), axis=1))
-                    logs.append(lse - np.log(sv) - _LOG_SQRT_2PI)
+                    logs.append(_log_mixture(grid, s[a:b], nd.logw[a:b], sv))
                 L = np.array(logs)
                 g = (L[1::2] - L[2::2]) / steps[:, None]
                 info += (g * (np.exp(L[0]) * dy)) @ g.T
         return 0.5 * (info + info.T)
+
+
+def _log_mixture(grid: FloatArray, s: FloatArray, logw: FloatArray, sigma: float) -> FloatArray:
+    """ln sum_j exp(logw_j) N(y; s_j, sigma^2) at every y of ``grid``: the density of (L1) of
+    one sample on the Fisher information's y-grid.
+
+    Summed over every node where a sample has few (``_DENSE``); otherwise over the nodes
+    within sqrt(d^2 + ``_BAND``^2) noise std's of each y, d that of the nearest node: a node
+    left out adds less than exp(-_BAND^2 / 2) = 2e-22 of the nearest one's term. Both the
+    grid and the nodes grow like the signal's range over the noise std, so the full sum costs
+    their product, (range / sigma)^2 per sample: a steep sine in small noise (issue 25).
+    """
+    if s.size <= _DENSE:
+        z = logw - 0.5 * ((grid[:, None] - s) / sigma) ** 2
+    else:
+        keep = logw > -np.inf
+        order = np.argsort(s[keep])
+        s, logw = s[keep][order], logw[keep][order]
+        # the nodes within sqrt(d^2 + _BAND^2) noise std's of y, d that of the nearest one
+        at = np.searchsorted(s, grid)
+        near = np.minimum(
+            np.abs(grid - s[np.maximum(at - 1, 0)]), np.abs(grid - s[np.minimum(at, s.size - 1)])
+        )
+        reach = np.sqrt(near**2 + (_BAND * sigma) ** 2)
+        lo = np.searchsorted(s, grid - reach, side="left")
+        hi = np.searchsorted(s, grid + reach, side="right")
+        idx = lo[:, None] + np.arange(int(np.max(hi - lo)))[None, :]
+        inside = idx < hi[:, None]
+        idx = np.minimum(idx, s.size - 1)
+        z = np.where(inside, logw[idx] - 0.5 * ((grid[:, None] - s[idx]) / sigma) ** 2, -np.inf)
+    top = np.max(z, axis=1)
+    lse = top + np.log(np.sum(np.exp(z - top[:, None]), axis=1))
+    return np.asarray(lse - np.log(sigma) - _LOG_SQRT_2PI, dtype=float)
 
 
 def _positive_definite(M: FloatArray) -> bool:
