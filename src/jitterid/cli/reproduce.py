@@ -21,7 +21,13 @@ from ..experiments import (
 from ..experiments.bj import spectra_figure
 from ..experiments.loader import MAX_RUNS
 from ..experiments.report import markdown_report, nothing_converged
-from ..experiments.runner import dask_client, default_workers, run_experiment, store_path
+from ..experiments.runner import (
+    dask_client,
+    default_workers,
+    local_workers,
+    run_experiment,
+    store_path,
+)
 from ..experiments.store import Store, StoreError
 from ..io import atomic_write
 from . import main
@@ -131,7 +137,11 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
         store.close()
         raise click.ClickException(str(exc)) from None
     rate = summary.new / summary.wall_s if summary.wall_s > 0 else 0.0
-    where = f"Dask scheduler {opt.scheduler}" if opt.scheduler else f"{opt.workers} worker(s)"
+    where = (
+        f"Dask scheduler {opt.scheduler}"
+        if opt.scheduler
+        else f"{local_workers(opt.workers, summary.new)} worker(s)"
+    )
     note = (
         f"{summary.new} new realizations in {summary.wall_s:.1f} s on {where}; "
         f"{summary.already_done} were already stored"
