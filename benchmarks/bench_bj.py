@@ -2,11 +2,11 @@
 
 The time-domain criterion (y - m)^T Sigma_y^{-1} (y - m) + ln det Sigma_y with Sigma_y =
 diag(Var s_k + sigma_w^2) + Toeplitz(gamma) is evaluated through the AR whitening and a banded
-Cholesky factor (:mod:`jitterid.noise.covariance`, (C4)): O(N (n + M0)^2). Printed per N: one full
-criterion evaluation (moments of Lemmas 1-2, jittered noise covariance, banded factor, solve),
-the Sigma_y part alone, and a dense O(N^3) Cholesky of the same Sigma_y for comparison (up to
-N = 4000), then the log-log slope of the criterion's time against N, and the wall time of one
-BJ fit on the paper's Table 2 setting with coloured noise.
+Cholesky factor (:mod:`jitterid.moments.noise_covariance`, (C4)): O(N (n + M0)^2). Printed per
+N: one full criterion evaluation (moments of Lemmas 1-2, jittered noise covariance, banded
+factor, solve), the Sigma_y part alone, and a dense O(N^3) Cholesky of the same Sigma_y for
+comparison (up to N = 4000), then the log-log slope of the criterion's time against N, and
+the wall time of one BJ fit on the paper's Table 2 setting with coloured noise.
 
     python benchmarks/bench_bj.py [--sizes 200 1000 5000 20000] [--repeats 5]
 

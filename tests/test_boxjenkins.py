@@ -34,7 +34,7 @@ from jitterid.experiments import ExperimentError, load_experiment, packaged_path
 from jitterid.experiments.bj import spectra_figure
 from jitterid.experiments.report import markdown_report
 from jitterid.experiments.runner import realize, seed_streams
-from jitterid.noise.covariance import autocovariance_derivatives
+from jitterid.moments.noise_covariance import autocovariance_derivatives
 
 T, N = 1.0, 200
 TRUTH = np.array([6.25, -1.5, 2.0])
@@ -60,7 +60,7 @@ def data_with(noise_model, seed, *, white=0.01, law=None, n=N):
 
 def test_autocovariance_and_spectrum_follow_from_the_impulse_response():
     """(N1): r_v(t) = lambda int_0^inf h(s) h(s + t) ds, and (N2): int S_v df = r_v(0)."""
-    _, r, p = RESONANT.tf._modal
+    _, r, p = RESONANT.tf.modal
 
     def h(s):
         return float(np.real(np.sum(r * np.exp(p * s))))

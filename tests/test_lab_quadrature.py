@@ -93,7 +93,7 @@ def test_a_gaussian_plan_serves_every_sigma_of_its_band():
     tf = structure.system(theta)
     tab = _modal.tables(tf, u)
     dtab = _modal.derivative_tables(tf, u, _modal.modal_sensitivity(structure, theta, tf))
-    p = tf._modal[2]
+    p = tf.modal.poles
     _modal.clear_plans()
     first = _modal.cached_plan(ji.Gaussian(0.0801), T, n, u, 1.5, p)
     _modal.modal_moments(first, tab)  # builds and keeps the nodes
@@ -121,7 +121,7 @@ def test_a_fast_damped_pole_is_graded_after_switches_not_everywhere():
     n = 40
     u = _lab_input(n)
     fast = ji.TransferFunction([1.0, 2.0], np.polymul([1.0, 3.0, 4.0, 2.0], [1 / 4e5, 1.0]))
-    plan = _modal.SegmentPlan(law, T, n, u, 4e5, poles=fast._modal[2])
+    plan = _modal.SegmentPlan(law, T, n, u, 4e5, poles=fast.modal.poles)
     nodes = sum(pc.nodes for pc in plan.chunks(False))
     assert nodes / n < 400  # uniform panels of 1 / |p| would need 2.7e6 per sample
     mom = sample_moments(fast.response(u), law, T, n)
@@ -138,7 +138,7 @@ def test_a_moderately_fast_pole_graded_matches_uniform_short_panels():
     n = 30
     u = _lab_input(n)
     sys_ = ji.TransferFunction([400.0], np.polymul([1.0, 2.0], [1.0, 400.0]))  # poles -2, -400
-    assert panel_layout(law, sys_._modal[2]).grade.size > 0
+    assert panel_layout(law, sys_.modal.poles).grade.size > 0
     resp = sys_.response(u)
     mom = sample_moments(resp, law, T, n)
     mean, var = np.empty(n), np.empty(n)  # the old rule: every panel <= 1 / 400

@@ -139,7 +139,7 @@ def test_steady_state_values_agree_with_the_modal_formula():
     """s(t) as a sum of tones equals the modal (partial-fraction) formula."""
     tf = ji.TransferFunction([1.0, 6.25], [1.0, 3.0, 6.25])
     sig = tf.response(U)
-    d, r, p = tf._modal
+    d, r, p = tf.modal
     ref = sig._multisine(T_EVAL, d, r, p)
     np.testing.assert_allclose(sig(T_EVAL), ref, atol=1e-13)
 
@@ -257,7 +257,7 @@ def test_responses_to_one_input_share_their_bases():
         b(t),
         ji.TransferFunction([3.0], [1.0, 0.5])
         .response(u)
-        ._multisine(t, *ji.TransferFunction([3.0], [1.0, 0.5])._modal),
+        ._multisine(t, *ji.TransferFunction([3.0], [1.0, 0.5]).modal),
         atol=1e-13,
     )
     w = 2 * np.pi * np.array([0.05, 0.31])

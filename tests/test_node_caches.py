@@ -61,7 +61,7 @@ def test_table_sums_equal_the_counts_product() -> None:
     """The per-piece table sums equal the sparse counts-times-tables product they replace."""
     u = ji.telegraph_input(220.0, rng=3)
     G = ji.TransferFunction([1.0, 3.0], [1.0, 0.8, 4.0])
-    plan = SegmentPlan(SumOfUniforms(6.4, 0.45), 1.0, 200, u, 2.0, poles=G._modal[2])
+    plan = SegmentPlan(SumOfUniforms(6.4, 0.45), 1.0, 200, u, 2.0, poles=G.modal.poles)
     tab = tables(G, u)
     for pc in plan.chunks():
         tabs = [_PoleTable.make(complex(p), pc.std, True) for p in tab.p]

@@ -13,6 +13,8 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
+from .estimation.hooks import register_loader
+
 __version__ = "0.1.0"
 
 #: Every public name and the module that defines it. They are imported on first use (PEP 562),
@@ -88,6 +90,12 @@ _EXPORTS: dict[str, str] = {
     "JitterMeasurement": ".metrology.meter",
     "alias_likelihoods": ".metrology.meter",
     "measure_jitter": ".metrology.meter",
+    "JitteredAutocovariance": ".moments.noise_covariance",
+    "SampleCovariance": ".moments.noise_covariance",
+    "coloured_dft_covariance": ".moments.noise_covariance",
+    "coloured_dft_pseudo_covariance": ".moments.noise_covariance",
+    "jittered_autocovariance": ".moments.noise_covariance",
+    "sample_covariance": ".moments.noise_covariance",
     "dirichlet": ".moments.reference",
     "dtft": ".moments.reference",
     "SampleMoments": ".moments.sample",
@@ -95,12 +103,6 @@ _EXPORTS: dict[str, str] = {
     "dft_pseudo_covariance": ".moments.sample",
     "expected_dft": ".moments.sample",
     "sample_moments": ".moments.sample",
-    "JitteredAutocovariance": ".noise.covariance",
-    "SampleCovariance": ".noise.covariance",
-    "coloured_dft_covariance": ".noise.covariance",
-    "coloured_dft_pseudo_covariance": ".noise.covariance",
-    "jittered_autocovariance": ".noise.covariance",
-    "sample_covariance": ".noise.covariance",
     "KnownNoise": ".noise.models",
     "NoiseModel": ".noise.models",
     "NoiseStructure": ".noise.models",
@@ -290,6 +292,10 @@ class _Package(types.ModuleType):
 
 sys.modules[__name__].__class__ = _Package
 
+# The analysis functions a fit reaches (estimation.hooks) are registered by jitterid.analysis
+# when it is imported: the registry imports it at its first lookup, not `import jitterid`.
+register_loader(lambda: importlib.import_module(".analysis", __name__))
+
 
 if TYPE_CHECKING:
     from .analysis.diagnostics import (
@@ -346,6 +352,14 @@ if TYPE_CHECKING:
         GeneralizedNormalFamily,
     )
     from .metrology.meter import JitterMeasurement, alias_likelihoods, measure_jitter
+    from .moments.noise_covariance import (
+        JitteredAutocovariance,
+        SampleCovariance,
+        coloured_dft_covariance,
+        coloured_dft_pseudo_covariance,
+        jittered_autocovariance,
+        sample_covariance,
+    )
     from .moments.reference import dirichlet, dtft
     from .moments.sample import (
         SampleMoments,
@@ -353,14 +367,6 @@ if TYPE_CHECKING:
         dft_pseudo_covariance,
         expected_dft,
         sample_moments,
-    )
-    from .noise.covariance import (
-        JitteredAutocovariance,
-        SampleCovariance,
-        coloured_dft_covariance,
-        coloured_dft_pseudo_covariance,
-        jittered_autocovariance,
-        sample_covariance,
     )
     from .noise.models import KnownNoise, NoiseModel, NoiseStructure, RationalNoise
     from .params import ParamLayout

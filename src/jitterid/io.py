@@ -13,6 +13,9 @@ A **data file** has one row per sample, taken on a regular *nominal* grid, and t
             sample, so that jittered instants past the grid see it)
 ==========  ===============================================================================
 
+A file of samples only (a ``y`` column, no ``k`` or ``t``: a sine record for the jitter
+meter) is read as the samples k = 0, 1, ... when T is given (``# T:`` or ``T=``).
+
 An **input file** (when the data file has no ``u`` column) has either the columns ``k`` or
 ``t`` and ``u`` (a zero-order hold on the data's grid; it may start earlier and end later)
 or the columns ``time`` and ``level`` (switch times: ``level[j]`` is held from ``time[j]``
@@ -64,8 +67,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._checks import nesting_depth
+from .data import SampledData
 from .inputs import Input, PiecewiseConstant
-from .simulate import SampledData
 
 __all__ = [
     "DataFileError",
@@ -400,6 +403,12 @@ def _read_csv(path: Path) -> _Table:
             "comma-separated (e.g. 't,y')"
         )
     _check_header(path, header, header_line)
+    if all(_DECIMAL.fullmatch(c) for c in header):
+        raise DataFileError(
+            f"{path}: line {header_line} holds numbers, not column names; the first non-comment "
+            "line must name the columns: add a header line 'y' (a sine record, with a "
+            "'# T: <interval>' line or T given when loading) or 'k,y' / 't,y'"
+        )
     if not rows:
         raise DataFileError(f"{path}: the file has a header but no data rows")
     values = np.empty((len(rows), len(header)))
@@ -773,7 +782,9 @@ def load(
     require_input : bool
         False for a signal record with no input (a sine for :func:`jitterid.measure_jitter`):
         a data file without a ``u`` column and no input file then loads with ``data.u``
-        None. True (the default) refuses it, since a system fit needs the input.
+        None. True (the default) refuses it, since a system fit needs the input. A file
+        holding only a ``y`` column (no ``k`` or ``t``) is read as the samples k = 0, 1,
+        ... when T is known (``T=`` or a ``# T:`` line).
     hold_input : bool
         Hold the input file's last value after its end, for the jitter's tail (as a DAC
         does, and as a ``u`` column always is): an input file with one value per sample ends
@@ -828,12 +839,24 @@ def load(
         if meta_T is not None and abs(meta_T - T) > 1e-9 * T:
             raise tab.fail(f"T = {T:g} was given but the metadata say T = {meta_T:g}; keep one")
     T_file = T if T is not None else meta_T
+    notes: list[str] = []
+    if "k" not in tab.columns and "t" not in tab.columns:
+        # a record of samples only (e.g. a sine for the jitter meter): the rows are the
+        # samples k = 0, 1, ..., which needs T
+        if T_file is None:
+            raise tab.fail(
+                f"has no nominal index 'k' or time 't' column (found {list(tab.columns)}); a "
+                "file of samples only needs the sampling interval: give T (load(path, T=...), "
+                "--T on the command line) or a '# T: <interval>' line, or add a 'k' or 't' "
+                "column"
+            )
+        tab.columns["k"] = np.arange(tab.nrows, dtype=float)
+        notes.append("no 'k' or 't' column: the rows are the samples k = 0, 1, ... at T")
     t0, T_s = _grid(tab, T_file, unit)
     n = tab.nrows
     if n < 4:
         raise tab.fail(f"has {n} sample(s); at least 4 are needed")
     sources = [Source("data", str(tab.path), _sha256(tab.path))]
-    notes: list[str] = []
     if "u" in tab.columns:
         if input is not None:
             raise DataFileError(
@@ -857,7 +880,9 @@ def load(
     elif input is None:
         raise tab.fail(
             "has no input column 'u' and no input file was given; give the input file "
-            "(--input INPUT) or add a 'u' column (the input held on the same grid)"
+            "(--input INPUT) or add a 'u' column (the input held on the same grid). A signal "
+            "record with no input (a sine for the jitter meter) loads with "
+            "load(path, require_input=False), or measure it with `jitterid jitter DATA`"
         )
     else:
         u, itab = _input(input, t0, T_s, n, unit)

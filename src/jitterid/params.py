@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["BLOCKS", "ParamLayout", "did_you_mean"]
+__all__ = ["BLOCKS", "ParamLayout", "count_params", "did_you_mean"]
 
 FloatArray = NDArray[np.float64]
 Bounds = tuple[tuple[float, float], ...]
@@ -63,6 +63,9 @@ class ParamLayout:
     bounds: Bounds = ()
 
     def __post_init__(self) -> None:
+        for name in ("jitter", "system", "noise"):  # tuples (e.g. after a JSON round trip)
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        object.__setattr__(self, "bounds", tuple(tuple(map(float, b)) for b in self.bounds))
         if len(self.bounds) != len(self.names):
             raise ValueError(
                 f"bounds must hold one (low, high) pair per parameter {self.names}; "
@@ -156,6 +159,22 @@ class ParamLayout:
         """
         return np.asarray(x, float)[self.slice(block)]
 
+    def replace(self, x: Any, block: str, values: Any) -> FloatArray:
+        """A copy of ``x`` (a vector in layout order) with ``block`` set to ``values``.
+
+        Parameters
+        ----------
+        x : array_like
+            A vector in layout order.
+        block : str
+            One of :data:`BLOCKS`.
+        values : array_like
+            The block's new values.
+        """
+        out = np.array(x, dtype=float)
+        out[self.slice(block)] = np.asarray(values, dtype=float)
+        return out
+
     def lower_upper(self) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bounds as two arrays."""
         b = np.array(self.bounds, dtype=float).reshape(-1, 2)
@@ -222,6 +241,25 @@ class ParamLayout:
         if not np.all(np.isfinite(out)):
             raise ValueError(f"{name} must be finite; got {out.tolist()}")
         return out
+
+
+def count_params(part: Any) -> int:
+    """The number of parameters ``part`` (a jitter family, a structure, a noise structure;
+    a known law, a known system or None: 0) adds to a layout, as :meth:`ParamLayout.build`
+    counts them.
+
+    Parameters
+    ----------
+    part : object
+        A part of a problem.
+
+    Examples
+    --------
+    >>> import jitterid as ji
+    >>> count_params(ji.SumOfUniformsFamily()), count_params(ji.Uniform(0.5))
+    (2, 0)
+    """
+    return len(getattr(part, "param_names", ()) or ())
 
 
 def did_you_mean(name: str, names: Sequence[str]) -> str:

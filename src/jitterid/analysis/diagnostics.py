@@ -35,7 +35,7 @@ from ..data import SampledData
 from ..estimation.covariance import noise_variance_ml
 from ..estimation.estimators import as_estimator
 from ..estimation.result import FitResult
-from ..jitter.laws import JitterFamily, JitterLaw, NoJitter, known_law
+from ..jitter.laws import JitterFamily, JitterLaw, known_law
 from ..moments.sample import sample_moments
 from ..systems.tf import TransferFunction
 
@@ -732,7 +732,7 @@ def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
     """
     tol = _level(tol)
     jitter = known_law(jitter)
-    if isinstance(jitter, NoJitter) or jitter.std == 0:
+    if jitter.std == 0:  # a point mass (NoJitter, or a law shifted from it)
         return float("inf")
     # |phi| ~ 1 - 2 pi^2 sigma^2 f^2 near 0: bracket around that guess, then refine.
     guess = np.sqrt(2 * tol) / (2 * np.pi * jitter.std)

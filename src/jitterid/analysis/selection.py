@@ -64,6 +64,7 @@ from ..estimation.fit import fit
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.sample import sample_moments
+from ..params import count_params
 from ..systems.model import Model
 from ..systems.structures import Delayed, KnownSystem, ModelStructure, PolePairGain, RationalModel
 from ..systems.tf import TransferFunction
@@ -634,7 +635,7 @@ def _fit_row(
             error = ""
     _warned(notes, "the fit", caught)
     if res is None:
-        n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+        n_jit = count_params(jitter)
         k = n_jit + len(structure.param_names)
         return OrderRow(lab, structure, k, None, error=error, notes=tuple(notes)), False
     loglik, counted = float("nan"), False
@@ -854,7 +855,7 @@ def select_order(
     noise_known = fit_kwargs.get("noise_std")
     if noise_known is None:
         noise_known = data.noise_std
-    exact = est.name == "ml"
+    exact = est.exact_likelihood
     rows: list[OrderRow] = []
     counted: list[bool] = []
     for lab, s in zip(_labels(structures), structures, strict=True):
@@ -867,7 +868,7 @@ def select_order(
     if noise_counted:
         rows = [_with_noise_counted(r, data.N) for r in rows]
     chosen, reason = _choose(rows, criterion)
-    tests = _tests(rows) if est.name in ("ml", "gaussian") else ()
+    tests = _tests(rows) if est.is_likelihood else ()
     return OrderSelection(
         rows=tuple(rows),
         chosen=chosen,

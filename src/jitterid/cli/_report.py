@@ -378,7 +378,9 @@ def _bode_fig(rep: FitReport, out: Path) -> dict[str, str]:
     fig = Figure(figsize=(6.4, 6.0), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
     band = bode_band(res, f, rep.level, structure=rep.structure)
-    refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": _tf(rep.ordinary)}
+    refs = (
+        {} if res.estimator.ignores_jitter else {"ordinary LS (jitter ignored)": _tf(rep.ordinary)}
+    )
     plot_bode(band, refs, label=f"{res.method} estimate", ax=axes)
     axes[0].set_title(f"Bode plot, {100 * rep.level:g}% delta-method band", fontsize="medium")
     _save(fig, out / "bode.png")
@@ -407,7 +409,9 @@ def _step_fig(rep: FitReport, out: Path) -> dict[str, str]:
         band = step_response(res, t, rep.level)
     fig = Figure(figsize=(6.4, 4.0), layout="constrained")
     ax = fig.subplots()
-    refs = {} if res.method == "ls" else {"ordinary LS (jitter ignored)": _tf(rep.ordinary)}
+    refs = (
+        {} if res.estimator.ignores_jitter else {"ordinary LS (jitter ignored)": _tf(rep.ordinary)}
+    )
     plot_step_response(band, refs, label=f"{res.method} estimate", ax=ax)
     ax.set_title(f"Step response, {100 * rep.level:g}% delta-method band", fontsize="medium")
     _save(fig, out / "step.png")

@@ -47,7 +47,7 @@ from ..io import TIME_UNITS, Dataset, atomic_write, load, parse_time, save_data,
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..simulate import simulate as simulate_data
 from ..systems.structures import ModelStructure
-from . import main
+from ._main import main
 from ._report import FitReport, write_outputs
 from ._specs import (
     JITTER_HELP,

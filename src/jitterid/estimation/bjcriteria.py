@@ -3,7 +3,7 @@
 y_k = s(kT + tau_k; theta) + v(kT + tau_k; eta) + w_k with coloured noise v (eq. (1c),
 :mod:`jitterid.noise.models`) and a white part w_k of std sigma_w (known, or estimated as
 ``noise_std``). The mean is Lemma 1's m_k as for OE; the covariance is Sigma_y of (C2)
-(:mod:`jitterid.noise.covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz
+(:mod:`jitterid.moments.noise_covariance`): the diagonal signal part of Lemma 2 plus the Toeplitz
 covariance of the jittered noise. :class:`BJProblem` gives a criterion what it reads
 (:class:`~jitterid.estimation.estimators.base.ColouredContext`): the moments, Sigma_y, the
 DTFT residual, R = E Sigma_y E^H and its Cholesky factor, and their derivatives. The criteria
@@ -27,7 +27,7 @@ noise parameters as *plug-in* values held fixed (``pinned``), with NaN standard 
 
 WBCLS weights: as for OE (:mod:`jitterid.estimation.problem`), R is frozen at ``weights_at``
 (the BCLS/GLS start with the plug-in noise model, then re-frozen once at the first WBCLS
-estimate, :func:`jitterid.estimation.boxjenkins.fit_bj`): the literal (20) with R(theta)
+estimate, :class:`jitterid.estimation.boxjenkins.BoxJenkinsRoute`): the literal (20) with R(theta)
 inside the search, having no ln det R, is minimised partly by inflating R and is biased.
 ``weights_at=None`` keeps the literal form, for comparison.
 
@@ -50,9 +50,7 @@ from threadpoolctl import threadpool_limits
 
 from .. import finite_diff
 from ..jitter.laws import JitterFamily, JitterLaw
-from ..moments.reference import dtft
-from ..moments.sample import SampleMoments
-from ..noise.covariance import (
+from ..moments.noise_covariance import (
     JitteredAutocovariance,
     SampleCovariance,
     autocovariance_derivatives,
@@ -60,6 +58,8 @@ from ..noise.covariance import (
     toeplitz_dft,
     toeplitz_dft_diagonal,
 )
+from ..moments.reference import dtft
+from ..moments.sample import SampleMoments
 from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
 from ..simulate import SampledData
@@ -69,6 +69,7 @@ from .covariance import _steps
 from .estimators import BCLS, Estimator, as_estimator
 from .jacobians import moment_derivatives
 from .problem import Problem, adjoint_dtft
+from .search import SearchOptions
 
 __all__ = ["BJProblem", "bj_covariance"]
 
@@ -76,6 +77,13 @@ FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
 PROBES = 16  # probe vectors of the trace term of the Fisher matrix (``objective_gradient``)
+
+
+# Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
+# the search stops: 1e-6 units of V moves the estimate by ~1e-3 standard errors.
+NEWTON_TOL = 1e-6
+STALL_TOL = 1e-3  # decrement below which "no step decreases V" is the rounding floor
+STALL_GAIN = 1e-4  # stop when the last accepted steps (search.STALL_WINDOW) gained less
 
 
 @dataclass(eq=False)
@@ -143,12 +151,29 @@ class BJProblem:
         self.bounds = lay.bounds
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
         self._oe = Problem(
-            self.data, self.structure, self.jitter, BCLS.name, self.freqs, None, with_variances=True
+            self.data, self.structure, self.jitter, BCLS(), self.freqs, None, with_variances=True
         )
+
+    # ------------------------------------------------------------------ for the search
+    def search_options(self, tol: float | None = None) -> SearchOptions:
+        """The Newton adapter's options: logs of unbounded rates and squares of noise stds
+        (:class:`~jitterid.estimation.search.Coordinates`), Newton decrement NEWTON_TOL (or
+        ``tol``, e.g. the loose noise and GLS stages), a stall of the criterion (a white
+        record's noise pole running off) and exhausted damping below STALL_TOL taken as
+        converged."""
+        t = NEWTON_TOL if tol is None else tol
+        return SearchOptions(t, True, STALL_GAIN if tol is None else max(STALL_GAIN, t), STALL_TOL)
+
+    def search_residuals(self, x: FloatArray) -> FloatArray:
+        """:meth:`residuals` (the search protocol's name)."""
+        return self.residuals(x)
+
+    def release(self) -> None:
+        """Nothing to drop between stages: the caches are per point and small."""
 
     @property
     def n_jitter(self) -> int:
-        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+        return len(self.layout.jitter)
 
     @property
     def n_system(self) -> int:
@@ -160,22 +185,26 @@ class BJProblem:
 
     def _law(self, x: FloatArray) -> JitterLaw:
         if isinstance(self.jitter, JitterFamily):
-            return self.jitter.law(x[: self.n_jitter].tolist())
+            return self.jitter.law(self.layout.block(x, "jitter").tolist())
         return self.jitter
+
+    def _jitter_noise_key(self, x: FloatArray) -> bytes:
+        """The jitter and noise parameters of ``x`` (on which gamma depends), as a key."""
+        return np.r_[self.layout.block(x, "jitter"), self.layout.block(x, "noise")].tobytes()
 
     def split(self, x: FloatArray) -> tuple[JitterLaw, TransferFunction, NoiseModel, float]:
         """(jitter law, system, noise model, sigma_w) at parameter vector ``x``."""
-        nj, ns = self.n_jitter, self.n_system
-        tf = self.structure.system(x[nj : nj + ns])
+        tf = self.structure.system(self.layout.block(x, "system"))
         return self._law(x), tf, self._noise_model(x), self._white(x)
 
     def _white(self, x: FloatArray) -> float:
-        return float(x[-1]) if self.white_std is None else float(self.white_std)
+        if self.white_std is None:
+            return float(self.layout.block(x, "noise_std")[0])
+        return float(self.white_std)
 
     def _noise_model(self, x: FloatArray) -> NoiseModel:
         """H at ``x``, kept for the last noise parameters (a model builds its modal form)."""
-        nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
-        eta = np.asarray(x[nj + ns : nj + ns + nn], float)
+        eta = self.layout.block(x, "noise")
         if self._nm is None or self._nm[0] != eta.tobytes():
             self._nm = (eta.tobytes(), self.noise.model(eta))
         return self._nm[1]
@@ -189,8 +218,7 @@ class BJProblem:
 
     def autocovariance(self, x: FloatArray) -> JitteredAutocovariance:
         """gamma of (C1)/(C3); depends on the jitter and noise parameters only."""
-        nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
-        key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()
+        key = self._jitter_noise_key(x)
         if key not in self._autocov:
             self._autocov.clear()
             self._autocov[key] = jittered_autocovariance(
@@ -212,13 +240,14 @@ class BJProblem:
     def autocovariance_derivatives(self, x: FloatArray) -> dict[int, tuple[FloatArray, FloatArray]]:
         """d gamma(0..N-1) and d(ar) for each jitter and noise parameter (index into ``x``).
 
-        Noise parameters: in closed form (:func:`jitterid.noise.covariance.
+        Noise parameters: in closed form (:func:`jitterid.moments.noise_covariance.
         autocovariance_derivatives` with :meth:`RationalNoise.mode_derivatives`) when the
         jitter spans at most T. Otherwise, and for jitter-family parameters, by
         :func:`jitterid.finite_diff.derivative` of (C1)-(C3): the near lags are
         quadratures over the law, with no closed-form derivative."""
-        nj, ns, nn = self.n_jitter, self.n_system, self.n_noise
-        key = np.r_[x[:nj], x[nj + ns : nj + ns + nn]].tobytes()
+        lay = self.layout
+        nj, nn = self.n_jitter, self.n_noise
+        key = self._jitter_noise_key(x)
         if self._dgamma is not None and self._dgamma[0] == key:
             return self._dgamma[1]
         N, T = self.data.N, self.data.T
@@ -228,22 +257,21 @@ class BJProblem:
         base = np.r_[g0.sequence(N), g0.ar]
 
         def flat(xx: FloatArray) -> FloatArray:
-            g = jittered_autocovariance(
-                self.noise.model(xx[nj + ns : nj + ns + nn]), self._law(xx), T
-            )
+            g = jittered_autocovariance(self.noise.model(lay.block(xx, "noise")), self._law(xx), T)
             return np.r_[g.sequence(N), g.ar]
 
         out: dict[int, tuple[FloatArray, FloatArray]] = {}
-        fd = [*range(nj), *range(nj + ns, nj + ns + nn)]
+        noise_idx = list(range(lay.size)[lay.slice("noise")])
+        fd = [*range(nj), *noise_idx]
         modes = getattr(self.noise, "mode_derivatives", None)
         if nn and modes is not None:  # closed form in the noise parameters when M0 = 1
-            eta = x[nj + ns : nj + ns + nn]
+            eta = lay.block(x, "noise")
             nm = self._noise_model(x)
             dc, dp = modes(eta, nm)
             exact = autocovariance_derivatives(nm, self._law(x), T, dc, dp, N)
             if exact is not None:
-                for k in range(nn):
-                    out[nj + ns + k] = (exact[0][k], exact[1][k])
+                for k, i in enumerate(noise_idx):
+                    out[i] = (exact[0][k], exact[1][k])
                 fd = fd[:nj]
         for i in fd:
             dv = finite_diff.derivative(flat, np.asarray(x, float), i, natural[i], f0=base)

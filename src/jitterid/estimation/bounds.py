@@ -25,6 +25,7 @@ from ..params import ParamLayout
 from ..systems.model import Model
 from ..systems.structures import as_structure
 from ..systems.tf import TransferFunction
+from .estimators import GaussianCriterion
 from .likelihood import DEFAULT_ORDER, DEFAULT_PANEL, ExactLikelihood
 from .problem import Problem, default_frequencies
 
@@ -248,7 +249,7 @@ def _gaussian_information(
         data,
         structure,
         jitter,
-        "gaussian",
+        GaussianCriterion(),
         default_frequencies(N, T),
         None if estimate_noise else noise_std,
     )

@@ -15,7 +15,7 @@ parameters of the residual fit (plug-in).
 
 As the OE search, it runs in the power-of-two units of :class:`checks.Scaling` (the noise
 structure's gain parameters scaled with y) and ends with :func:`checks.post_checks`, so that a
-fit's status is honest and does not depend on the data's units (:func:`fit_bj`).
+fit's status is honest and does not depend on the data's units (:class:`BoxJenkinsRoute`).
 
 Every stage reads the estimator's declared properties (:class:`~jitterid.estimation
 .estimators.base.Estimator`: ``coloured_noise``, ``least_squares``,
@@ -30,6 +30,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,204 +39,33 @@ from scipy.optimize import least_squares
 from .._checks import real_array
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..noise.models import KnownNoise, NoiseModel, NoiseStructure, as_noise_structure
+from ..params import count_params
 from ..simulate import SampledData
+from ..systems.model import Model
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from .bjcriteria import BJProblem, bj_covariance
-from .checks import PostContext, Scaling, post_checks
-from .estimators import BCLS, Estimator, GaussianCriterion, as_estimator, coloured_method_names
+from .checks import PostContext, Scaling, check_data
+from .estimators import Estimator, GaussianCriterion, coloured_method_names
 from .jacobians import moment_derivatives
 from .problem import default_frequencies
-from .result import FitResult, FitStatus
-from .search import damped_step, evaluator, newton_search
+from .result import FitResult
+from .route import Staged
+from .search import Outcome, run_search
 
-__all__ = ["BJ_METHODS", "fit_bj", "fitted_noise"]
+__all__ = ["BJ_METHODS", "BoxJenkinsRoute", "fitted_noise"]
 
 FloatArray = NDArray[np.float64]
 
-#: The registered estimators with a coloured-noise form at import (``fit_bj`` asks the
+#: The registered estimators with a coloured-noise form at import (the route asks the
 #: registry at each call, so an estimator registered later is accepted too).
 BJ_METHODS = coloured_method_names()
 
-_BAD = 1e10  # criterion value where the model cannot be evaluated (unstable, not PD)
-# Newton decrement (twice the predicted remaining decrease of V = -2 log-likelihood) at which
-# the search stops: 1e-6 units of V moves the estimate by ~1e-3 standard errors.
-NEWTON_TOL = 1e-6
-_RATE_SPAN = 1e6  # most a rate searched in log units moves from its start (_Coordinates)
 _FAST = 100.0  # GLS stage: systems with a pole beyond _FAST times the Nyquist rate are refused
 # The noise and GLS stages only give the joint search its start: converged loosely (the joint
 # search refines every parameter to NEWTON_TOL), they cost a few evaluations less each.
 STAGE_TOL, STAGE_FTOL = 1e-2, 1e-5
-STALL_TOL = 1e-3  # decrement below which "no step decreases V" is the rounding floor
-STALL_WINDOW, STALL_GAIN = 6, 1e-4  # stop when the last 6 accepted steps gained < 1e-4 in all
-
-
-class _Stalled(Exception):
-    """Raised inside the Newton search's evaluation to stop it (see _search)."""
-
-
-class _Coordinates:
-    """Search coordinates z for the Newton search (x = x(z) elementwise):
-
-    - a rate with a positive floor and no upper bound (noise poles ``ha*``, a jitter scale):
-      z = ln x. The criterion varies on the rate's relative scale, and a Newton step in the
-      rate itself overshoots to the floor, where the noise model degenerates;
-    - a gain bounded below by 0 (``hb0``) and the white std ``noise_std``: z = x^2, the
-      variance they carry. Sigma_y depends on them through x^2, so the Fisher information
-      in x vanishes like x^2 as x -> 0 (a white record drives one of them there), and a
-      Newton step in x explodes; in x^2 it is regular;
-    - anything else: z = x.
-    """
-
-    def __init__(
-        self, names: NDArray[np.str_], lo: FloatArray, hi: FloatArray, x0: FloatArray
-    ) -> None:
-        unbounded = np.isinf(hi)
-        self.square = unbounded & (names == "noise_std")
-        self.log = unbounded & (lo > 0) & ~self.square
-        self.lo = np.where(self.log, np.log(np.where(self.log, lo, 1.0)), lo)
-        self.lo = np.where(self.square, np.maximum(lo, 1e-150) ** 2, self.lo)
-        # A rate may move by a factor _RATE_SPAN from its start at most: where it is not
-        # identified (a noise gain at 0 leaves its pole free) the Newton steps in ln x are
-        # ratios of vanishing numbers and would carry it to 1e100 and beyond.
-        span = np.log(
-            np.maximum(np.where(self.log, x0, 1.0), np.where(self.log, lo, 1.0))
-        ) + np.log(_RATE_SPAN)
-        self.hi = np.where(self.log, span, hi)
-
-    def forward(self, z: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """x(z) and dx/dz."""
-        x = np.where(self.log, np.exp(np.minimum(np.where(self.log, z, 0.0), 700.0)), z)
-        x = np.where(self.square, np.sqrt(np.maximum(np.where(self.square, z, 1.0), 0.0)), x)
-        jac = np.where(self.log, x, 1.0)
-        jac = np.where(self.square, 0.5 / np.maximum(np.where(self.square, x, 1.0), 1e-150), jac)
-        return x, jac
-
-    def inverse(self, x: FloatArray) -> FloatArray:
-        z = np.where(self.log, np.log(np.where(self.log, x, 1.0)), x)
-        return np.clip(np.where(self.square, x * x, z), self.lo, self.hi)
-
-
-def _search(
-    problem: BJProblem,
-    x0: FloatArray,
-    max_nfev: int,
-    free: NDArray[np.bool_] | None = None,
-    tol: float | None = None,
-) -> tuple[FloatArray, float, FitStatus, str, int]:
-    """Minimise the criterion over the free parameters from ``x0``."""
-    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
-    x0 = np.clip(np.asarray(x0, float), lo, hi)
-    mask = lo < hi if free is None else free & (lo < hi)
-    idx = np.flatnonzero(mask)
-
-    def embed(z: FloatArray) -> FloatArray:
-        out = x0.copy()
-        out[idx] = z
-        return out
-
-    def value(x: FloatArray) -> float:
-        # Overflow or a non-PD Sigma at a wild trial point is a bad point, not an error.
-        with np.errstate(all="ignore"):
-            try:
-                v = problem.objective(x)
-            except ValueError:
-                return _BAD
-        return v if np.isfinite(v) else _BAD
-
-    if idx.size == 0:
-        return x0, value(x0), FitStatus.CONVERGED, "no free parameters", 1
-    if problem.estimator.least_squares:
-
-        def resid(z: FloatArray) -> FloatArray:
-            with np.errstate(all="ignore"):
-                try:
-                    r = problem.residuals(embed(z))
-                except ValueError:
-                    return np.full(2 * problem.freqs.size, _BAD)
-            return r if np.all(np.isfinite(r)) else np.full(r.size, _BAD)
-
-        jac: str | Callable[[FloatArray], FloatArray] = "2-point"
-        if problem.has_jacobian:
-
-            def jac(z: FloatArray) -> FloatArray:
-                try:
-                    return problem.jacobian(embed(z))[:, idx]
-                except ValueError:  # only where resid failed too; such a step is never taken
-                    return np.zeros((2 * problem.freqs.size, idx.size))
-
-        sol = least_squares(
-            resid, x0[idx], jac=jac, bounds=(lo[idx], hi[idx]), x_scale="jac", max_nfev=max_nfev
-        )
-        status = FitStatus.CONVERGED if sol.status > 0 else FitStatus.MAX_EVALUATIONS
-        if sol.status < 0:
-            status = FitStatus.OPTIMISER_FAILED
-        z, nfev, msg = sol.x, int(sol.nfev), str(sol.message)
-    else:
-        # The one Newton (Fisher scoring) search of the OE path, with the analytic gradient
-        # and expected Hessian of the BJ criterion (BJProblem.objective_gradient), in
-        # coordinates where the Fisher information stays away from zero (_Coordinates).
-        cz = _Coordinates(np.array(problem.names)[idx], lo[idx], hi[idx], x0[idx])
-        seen: dict[bytes, tuple[float, FloatArray, FloatArray]] = {}
-        # (V, z) of the evaluations that lowered V (accepted steps; rejected trials are the
-        # search's own damping and do not count towards a stall)
-        record: list[tuple[float, FloatArray]] = []
-
-        n_eval = [0]
-        # a loose stage (tol above NEWTON_TOL) stalls as loosely: gains below its tolerance
-        stall_gain = STALL_GAIN if tol is None else max(STALL_GAIN, tol)
-
-        def fun(z: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-            n_eval[0] += 1
-            if (
-                len(record) > STALL_WINDOW
-                and record[-STALL_WINDOW - 1][0] - record[-1][0] < stall_gain
-            ):
-                raise _Stalled  # the last STALL_WINDOW accepted steps gained < stall_gain
-            xs, jac = cz.forward(z)
-            with np.errstate(all="ignore"):
-                try:
-                    v, g, M = problem.objective_gradient(embed(xs), idx)
-                except (OverflowError, ZeroDivisionError):  # a wild trial point: rejected
-                    raise ValueError("criterion overflows") from None
-                out = (v, g[idx] * jac, M[np.ix_(idx, idx)] * np.outer(jac, jac))
-            seen.clear()
-            seen[z.tobytes()] = out
-            if np.isfinite(v) and (not record or v < record[-1][0]):
-                record.append((float(v), z.copy()))
-            return out
-
-        z0, lz, hz = cz.inverse(x0[idx]), cz.lo, cz.hi
-        try:
-            z, ok, msg, nfev = newton_search(
-                evaluator(fun), z0, lz, hz, max_nfev, tol=NEWTON_TOL if tol is None else tol
-            )
-        except _Stalled:
-            # A criterion whose infimum lies at the edge of the model (a white record: the
-            # noise pole runs off to infinity, where H is white) decreases without end by
-            # amounts far below one unit of V; the estimate of every identifiable parameter
-            # has converged. (search.newton_search has no relative-decrease test.)
-            z, ok, nfev = record[-1][1], True, n_eval[0]
-            msg = f"converged: V decreased by < {stall_gain:g} over {STALL_WINDOW} evaluations"
-        if not ok and msg.startswith("no step decreases") and z.tobytes() in seen:
-            # Damping exhausted: no step, however short, lowers V. At a point whose Newton
-            # decrement is already far below one unit of V (-2 log-likelihood), that is the
-            # rounding floor of V and of the difference quotients of gamma, not a failure
-            # (degenerate noise models, e.g. a white-noise record, have flat directions).
-            _, g, M = seen[z.tobytes()]
-            free_z = ~(((z <= lz) & (g > 0)) | ((z >= hz) & (g < 0)))
-            dec = float(-g @ damped_step(M, g, free_z, 0.0))
-            if dec <= STALL_TOL:
-                ok, msg = True, f"converged: no decrease below rounding, Newton decrement {dec:.2g}"
-        z = cz.forward(z)[0]
-        status = FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED
-        if not ok and nfev >= max_nfev:
-            status = FitStatus.MAX_EVALUATIONS
-    x = embed(np.clip(z, lo[idx], hi[idx]))
-    cost = value(x)
-    if cost >= _BAD:
-        status = FitStatus.NOT_FINITE
-    return x, cost, status, msg, nfev
+_BAD = 1e10  # residual where the model cannot be evaluated (unstable, not PD)
 
 
 def _noise_stage(
@@ -243,7 +73,7 @@ def _noise_stage(
 ) -> tuple[FloatArray, int]:
     """Noise parameters (and sigma_w) by the Gaussian criterion with the system and jitter
     fixed at ``x_pre``: from ``start`` if given, else from the best of the structure's starts
-    scored by one criterion evaluation each (as the OE start is chosen, fit._oe_start): the
+    scored by one criterion evaluation each (as the OE start is chosen, oe._oe_start): the
     system is fixed, so the criterion of the noise parameters is cheap and smooth, and every
     start converged to the same point in the tests while each search costs ~15 evaluations."""
     nfixed = problem.n_jitter + problem.n_system
@@ -258,7 +88,7 @@ def _noise_stage(
     )
     free = np.arange(len(stage.names)) >= nfixed
     if start is not None:
-        x, _, _, _, nfev = _search(stage, np.r_[x_pre, start], max_nfev, free, STAGE_TOL)
+        x, _, _, _, nfev = run_search(stage, np.r_[x_pre, start], max_nfev, free, STAGE_TOL)[1]
         return x[nfixed:], nfev
     mom = stage.moments(x_pre)
     resid, signal_var = problem.data.y - mom.mean, float(np.mean(mom.var))
@@ -276,7 +106,7 @@ def _noise_stage(
                 v = np.inf
         scored.append((v if np.isfinite(v) else np.inf, x0))
     x0 = min(scored, key=lambda item: item[0])[1]
-    x, _, _, _, n = _search(stage, x0, max_nfev, free, STAGE_TOL)
+    x, _, _, _, n = run_search(stage, x0, max_nfev, free, STAGE_TOL)[1]
     return x[nfixed:], n + len(scored)
 
 
@@ -310,7 +140,8 @@ def _whitened_stage(
                 if np.max(np.abs(problem.structure.system(theta).poles), initial=0.0) > fastest:
                     return np.full(y.size, _BAD)
                 # the derivatives come out of the same pass for about twice its cost, and
-                # least_squares asks for the Jacobian at every point it accepts (as fit._run)
+                # least_squares asks for the Jacobian at every point it accepts (as
+                # Problem.search_residuals)
                 r = cov.whiten(y - moment_derivatives(problem._oe, np.r_[jit, theta])[0].mean)
             except ValueError:
                 return np.full(y.size, _BAD)
@@ -327,7 +158,7 @@ def _whitened_stage(
     gains = list(problem.structure.gain_params)
     wy = cov.whiten(y)
     # The structure's starts (gains set by GLS) are scored by one evaluation each and only
-    # the best is searched, besides the BCLS start (as fit._oe_start chooses its start).
+    # the best is searched, besides the BCLS start (as oe._oe_start chooses its start).
     scored: list[tuple[float, FloatArray]] = []
     nfev = 0
     for theta0 in problem.structure.starts(problem.data.T):
@@ -364,24 +195,6 @@ def _whitened_stage(
     (x_b, c_b), (x_i, c_i) = results[0], results[i]
     moved = c_i < c_b - 1e-4 * (1.0 + abs(c_b)) and not np.allclose(x_i, x_b, rtol=1e-3, atol=1e-6)
     return (x_i if moved else x_b), moved, nfev
-
-
-def _run_frozen(
-    problem: BJProblem, x0: FloatArray, max_nfev: int
-) -> tuple[BJProblem, tuple[FloatArray, float, FitStatus, str, int]]:
-    """A criterion with frozen weights (WBCLS (20)): R frozen at ``x0``, then re-frozen at
-    each estimate, ``estimator.freeze_rounds`` searches in all (iterated feasible GLS, as
-    :func:`jitterid.estimation.fit._run_wbcls` for OE): with R(theta) inside the search and
-    no ln det R, (20) is minimised partly by inflating R, which biases it."""
-    nfev = 0
-    out: tuple[FloatArray, float, FitStatus, str, int] | None = None
-    for _ in range(problem.estimator.freeze_rounds):
-        problem = replace(problem, weights_at=np.array(x0, float))
-        out = _search(problem, x0, max_nfev)
-        nfev += out[4]
-        x0 = out[0]
-    assert out is not None
-    return problem, (*out[:4], nfev)
 
 
 def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> NoiseModel:
@@ -427,27 +240,6 @@ def fitted_noise(result: FitResult, noise: NoiseStructure | NoiseModel) -> Noise
     return structure.model([params[n] for n in structure.param_names])
 
 
-def _coloured_estimator(method: str | Estimator) -> Estimator:
-    """The estimator of ``method`` if it has a coloured-noise form, else a ValueError naming
-    ``method`` and ``noise``."""
-    names = coloured_method_names()
-    try:
-        est = as_estimator(method)
-    except ValueError:
-        raise ValueError(
-            f"method must be one of {names} (or an Estimator with a coloured-noise form) when a "
-            f"noise model is given (noise=...); got {method!r}"
-        ) from None
-    if not est.coloured_noise:
-        hint = " (it ignores the jitter)" if est.ignores_jitter else ""
-        raise ValueError(
-            f"method must be one of {names} when a noise model is given (noise=...); got "
-            f"{est.name!r}, which has no coloured-noise (Box-Jenkins) form{hint}: fit it with "
-            "noise=None"
-        )
-    return est
-
-
 def _scaling(
     data: SampledData, structure: ModelStructure, noise: NoiseStructure, n_jitter: int
 ) -> tuple[Scaling, NoiseStructure]:
@@ -470,256 +262,235 @@ def _scaling(
     return replace(sc, factors=np.r_[sc.factors, f]), noise
 
 
-def fit_bj(
-    data: SampledData,
-    system: ModelStructure | TransferFunction,
-    jitter: JitterLaw | JitterFamily,
-    method: str | Estimator,
-    start: ArrayLike | FitResult | None,
-    *,
-    noise: NoiseStructure | NoiseModel,
-    freqs: ArrayLike | None,
-    noise_std: float | None,
-    max_nfev: int,
-    oe_fit: Callable[..., FitResult],
-    cov_type: str = "sandwich",
-) -> FitResult:
-    """:func:`jitterid.fit` with ``noise=``: the BJ (2b) and JBJ (2d) structures.
+class BoxJenkinsRoute:
+    """Coloured measurement noise v = (h * e)(t), eq. (1c): the BJ (2b) and JBJ (2d)
+    structures, the problem :class:`~jitterid.estimation.bjcriteria.BJProblem` (module
+    docstring; the hooks are :mod:`jitterid.estimation.route`'s).
 
-    Parameters are those of :func:`jitterid.fit`; ``method`` is an estimator with a
-    coloured-noise form (``coloured_noise``) or its name; ``noise`` is a structure with free
-    parameters (``RationalNoise(0, 1)``) or a known :class:`~jitterid.NoiseModel`, and
-    ``noise_std`` (default ``data.noise_std``) is the std of the additional white part,
-    estimated as parameter ``noise_std`` by the estimators that identify the noise model
-    (``asml``, ``asml-diag``, ``gaussian``) when neither is given (``bcls``/``wbcls`` plug it
-    in with the noise parameters). ``oe_fit`` is :func:`jitterid.fit` itself, whose
-    white-noise BCLS fit gives the start (Section 4.5); ``cov_type`` is ``"sandwich"`` (the
-    delta method with the coloured covariance) or ``"none"``.
-
-    As for OE, the search runs on y and u divided by powers of two near their rms
-    (:func:`_scaling`), so that its tolerances and floors do not depend on the data's units;
-    estimates, criterion and covariance are reported in the data's units (exactly). A search
-    that converged to an answer that cannot be trusted gets the status of
-    :func:`jitterid.estimation.checks.post_checks` (``AT_BOUND``, ``UNSTABLE_MODEL``,
-    ``UNIDENTIFIABLE``, ``LOCAL_OPTIMUM``, ``NOT_SIGNIFICANT``).
+    ``white_fit(estimator, start, cov_type)`` is the driver's white-noise fit of the same
+    data (the first stage of Section 4.5, and the estimate of a criterion blind to the noise
+    model): the driver hands it in, so that this module does not call the driver back.
     """
-    fit = oe_fit
 
-    est = _coloured_estimator(method)
-    if cov_type not in ("sandwich", "none"):
-        raise ValueError(
-            f"cov_type must be 'sandwich' or 'none' with a noise model; got {cov_type!r} (the "
-            "robust and observed-information forms are not implemented for Box-Jenkins yet)"
-        )
-    structure = as_structure(system)
-    if not isinstance(structure, ModelStructure):
-        raise ValueError(  # noqa: TRY004 (a ValueError naming the argument, as fit() raises)
-            "noise: coloured noise (Box-Jenkins) needs an LTI structure driven by a known input; "
-            f"got {type(structure).__name__}: fit it with noise=None"
-        )
-    nstruct = as_noise_structure(noise)
-    if not isinstance(data, SampledData):
-        raise TypeError(
-            f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}"
-        )
-    f = (
-        default_frequencies(data.N, data.T)
-        if freqs is None
-        else np.atleast_1d(real_array(freqs, "freqs"))
-    )
-    white = data.noise_std if noise_std is None else noise_std
-    free_noise = len(nstruct.param_names) > 0 or white is None
-    # a criterion without a ln det term holds the noise parameters at plug-in values
-    plug_in = free_noise and not est.identifies_noise_model
-    nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
-    # The search runs in the units of checks.Scaling (as fit's OE search); every parameter,
-    # the criterion and the covariance map back exactly (powers of two).
-    scaling, noise_s = _scaling(data, structure, nstruct, nj)
-    sdata = scaling.data(data)
-    white_s = None if white is None else white / scaling.sy
-    make = partial(BJProblem, sdata, structure, jitter, noise_s, freqs=f, white_std=white_s)
-    problem = make(method=est)
-    k = problem.n_jitter + problem.n_system
-    prefits: list[FitResult] = []
-
-    def prefit() -> FitResult:
-        """The white-noise BCLS fit (Section 4.5), once; fit() scales the data exactly as
-        here, so its estimate maps to these units exactly."""
-        if not prefits:
-            given = start if isinstance(start, FitResult) else None
-            # its white-noise covariance is never used (the BJ one is computed below), nor
-            # does the white-noise lack-of-fit check apply where the noise is coloured: the
-            # BCLS criterion does not use the noise std, so it is not passed
-            white_data = replace(data, noise_std=None)
-            prefits.append(
-                fit(
-                    white_data,
-                    structure,
-                    jitter,
-                    BCLS(),
-                    given,
-                    freqs=f,
-                    max_nfev=max_nfev,
-                    cov_type="none",
-                )
-            )
-        return prefits[0]
-
-    # points of the default route that the final search did not start from, for the
-    # local-optimum check (lazily: they cost a pre-fit and a noise stage after a given start)
-    others: list[Callable[[], FloatArray | None]] = []
-    nfev = 0
-    if start is not None and not isinstance(start, FitResult):
-        x0 = np.atleast_1d(real_array(start, "start"))
-        if x0.size != len(problem.names):
+    def __init__(
+        self,
+        data: SampledData,
+        system: Model | TransferFunction,
+        jitter: JitterLaw | JitterFamily,
+        estimator: Estimator,
+        noise: NoiseStructure | NoiseModel,
+        *,
+        freqs: ArrayLike | None,
+        noise_std: float | None,
+        max_nfev: int,
+        cov_type: str,
+        white_fit: Callable[[Estimator, FitResult | None, str | None], FitResult],
+    ) -> None:
+        est = estimator
+        if not est.coloured_noise:
+            names = coloured_method_names()
+            hint = " (it ignores the jitter)" if est.ignores_jitter else ""
             raise ValueError(
-                f"start must have {len(problem.names)} values {problem.names}; got {x0.size}"
+                f"method must be one of {names} when a noise model is given (noise=...); got "
+                f"{est.name!r}, which has no coloured-noise (Box-Jenkins) form{hint}: fit it "
+                "with noise=None"
             )
-        x0 = scaling.to_scaled(x0)
-        if plug_in:
-            problem = make(method=est, pinned=x0[k:])
-        if est.freeze_rounds:
-            problem, best = _run_frozen(problem, x0, max_nfev)
-        else:
-            best = _search(problem, x0, max_nfev)
-        nfev = best[4]
-
-        def default_start() -> FloatArray | None:
-            x_pre = scaling.to_scaled(prefit().x)
-            eta = _noise_stage(problem, x_pre, max_nfev)[0] if free_noise else np.zeros(0)
-            return np.r_[x_pre, eta]
-
-        others.append(default_start)
-    else:
-        pre = prefit()
-        nfev = pre.nfev
-        x_pre = scaling.to_scaled(pre.x)
-        eta, n = _noise_stage(problem, x_pre, max_nfev) if free_noise else (np.zeros(0), 0)
-        nfev += n
-        x_bcls = np.r_[x_pre, eta]
-        # The GLS stage picks the system's basin where coloured noise dominates some
-        # frequencies; a noise model white once sampled (a white record) weights as the OE
-        # criterion does, which starts from the BCLS estimate too: skipped. A criterion
-        # blind to Sigma_y keeps its estimate (below).
-        if est.weighs_by_noise and not _white_limit(problem, x_bcls)[0]:
-            theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
-            nfev += n
-            x_pre = np.r_[x_pre[: problem.n_jitter], theta]  # the GLS system: a closer start
-            if moved and free_noise:  # another basin: refit the noise to its residuals
-                eta, n = _noise_stage(problem, x_pre, max_nfev, start=eta)
-                nfev += n
-        x0 = np.r_[x_pre, eta]
-        if not np.array_equal(x_bcls, x0):
-            others.append(lambda: x_bcls)
-        if plug_in:
-            problem = make(method=est, pinned=eta)
-        if not est.weighs_by_noise:
-            # The noise model does not enter the criterion (BCLS (14)): its BJ estimate is
-            # its white-noise one (the pre-fit itself for BCLS), the noise only its error bars.
-            if est != BCLS():
-                pre = fit(
-                    replace(data, noise_std=None),
-                    structure,
-                    jitter,
-                    est,
-                    pre,
-                    freqs=f,
-                    max_nfev=max_nfev,
-                )
-                nfev += pre.nfev
-                x0 = np.r_[scaling.to_scaled(pre.x)[:k], eta]
-            best = (x0, problem.objective(x0), pre.status, pre.message, 0)
-        elif est.freeze_rounds:
-            problem, best = _run_frozen(problem, x0, max_nfev)
-            nfev += best[4]
-        else:
-            best = _search(problem, x0, max_nfev)
-            nfev += best[4]
-    x, cost, status, msg, _ = best
-    x = np.asarray(x, float)
-    cov = np.full((x.size, x.size), np.nan)
-    cov_error: str | None = None
-    # A noise model that is white once sampled (a white record: its gain at 0 or its pole
-    # run off) is the natural home of the estimate, as a jitter scale at 0 is on data
-    # without jitter. The noise parameters are then not identified (held in the covariance,
-    # whose other rows they would only fill with rounding), nor is the white std apart
-    # from them when both are white: no error bars for those, exempt from the
-    # identifiability check, said in the message; the system's are checked as usual.
-    held, white_limit = _white_limit(problem, x)
-    if cov_type == "sandwich":
-        try:
-            cov = bj_covariance(problem, x, held)
-        except (ValueError, np.linalg.LinAlgError) as exc:  # the checks below say why
-            cov_error = str(exc)
-    if white_limit:
-        cov[white_limit, :] = np.nan
-        cov[:, white_limit] = np.nan
-        msg = (
-            f"{msg}; the noise model is at its white limit (the sampled coloured noise is "
-            f"white or zero): {[problem.names[i] for i in white_limit]} not identified (no "
-            "standard errors)"
+        if cov_type not in ("sandwich", "none"):
+            raise ValueError(
+                f"cov_type must be 'sandwich' or 'none' with a noise model; got {cov_type!r} "
+                "(the robust and observed-information forms are not implemented for "
+                "Box-Jenkins yet)"
+            )
+        structure = as_structure(system)
+        if not isinstance(structure, ModelStructure):
+            raise ValueError(  # noqa: TRY004 (a ValueError naming the argument)
+                "noise: coloured noise (Box-Jenkins) is implemented for LTI structures driven by "
+                f"a known input; {type(structure).__name__} is a signal model: fit it with "
+                "noise=None"
+            )
+        nj = count_params(jitter)
+        check_data(data, len(structure.param_names) + nj)
+        nstruct = as_noise_structure(noise)
+        f = (
+            default_frequencies(data.N, data.T)
+            if freqs is None
+            else np.atleast_1d(real_array(freqs, "freqs"))
         )
-    status, msg = post_checks(
-        PostContext(
-            data=sdata,
-            structure=structure,
-            jitter=jitter,
+        self.white = data.noise_std if noise_std is None else noise_std
+        self.free_noise = len(nstruct.param_names) > 0 or self.white is None
+        # a criterion without a ln det term holds the noise parameters at plug-in values
+        self.plug_in = self.free_noise and not est.identifies_noise_model
+        # The search runs in the units of checks.Scaling (as the OE route); every parameter,
+        # the criterion and the covariance map back exactly (powers of two).
+        self.scaling, noise_s = _scaling(data, structure, nstruct, nj)
+        self.orig, self.data = data, self.scaling.data(data)
+        white_s = None if self.white is None else self.white / self.scaling.sy
+        self.make = partial(
+            BJProblem, self.data, structure, jitter, noise_s, freqs=f, white_std=white_s
+        )
+        self.structure, self.jitter, self.estimator, self.nstruct = structure, jitter, est, nstruct
+        self.freqs, self.max_nfev, self.nj = f, max_nfev, nj
+        self._white_fit = white_fit
+        self._prefit: list[FitResult] = []
+        self._given: FitResult | None = None
+
+    def prefit(self) -> FitResult:
+        """The white-noise first-stage (BCLS) fit (Section 4.5), once; the driver scales the
+        data exactly as here, so its estimate maps to these units exactly. Its white-noise
+        covariance is never used, nor does the white-noise lack-of-fit check apply where the
+        noise is coloured (the noise std is not passed)."""
+        if not self._prefit:
+            first = self.estimator.first_stage()
+            self._prefit.append(self._white_fit(first, self._given, "none"))
+        return self._prefit[0]
+
+    # ------------------------------------------------------------------ 1. starts, search
+    def search(self, start: ArrayLike | FitResult | None) -> Staged:
+        est, sc, max_nfev = self.estimator, self.scaling, self.max_nfev
+        self._given = start if isinstance(start, FitResult) else None
+        problem = self.make(method=est)
+        k = problem.n_jitter + problem.n_system
+        # points of the default route that the final search did not start from, for the
+        # local-optimum check (lazily: they cost a pre-fit and a noise stage after a start)
+        others: list[Callable[[], FloatArray | None]] = []
+        nfev = 0
+        if start is not None and not isinstance(start, FitResult):
+            x0 = np.atleast_1d(real_array(start, "start"))
+            if x0.size != len(problem.names):
+                raise ValueError(
+                    f"start must have {len(problem.names)} values {problem.names}; got {x0.size}"
+                )
+            x0 = sc.to_scaled(x0)
+            if self.plug_in:
+                problem = self.make(method=est, pinned=x0[k:])
+            problem, best = run_search(problem, x0, max_nfev)
+            nfev = best.nfev
+
+            def default_start() -> FloatArray | None:
+                x_pre = sc.to_scaled(self.prefit().x)
+                eta = _noise_stage(problem, x_pre, max_nfev)[0] if self.free_noise else np.zeros(0)
+                return np.r_[x_pre, eta]
+
+            others.append(default_start)
+        else:
+            pre = self.prefit()
+            nfev = pre.nfev
+            x_pre = sc.to_scaled(pre.x)
+            eta, n = _noise_stage(problem, x_pre, max_nfev) if self.free_noise else (np.zeros(0), 0)
+            nfev += n
+            x_bcls = np.r_[x_pre, eta]
+            # The GLS stage picks the system's basin where coloured noise dominates some
+            # frequencies; a noise model white once sampled (a white record) weights as the
+            # OE criterion does, which starts from the BCLS estimate too: skipped. A
+            # criterion blind to Sigma_y keeps its estimate (below).
+            if est.weighs_by_noise and not _white_limit(problem, x_bcls)[0]:
+                theta, moved, n = _whitened_stage(problem, x_pre, eta, max_nfev)
+                nfev += n
+                x_pre = np.r_[x_pre[: problem.n_jitter], theta]  # the GLS system: closer
+                if moved and self.free_noise:  # another basin: refit the noise to it
+                    eta, n = _noise_stage(problem, x_pre, max_nfev, start=eta)
+                    nfev += n
+            x0 = np.r_[x_pre, eta]
+            if not np.array_equal(x_bcls, x0):
+                others.append(lambda: x_bcls)
+            if self.plug_in:
+                problem = self.make(method=est, pinned=eta)
+            if not est.weighs_by_noise:
+                # The noise model does not enter the criterion (BCLS (14)): its BJ estimate
+                # is its white-noise one (the first stage itself for BCLS), the noise model
+                # only its error bars.
+                if est is not est.first_stage():
+                    pre = self._white_fit(est, pre, None)
+                    nfev += pre.nfev
+                    x0 = np.r_[sc.to_scaled(pre.x)[:k], eta]
+                best = Outcome(x0, problem.objective(x0), pre.status, pre.message, 0)
+            else:
+                problem, best = run_search(problem, x0, max_nfev)
+                nfev += best.nfev
+        return Staged(problem, best._replace(nfev=nfev), None, {"others": others})
+
+    # ------------------------------------------------------------------ 2. covariance
+    def covariance(self, staged: Staged, cov_type: str) -> tuple[FloatArray, str | None, str]:
+        """The delta-method covariance with the coloured Sigma_y (:func:`bj_covariance`).
+
+        A noise model that is white once sampled (a white record: its gain at 0 or its pole
+        run off) is the natural home of the estimate, as a jitter scale at 0 is on data
+        without jitter. The noise parameters are then not identified (held in the
+        covariance, whose other rows they would only fill with rounding), nor is the white
+        std apart from them when both are white: no error bars for those, exempt from the
+        identifiability check, said in the message; the system's are checked as usual."""
+        problem, x = staged.problem, staged.outcome.x
+        cov = np.full((x.size, x.size), np.nan)
+        cov_error: str | None = None
+        held, white_limit = _white_limit(problem, x)
+        if cov_type == "sandwich":
+            try:
+                cov = bj_covariance(problem, x, held)
+            except (ValueError, np.linalg.LinAlgError) as exc:  # the checks say why
+                cov_error = str(exc)
+        staged.extra["exempt"] = white_limit
+        note = ""
+        if white_limit:
+            cov[white_limit, :] = np.nan
+            cov[:, white_limit] = np.nan
+            note = (
+                "; the noise model is at its white limit (the sampled coloured noise is white "
+                f"or zero): {[problem.names[i] for i in white_limit]} not identified (no "
+                "standard errors)"
+            )
+        return cov, cov_error, note
+
+    # ------------------------------------------------------------------ 3. checks
+    def post_context(self, staged: Staged, cov: FloatArray, cov_error: str | None) -> PostContext:
+        problem = staged.problem
+        return PostContext(
+            data=self.data,
+            structure=self.structure,
+            jitter=self.jitter,
             names=problem.names,
             bounds=problem.bounds,
-            x=x,
-            cost=float(cost),
+            x=staged.outcome.x,
+            cost=float(staged.outcome.cost),
             cov=cov,
             objective=problem.objective,
             model_mean=lambda v: problem.moments(v).mean,
-            oe_system=lambda: scaling.to_scaled(prefit().x)[nj:],
-            starts=partial(_other_starts, problem, others),
+            oe_system=lambda: self.scaling.to_scaled(self.prefit().x)[self.nj :],
+            starts=partial(_other_starts, problem, staged.extra["others"]),
             cov_error=cov_error,
-            exempt=white_limit,
-        ),
-        status,
-        msg,
-    )
-    if (
-        not scaling.identity
-    ):  # back to the data's units, exactly; the criterion is re-evaluated there
-        x = scaling.to_original(x)
-        cov = scaling.cov_to_original(cov)
-        w = problem.weights_at
-        problem = BJProblem(
-            data,
-            structure,
-            jitter,
-            nstruct,
-            est,
-            f,
-            white,
-            pinned=x[k:] if problem.pinned is not None else None,
-            weights_at=None if w is None else scaling.to_original(w),
+            exempt=staged.extra.get("exempt", ()),
         )
-        try:
-            cost = problem.objective(x)
-        except (ValueError, np.linalg.LinAlgError):
-            cost = np.inf
-    law, tf, noise_fitted, white_used = problem.split(x)
-    return FitResult(
-        method=est.name,
-        names=problem.names,
-        x=x,
-        cost=float(cost),
-        status=status,
-        message=msg,
-        nfev=nfev,
-        system=tf,
-        jitter_law=law,
-        noise_std=white_used,
-        freqs=f,
-        cov=cov,
-        cov_type=cov_type,
-        structure=structure,
-        jitter_model=jitter,
-        noise_structure=nstruct,
-        noise_model=noise_fitted,
-    )
+
+    # ------------------------------------------------------------------ 4. units
+    def to_data_units(self, staged: Staged, x: FloatArray) -> BJProblem:
+        problem = staged.problem
+        if self.scaling.identity:
+            return problem
+        k = problem.n_jitter + problem.n_system
+        w = problem.weights_at
+        return BJProblem(
+            self.orig,
+            self.structure,
+            self.jitter,
+            self.nstruct,
+            self.estimator,
+            self.freqs,
+            self.white,
+            pinned=x[k:] if problem.pinned is not None else None,
+            weights_at=None if w is None else self.scaling.to_original(w),
+        )
+
+    # ------------------------------------------------------------------ 5. result
+    def result_fields(self, problem: Any, x: FloatArray, staged: Staged) -> dict[str, Any]:
+        law, tf, noise_fitted, white_used = problem.split(x)
+        return {
+            "system": tf,
+            "jitter_law": law,
+            "noise_std": white_used,
+            "structure": self.structure,
+            "jitter_model": self.jitter,
+            "noise_structure": self.nstruct,
+            "noise_model": noise_fitted,
+        }
 
 
 WHITE_LAG = 1e-3  # |gamma(1)| / gamma(0) below which the sampled coloured noise is white

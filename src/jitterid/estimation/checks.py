@@ -18,7 +18,7 @@ point, so the parameters, criterion and covariance map back exactly), so that th
 optimisers' absolute tolerances do not depend on the units of the data.
 
 After the search (:func:`post_checks`; the OE search of :func:`jitterid.fit` and the
-Box-Jenkins one, :func:`jitterid.estimation.boxjenkins.fit_bj`) a converged search whose
+Box-Jenkins one, :class:`jitterid.estimation.boxjenkins.BoxJenkinsRoute`) a converged search whose
 answer cannot be trusted gets its own non-success
 :class:`~jitterid.estimation.result.FitStatus`, and a message that says what to try:
 
@@ -75,10 +75,12 @@ from scipy import stats
 from ..data import SampledData
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
+from ..params import ParamLayout, count_params
 from ..systems.constrained import Constrained
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
-from .result import FitStatus
+from .hooks import analysis
+from .status import FitStatus
 
 __all__: list[str] = []
 
@@ -348,7 +350,7 @@ class PostContext:
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
-    return len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    return count_params(jitter)
 
 
 def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitStatus, str]:
@@ -408,8 +410,7 @@ def _input_end_reached(ctx: PostContext) -> tuple[FitStatus, str] | None:
 
 
 def _theta(ctx: PostContext) -> FloatArray:
-    nj = _n_jitter(ctx.jitter)
-    return ctx.x[nj : nj + len(ctx.structure.param_names)]
+    return ParamLayout.build(ctx.jitter, ctx.structure).block(ctx.x, "system")
 
 
 def _unstable(ctx: PostContext) -> tuple[FitStatus, str] | None:
@@ -504,7 +505,7 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
     theta_oe = ctx.oe_system()
     if theta_oe is None or not isinstance(ctx.structure, ModelStructure):
         return None  # detect_jitter needs a system driven by an input
-    from ..analysis.diagnostics import detect_jitter  # diagnostics imports estimation
+    detect_jitter = analysis("detect_jitter")  # registered by jitterid.analysis
 
     try:
         det = detect_jitter(ctx.data, ctx.structure.system(theta_oe))

@@ -87,8 +87,7 @@ def _search_information(problem: Problem, x: FloatArray) -> FloatArray | None:
     criterion's expected Hessian of V ~ -2 ln L), or None (least squares: H is analytic, no
     step needed; or not computable at ``x``)."""
     try:
-        if problem.method == "ml":
-            assert problem.likelihood is not None
+        if problem.likelihood is not None:
             return problem.likelihood.information(x, problem.data.y)
         if not problem.estimator.least_squares:
             return 0.5 * np.asarray(problem.objective_gradient(x)[2], dtype=float)
@@ -156,7 +155,7 @@ def _covariance(
         return out
 
     z0, hz = x[idx], h[idx]
-    if problem.method == "ml":
+    if problem.likelihood is not None:
         return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov, info)
     bounds = problem.bounds
     G = _grad_y_jacobian(problem, x, idx, h)

@@ -38,12 +38,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import partial
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
+from ..data import SampledData
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.modal import (
@@ -57,12 +58,39 @@ from ..moments.modal import (
 )
 from ..moments.quadrature import panel_layout
 from ..moments.sample import LazyMoments, SampleMoments, moment_pass, sample_moments
-from ..systems.model import Signal
+from ..params import ParamLayout
+from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure
-from ..systems.tf import Response, TransferFunction
+from ..systems.tf import TransferFunction
 
-if TYPE_CHECKING:
-    from .problem import Problem
+Derivatives = tuple[SampleMoments, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+
+
+class Problem(Protocol):
+    """What the moments and their derivatives read of their problem
+    (:class:`jitterid.estimation.problem.Problem`, which keeps their memos)."""
+
+    data: SampledData
+    structure: Model
+    jitter: JitterLaw | JitterFamily
+    plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None
+
+    @property
+    def n_jitter(self) -> int: ...
+    @property
+    def layout(self) -> ParamLayout: ...
+    @property
+    def names(self) -> tuple[str, ...]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float], ...]: ...
+    @property
+    def needs_variances(self) -> bool: ...
+    @property
+    def estimates_noise(self) -> bool: ...
+    def split(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]: ...
+    def recall(self, key: bytes) -> Derivatives | None: ...
+    def remember(self, key: bytes, out: Derivatives | None) -> None: ...
+
 
 __all__: list[str] = []
 
@@ -74,11 +102,6 @@ _CD_REL = 1e-6  # central differences (models that declare no gradient)
 
 
 # ---------------------------------------------------------------------------- moments
-def _modal_path(sig: object) -> bool:
-    """Whether the fast modal path applies: an LTI response to a piecewise-constant input."""
-    return isinstance(sig, Response) and isinstance(sig.u, PiecewiseConstant)
-
-
 def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction) -> SegmentPlan:
     """The node plan for ``law``: rebuilt only when the law or the panel layout changes.
 
@@ -89,14 +112,14 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
     """
     d = problem.data
     assert isinstance(d.u, PiecewiseConstant)
-    p = tf._modal[2]
+    p = tf.modal.poles
     rate = float(np.max(np.abs(p))) if p.size else 0.0  # Response.rate for this input
-    key = (np.asarray(x[: problem.n_jitter], float).tobytes() + panel_layout(law, p).key, rate)
-    memo = problem._plan_memo
+    key = (problem.layout.block(x, "jitter").tobytes() + panel_layout(law, p).key, rate)
+    memo = problem.plan_memo
     if memo is not None and memo[0][0] == key[0] and memo[1].law == law:
         return memo[1]
     plan = cached_plan(law, d.T, d.N, d.u, rate, p)
-    problem._plan_memo = (key, plan)
+    problem.plan_memo = (key, plan)
     return plan
 
 
@@ -104,11 +127,11 @@ def moments(problem: Problem, x: FloatArray) -> SampleMoments:
     """m_k and Var_k at ``x`` (Lemmas 1-2), by the segment path for piecewise-constant inputs."""
     law, sig, _ = problem.split(x)
     d = problem.data
-    if not _modal_path(sig):
+    seg = sig.modal_segments
+    if seg is None:
         return sample_moments(sig, law, d.T, d.N)
-    assert isinstance(sig, Response)
     assert isinstance(d.u, PiecewiseConstant)
-    tf = sig.system
+    tf = seg.system
     d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
     plan, tab = _plan(problem, x, law, tf), tables(tf, d.u)
     need_var = problem.needs_variances
@@ -184,16 +207,16 @@ def _law_derivative(
     sum w' = d(mass)/dtheta_i is zero up to the quadrature error, ~1e-15)."""
     fam = problem.jitter
     assert isinstance(fam, JitterFamily)
-    dlaw = _PdfDerivative(fam, x[: problem.n_jitter].tolist(), law, i)
+    dlaw = _PdfDerivative(fam, problem.layout.block(x, "jitter").tolist(), law, i)
     d = problem.data
-    if _modal_path(sig):
-        assert isinstance(sig, Response)
+    seg = sig.modal_segments
+    if seg is not None:
         assert isinstance(d.u, PiecewiseConstant)
-        p = sig.system._modal[2]
+        p = seg.system.modal.poles
         rate = float(np.max(np.abs(p))) if p.size else 0.0
         plan = SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
         dmean, dvar, _, _ = modal_moments(
-            plan, tables(sig.system, d.u), keep=False, variance=need_var
+            plan, tables(seg.system, d.u), keep=False, variance=need_var
         )
     else:
         mp = moment_pass(sig, dlaw, d.T, d.N, variance=need_var)
@@ -230,15 +253,18 @@ def moment_derivatives(
     """
     x = np.asarray(x, float)
     key = x.tobytes()
-    if problem._dcache and problem._dcache[0] == key:
-        return problem._dcache[1]
-    problem._dcache = None  # free the last point's (P, N) arrays before making new ones
+    known = problem.recall(key)
+    if known is not None:
+        return known
+    problem.remember(key, None)  # free the last point's (P, N) arrays before making new ones
     law, sig, noise = problem.split(x)
     d = problem.data
-    nj, ns = problem.n_jitter, len(problem.structure.param_names)
+    lay = problem.layout
+    nj, ns = len(lay.jitter), len(lay.system)
+    sys_ = lay.slice("system")
     P = x.size
     dm, dv = np.zeros((P, d.N)), np.zeros((P, d.N))
-    theta = x[nj : nj + ns]
+    theta = lay.block(x, "system")
     # A delay moves the jitter law (DelayedSignal.jitter_equivalent): the law at the nodes is
     # then a shifted one, whose scale and closed-form dp/dtheta are not the family's, so its
     # parameters are differenced; the delay itself moves no coefficient (differenced below).
@@ -248,13 +274,13 @@ def moment_derivatives(
     a = float(x[scale]) if scale is not None else None
     analytic_scale = False
     mom: SampleMoments
-    if _modal_path(sig) and not (ns > 0 or scale is not None):
+    seg = sig.modal_segments
+    if seg is not None and not (ns > 0 or scale is not None):
         mom = moments(problem, x)  # nothing to differentiate along the modal path
-    elif _modal_path(sig):
-        assert isinstance(sig, Response)
+    elif seg is not None:
         assert isinstance(d.u, PiecewiseConstant)
         assert isinstance(problem.structure, ModelStructure)  # a Response is an LTI structure's
-        tf = sig.system
+        tf = seg.system
         d.u.check_covers((d.N - 1) * d.T + law.support[1], "the last jittered sampling instant")
         dtab = (
             derivative_tables(tf, d.u, modal_sensitivity(problem.structure, theta, tf))
@@ -268,9 +294,9 @@ def moment_derivatives(
             mom = LazyMoments(mean, partial(_variances, plan, tab))
         else:
             mom = SampleMoments(mean, var)
-        dm[nj : nj + ns] = dms[:ns]
+        dm[sys_] = dms[:ns]
         if dvs is not None:
-            dv[nj : nj + ns] = dvs[:ns]
+            dv[sys_] = dvs[:ns]
         analytic_scale = scale is not None
         if analytic_scale:
             dm[scale] = dms[ns]
@@ -288,18 +314,18 @@ def moment_derivatives(
             analytic_scale = True
         if mp.dmean is not None:
             assert mp.dvar is not None
-            dm[nj : nj + ns], dv[nj : nj + ns] = mp.dmean, mp.dvar
+            dm[sys_], dv[sys_] = mp.dmean, mp.dvar
         elif ns:  # declared missing: central differences of the moments (finite_diff)
             for i in range(nj, nj + ns):
                 dm[i], dv[i] = _differenced(problem, x, i, variance=True)
-    if delay is not None and _modal_path(sig):  # the modal rows hold zeros for the delay
+    if delay is not None and seg is not None:  # the modal rows hold zeros for the delay
         dmi, dvi = _differenced(problem, x, nj + delay, variance=need_var)
         dm[nj + delay] = dmi
         if dvi is not None:
             dv[nj + delay] = dvi
     shape = [i for i in range(nj) if not (analytic_scale and i == scale)]
     grad = (
-        problem.jitter.pdf_gradient(x[:nj].tolist(), np.zeros(0))  # type: ignore[union-attr]
+        problem.jitter.pdf_gradient(lay.block(x, "jitter").tolist(), np.zeros(0))  # type: ignore[union-attr]
         if shape and delay is None
         else None
     )
@@ -317,9 +343,7 @@ def moment_derivatives(
             dv[i] = (mi.var - mom.var) / h
     if not need_var:
         out = (mom, np.empty(0), dm, np.empty((P, 0)))
-        problem._dcache = (key, out)
-        problem._cache.clear()
-        problem._cache[key] = mom
+        problem.remember(key, out)
         return out
     w, floored = _floored(problem, x, mom.var)
     dw = dv
@@ -327,7 +351,5 @@ def moment_derivatives(
         dw[-1] = 2 * noise
     dw[:, floored] = 0.0
     out = (mom, w, dm, dw)
-    problem._dcache = (key, out)
-    problem._cache.clear()
-    problem._cache[key] = mom
+    problem.remember(key, out)
     return out

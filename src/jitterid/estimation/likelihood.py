@@ -96,12 +96,12 @@ from .._checks import count, positive, real_array, sampling_interval
 from .._memory import trim
 from .._state import CachesAreNotState, cache_field
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw, SumOfUniforms, known_law
+from ..jitter.laws import JitterFamily, JitterLaw, known_law
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
-from ..params import ParamLayout
+from ..params import ParamLayout, count_params
 from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
-from ..systems.tf import Response, TransferFunction
+from ..systems.tf import TransferFunction
 from .resources import check_likelihood, check_mode_rate, kept_nodes
 from .search import evaluator, newton_search
 
@@ -153,30 +153,19 @@ FISHER_SCALE_STEP = 0.05  # ... or at most this fraction of a parameter's natura
 
 
 # ---------------------------------------------------------------------------- signal at nodes
-_Modal = tuple[float, NDArray[np.complex128], NDArray[np.complex128]]
-
-
-def _kept(modal: _Modal) -> _Modal:
-    """(D, rho, p) over the poles with Im p >= 0; rho doubles the residue of a complex pair,
-    so that s = D u + Re sum rho x (the conjugate pole's term is the conjugate)."""
-    d, r, p = modal
-    keep = p.imag >= 0
-    return d, r[keep] * np.where(p[keep].imag > 0, 2.0, 1.0), p[keep]
-
-
 def _modal_gradient(
     structure: ModelStructure, theta: FloatArray, tf: TransferFunction
 ) -> tuple[FloatArray, NDArray[np.complex128], NDArray[np.complex128]] | None:
     """d(D, rho, p)/d theta by central differences of the modal form (poles matched by
     proximity); None if the matching is ambiguous (then the caller differentiates s)."""
-    p0 = _kept(tf._modal)[2]
+    p0 = tf.modal.kept()[2]
     n = theta.size
     dd, drho, dp = np.empty(n), np.empty((n, p0.size), complex), np.empty((n, p0.size), complex)
     for i in range(n):
         up, down, h2 = finite_diff.central_pair(theta, i, structure.bounds[i], 1e-6)
         parts = []
         for th in (up, down):
-            d, rho, p = _kept(structure.system(th)._modal)
+            d, rho, p, _ = structure.system(th).modal.kept()
             if p.size != p0.size:
                 return None
             j = np.argmin(np.abs(p[None, :] - p0[:, None]), axis=1)
@@ -194,13 +183,13 @@ def _pole_sensitivity(tf: TransferFunction, u: PiecewiseConstant) -> NDArray[np.
     X(p) is analytic in p; shifting every pole by the same real -delta keeps the
     denominator real, and a one-sided second-order difference stays on the stable side.
     """
-    p = tf._modal[2]
+    p = tf.modal.poles
     pk = p[p.imag >= 0]
     delta = 1e-5 * float(np.max(np.abs(p)))
     states = []
     for shift in (0.0, delta, 2 * delta):
         moved = TransferFunction(np.ones(1), np.real(np.poly(p - shift)))
-        q = moved._modal[2]
+        q = moved.modal.poles
         j = np.argmin(np.abs(q[None, :] - (pk - shift)[:, None]), axis=1)
         states.append(moved.switch_states(u)[:, j])
     return (3 * states[0] - 4 * states[1] + states[2]) / (2 * delta)
@@ -222,8 +211,9 @@ class _NodeSignal:
         self.t = t
         if t.size:
             sig.check_covers(float(np.max(t)), "the last quadrature node")
-        self.u = u = sig.u if isinstance(sig, Response) else None
-        if isinstance(u, PiecewiseConstant):
+        seg = sig.modal_segments
+        self.u = u = None if seg is None else seg.u
+        if u is not None:
             # the input's segment of each instant (given: the windowed rule's pieces lie
             # between switches, so it is found once per piece)
             j = np.searchsorted(u.times, t, side="right") - 1 if segment is None else segment
@@ -236,7 +226,7 @@ class _NodeSignal:
     def analytic(self) -> bool:
         """Whether :meth:`gradient` is available (LTI responses to piecewise-constant inputs);
         otherwise the signal's own gradient and slope, or differences, are used."""
-        return isinstance(self.u, PiecewiseConstant)
+        return self.u is not None
 
     def _pole_terms(
         self, tf: TransferFunction, dX: NDArray[np.complex128] | None = None
@@ -244,8 +234,7 @@ class _NodeSignal:
         """Per kept pole: (rho, p, Re x, Im x, Re dx/dp, Im dx/dp) at the nodes (dx/dp only
         with ``dX``; else zeros). Real arithmetic on 1-D arrays: numpy's complex expm1 and
         small complex matmuls are ~10x slower. Nodes before the input starts get x = 0."""
-        _, rho, pk = _kept(tf._modal)
-        cols = np.flatnonzero(tf._modal[2].imag >= 0)
+        _, rho, pk, cols = tf.modal.kept()
         assert isinstance(self.u, PiecewiseConstant)
         X = tf.switch_states(self.u)
         dt = self.dt[:, 0]
@@ -276,9 +265,10 @@ class _NodeSignal:
     def __call__(self, sig: Signal) -> FloatArray:
         if not self.analytic:
             return sig(self.t)
-        assert isinstance(sig, Response)
-        tf = sig.system
-        s = tf._modal[0] * self.level
+        seg = sig.modal_segments
+        assert seg is not None
+        tf = seg.system
+        s = tf.modal.direct * self.level
         for rk, _, xr, xi, _, _ in self._pole_terms(tf):
             s = s + (rk.real * xr - rk.imag * xi)
         return np.asarray(s, dtype=float)
@@ -297,9 +287,10 @@ class _NodeSignal:
         derivative s'(t) = Re sum rho (p x + u) at the nodes, from the same exponentials (the
         score of a jitter scale parameter, see :meth:`ExactLikelihood._terms`)."""
         assert isinstance(self.u, PiecewiseConstant)
-        assert isinstance(sig, Response)
-        tf = sig.system
-        s = tf._modal[0] * self.level
+        seg = sig.modal_segments
+        assert seg is not None
+        tf = seg.system
+        s = tf.modal.direct * self.level
         ds = np.zeros(self.t.size)
         if dmodal is None:
             D = np.zeros((0, self.t.size))
@@ -507,25 +498,25 @@ class _Nodes:
 
 
 def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
-    """law.pdf(tau); for :class:`SumOfUniforms` from its exact piecewise-polynomial form.
+    """law.pdf(tau); for a law that declares :attr:`~jitterid.jitter.laws.JitterLaw.pdf_degree`
+    (:class:`SumOfUniforms`) from its exact piecewise-polynomial form.
 
-    Between consecutive breakpoints that density is a polynomial of degree at most m (m
-    uniforms, plus the window of width 2c at non-integer n), which its Chebyshev interpolant
-    at m + 1 points of ``law.pdf`` reproduces to rounding (Clenshaw, per interval): O(m)
-    operations per point where the B-spline evaluation of ``law.pdf`` costs O(m^2) and more
-    (and a Gauss-Legendre window per point just above an integer n). Like ``law.pdf`` it is
-    evaluated at -|tau| (exactly symmetric).
+    Between consecutive breakpoints that density is a polynomial of degree at most deg (for
+    m uniforms m - 1, plus one with the window of width 2c at non-integer n), which its
+    Chebyshev interpolant at deg + 1 points of ``law.pdf`` reproduces to rounding (Clenshaw,
+    per interval): O(deg) operations per point where the B-spline evaluation of ``law.pdf``
+    costs O(m^2) and more (and a Gauss-Legendre window per point just above an integer n).
+    The law is symmetric: like ``law.pdf`` it is evaluated at -|tau|.
     """
-    if not isinstance(law, SumOfUniforms):
+    deg = law.pdf_degree if isinstance(law, JitterLaw) else None  # None for a stand-in law
+    if deg is None:
         return np.asarray(law.pdf(tau), dtype=float)
-    m, _, c = law.components
-    deg = m if c > 0 else max(m - 1, 0)
     bp = np.asarray(law.breakpoints(), dtype=float)
     bp = bp[bp <= 0.0]
     if bp[-1] < 0.0:
         bp = np.r_[bp, 0.0]
     x = -np.abs(np.asarray(tau, dtype=float))
-    inside = x >= -law.a
+    inside = x >= law.support[0]
     left, right = bp[:-1], bp[1:]
     cheb = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # first-kind points
     pts = 0.5 * (left + right)[:, None] + 0.5 * (right - left)[:, None] * cheb[None, :]
@@ -933,7 +924,7 @@ class ExactLikelihood(CachesAreNotState):
 
     @property
     def n_jitter(self) -> int:
-        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+        return count_params(self.jitter)
 
     def split(self, x: ArrayLike) -> tuple[JitterLaw, Signal, float]:
         """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``.
@@ -1028,7 +1019,7 @@ class ExactLikelihood(CachesAreNotState):
             if self._window_y is None or not np.array_equal(self._window_y, y):
                 self._forget()
                 self._window_y = np.array(y, dtype=float)
-        key = (*x[: self.n_jitter], law.mean)  # a delay shifts the law (Delayed)
+        key = (*self.layout.block(x, "jitter"), law.mean)  # a delay shifts the law (Delayed)
         windowed = self._design is not None and y is not None
         if key not in self._cache:
             if len(self._cache) > 16:
@@ -1160,8 +1151,9 @@ class ExactLikelihood(CachesAreNotState):
             gw = half[piece] * wg[nn, pos]
             owner = o[piece]
             segment = None
-            if isinstance(sig, Response) and isinstance(sig.u, PiecewiseConstant):
-                segment = (np.searchsorted(sig.u.times, mid, side="right") - 1)[piece]
+            seg = sig.modal_segments
+            if seg is not None:
+                segment = (np.searchsorted(seg.u.times, mid, side="right") - 1)[piece]
             tau = t - (pc.k0 + owner) * self.T
             w = gw * _density(law, np.clip(tau, *clip))
             keep = w > 0
@@ -1381,7 +1373,7 @@ class ExactLikelihood(CachesAreNotState):
             return False  # a delayed model's law is the family's shifted (differenced)
         fam = self.jitter
         assert isinstance(fam, JitterFamily)
-        return fam.pdf_gradient(x[: self.n_jitter].tolist(), np.zeros(0)) is not None
+        return fam.pdf_gradient(self.layout.block(x, "jitter").tolist(), np.zeros(0)) is not None
 
     def _terms(
         self, x: FloatArray, y: FloatArray, *, information: bool
@@ -1432,10 +1424,11 @@ class ExactLikelihood(CachesAreNotState):
         dmodal = None
         if ns and analytic:
             assert isinstance(self.u, PiecewiseConstant)
-            assert isinstance(sig, Response)
+            seg = sig.modal_segments
+            assert seg is not None
             assert isinstance(self.model, ModelStructure)
-            dmodal = _modal_gradient(self.model, x[nj : nj + ns], sig.system)
-            dX = _pole_sensitivity(sig.system, self.u) if dmodal is not None else None
+            dmodal = _modal_gradient(self.model, self.layout.block(x, "system"), seg.system)
+            dX = _pole_sensitivity(seg.system, self.u) if dmodal is not None else None
         own_gradient = not analytic and ns and sig.has_gradient
         # parameters differenced (forward steps): jitter parameters without an analytic
         # score, and the system's where neither the modal form nor the model gives ds/dtheta
@@ -1497,7 +1490,9 @@ class ExactLikelihood(CachesAreNotState):
             if closed:
                 lo, hi = law.support
                 tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
-                ratio = self.jitter.pdf_gradient(x[:nj].tolist(), tau)[closed] / law.pdf(tau)  # type: ignore[union-attr,index]
+                theta_j = self.layout.block(x, "jitter").tolist()
+                dp = self.jitter.pdf_gradient(theta_j, tau)  # type: ignore[union-attr]
+                ratio = dp[closed] / law.pdf(tau)  # type: ignore[index]
                 G[rows, closed] = np.add.reduceat(ratio * ev.post, nd.starts, axis=1).T
             A = D * (ev.e / sigma)
             if noise:
@@ -1584,7 +1579,7 @@ class ExactLikelihood(CachesAreNotState):
         nj = self.n_jitter
         if nj:
             sig = self.split(x0)[1]
-            modal = isinstance(sig, Response) and isinstance(self.u, PiecewiseConstant)
+            modal = sig.modal_segments is not None
             scale = self._scale_index(_has_slope(sig, modal))
             smooth = np.arange(x0.size) >= nj
             if scale is not None:

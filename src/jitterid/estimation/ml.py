@@ -8,30 +8,18 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .._memory import trim
 from ..jitter.laws import JitterFamily
-from ..moments.modal import clear_plans
-from .problem import Problem
-from .result import FitStatus
+from .problem import Problem, free_moment_plans
+from .search import Outcome, register_search
+from .status import FitStatus
 
-__all__ = ["run_ml"]
+__all__ = ["likelihood_adapter", "run_ml"]
 
 FloatArray = NDArray[np.float64]
 
 #: A jitter std below this fraction of another scored start's counts as zero jitter (where
 #: the likelihood, even in the scale, has a vanishing gradient).
 _DEGENERATE = 1e-3
-#: records from this many samples free the moment plans before the likelihood's search
-FREE_PLANS_FROM = 100_000
-
-
-def free_moment_plans(N: int) -> None:
-    """On a record of at least ``FREE_PLANS_FROM`` samples, drop the moments' segment plans
-    (~640 MB at N = 1e6) and return the freed pages to the system; what needs the moments
-    later (the checks' model mean) rebuilds them."""
-    if N >= FREE_PLANS_FROM:
-        clear_plans()
-        trim()
 
 
 def _residual_std(problem: Problem, x0: FloatArray) -> float:
@@ -58,23 +46,24 @@ def _candidates(problem: Problem, x0: FloatArray) -> list[FloatArray]:
     variance (:func:`_residual_std`), all with x0's system and noise parameters."""
     jitter = problem.jitter
     assert isinstance(jitter, JitterFamily)
-    nj = problem.n_jitter
+    lay = problem.layout
+    nj = len(lay.jitter)
     scale = jitter.scale_index
     out = [x0]
 
     def add(params: FloatArray) -> None:
-        cand = x0.copy()
-        cand[:nj] = np.clip(params, lo[:nj], hi[:nj])
+        cand = lay.replace(x0, "jitter", np.clip(params, *jitter_bounds))
         if not any(np.allclose(cand, c, rtol=1e-9, atol=0) for c in out):
             out.append(cand)
 
-    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    lo, hi = lay.lower_upper()
+    jitter_bounds = (lay.block(lo, "jitter"), lay.block(hi, "jitter"))
     defaults = [np.asarray(js, float) for js in jitter.default_starts(problem.data.T)]
     if scale is None:
         for js in defaults:
             add(js)
         return out
-    std0 = jitter.law(x0[:nj].tolist()).std
+    std0 = jitter.law(lay.block(x0, "jitter").tolist()).std
     std_r = _residual_std(problem, x0)
 
     def at_std(params: FloatArray, std: float) -> FloatArray:  # the law is that of a xi
@@ -89,7 +78,7 @@ def _candidates(problem: Problem, x0: FloatArray) -> list[FloatArray]:
         for js in defaults:
             add(at_std(js, std0))
     if std_r > 0 and not 0.5 < std0 / std_r < 2:  # BCLS's std is not that of the residuals
-        for js in [x0[:nj], *defaults]:
+        for js in [lay.block(x0, "jitter"), *defaults]:
             add(at_std(js, std_r))
     return out
 
@@ -190,3 +179,22 @@ def run_ml(
     if not np.isfinite(cost):
         status = FitStatus.NOT_FINITE
     return x, cost, status, msg, nfev
+
+
+@register_search("likelihood")
+def likelihood_adapter(
+    problem: Problem,
+    x0: FloatArray,
+    max_nfev: int,
+    free: NDArray[np.bool_] | None = None,
+    tol: float | None = None,
+) -> Outcome:
+    """The search adapter of the exact likelihood (:data:`jitterid.estimation.search
+    .SEARCHES`, key ``"likelihood"``): :func:`run_ml` from ``x0`` clipped to the bounds.
+    ``free`` and ``tol`` are not used (the likelihood's search has its own tolerances and
+    searches every parameter)."""
+    lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
+    x0 = np.clip(x0, lo, hi)
+    if x0.size == 0:
+        return Outcome(x0, problem.objective(x0), FitStatus.CONVERGED, "no free parameters", 1)
+    return Outcome(*run_ml(problem, x0, max_nfev))

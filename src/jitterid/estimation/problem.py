@@ -23,9 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_factor
 
+from .._memory import trim
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
-from ..moments.modal import SegmentPlan
+from ..moments.modal import SegmentPlan, clear_plans
 from ..moments.reference import dtft
 from ..moments.sample import SampleMoments, difference_grid, moment_pass
 from ..params import ParamLayout
@@ -34,14 +35,28 @@ from . import jacobians as _jacobians
 from .estimators import Estimator, as_estimator, method_names
 from .likelihood import ExactLikelihood
 from .resources import check_mode_rate
+from .search import SearchOptions
 
-__all__ = ["METHODS", "Problem", "default_frequencies"]
+__all__ = ["METHODS", "Problem", "default_frequencies", "free_moment_plans"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 _Derivatives = tuple[SampleMoments, FloatArray, FloatArray, FloatArray]
 
 METHODS = method_names()  # the registered estimators (jitterid.estimation.estimators)
+
+
+#: records from this many samples free the moment plans before the likelihood's search
+FREE_PLANS_FROM = 100_000
+
+
+def free_moment_plans(N: int) -> None:
+    """On a record of at least ``FREE_PLANS_FROM`` samples, drop the moments' segment plans
+    (~640 MB at N = 1e6) and return the freed pages to the system; what needs the moments
+    later (the checks' model mean) rebuilds them."""
+    if N >= FREE_PLANS_FROM:
+        clear_plans()
+        trim()
 
 
 def default_frequencies(N: int, T: float) -> FloatArray:
@@ -95,7 +110,7 @@ class Problem:
     data: SampledData
     structure: Model
     jitter: JitterLaw | JitterFamily
-    method: str
+    estimator: Estimator  # (or its registered name, turned into the object)
     freqs: FloatArray
     noise_std: float | None
     weights_at: FloatArray | None = None  # wbcls: theta at which R is frozen (module doc)
@@ -110,10 +125,12 @@ class Problem:
     _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
     _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
     _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = field(init=False, default=None)
-    _plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
+    # the moments' last node plan with its key (jacobians._plan)
+    plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
     _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
+        self.estimator = as_estimator(self.estimator)
         self.layout = ParamLayout.build(
             self.jitter,
             self.structure,
@@ -121,7 +138,7 @@ class Problem:
             noise_floor=self.data.resolution,
         )
         self.Y = dtft(self.data.y, self.data.T, self.freqs)
-        if self.method == "ml":
+        if self.estimator.exact_likelihood:
             d = self.data
             noise = None if self.estimates_noise else self.noise_std
             self.likelihood = ExactLikelihood(
@@ -137,8 +154,13 @@ class Problem:
         return self.layout.bounds
 
     @property
+    def method(self) -> str:
+        """The estimator's registered name."""
+        return self.estimator.name
+
+    @property
     def estimates_noise(self) -> bool:
-        return as_estimator(self.method).estimates_noise and self.noise_std is None
+        return self.estimator.estimates_noise and self.noise_std is None
 
     @property
     def uses_noise(self) -> bool:
@@ -147,7 +169,7 @@ class Problem:
 
     @property
     def n_jitter(self) -> int:
-        return len(self.jitter.param_names) if isinstance(self.jitter, JitterFamily) else 0
+        return len(self.layout.jitter)
 
     def split(self, x: FloatArray) -> tuple[JitterLaw, Signal, float]:
         """(jitter law, signal s(t; theta), noise std) at parameter vector ``x``.
@@ -198,7 +220,24 @@ class Problem:
         self._cache.clear()
         self._dcache = None
         self._split = None
-        self._plan_memo = None
+        self.plan_memo = None
+
+    def recall(self, key: bytes) -> _Derivatives | None:
+        """The derivatives remembered for the point with bytes ``key`` (:meth:`derivatives`
+        of the last point), or None."""
+        if self._dcache is not None and self._dcache[0] == key:
+            return self._dcache[1]
+        return None
+
+    def remember(self, key: bytes, out: _Derivatives | None) -> None:
+        """Keep ``out`` (the derivatives at the point with bytes ``key``) and its moments as
+        the last point's; None forgets the last point's derivatives."""
+        if out is None:
+            self._dcache = None
+            return
+        self._dcache = (key, out)
+        self._cache.clear()
+        self._cache[key] = out[0]
 
     def difference_grid(self) -> tuple[FloatArray, NDArray[np.intp]]:
         """Distinct f - psi over the frequency set, and the index of each pair (for R_Y)."""
@@ -233,11 +272,6 @@ class Problem:
         if self.with_variances is not None:
             return self.with_variances
         return self.estimator.uses_variances
-
-    @property
-    def estimator(self) -> Estimator:
-        """The estimator whose criterion this problem evaluates."""
-        return as_estimator(self.method)
 
     def weighted(self, x: FloatArray) -> tuple[ComplexArray, tuple[FloatArray, bool] | None]:
         """Residual Y - mu and, for the full-covariance criteria, the Cholesky factor of R."""
@@ -289,9 +323,31 @@ class Problem:
         """d :meth:`residuals` / dx, analytic (least-squares methods)."""
         return self.estimator.jacobian(self, np.asarray(x, float))
 
-    def objective_gradient(self, x: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-        """(V, dV/dx, expected Hessian of V) (Newton-searched methods)."""
+    def objective_gradient(
+        self, x: FloatArray, free: NDArray[np.intp] | None = None
+    ) -> tuple[float, FloatArray, FloatArray]:
+        """(V, dV/dx, expected Hessian of V) (Newton-searched methods); ``free`` (the
+        parameters searched) is part of the search protocol and not used here."""
         return self.estimator.objective_gradient(self, np.asarray(x, float))
+
+    # ------------------------------------------------------------------ for the search
+    def search_residuals(self, x: FloatArray) -> FloatArray:
+        """:meth:`residuals`, for a least-squares search: the moments' derivatives come out
+        of the same pass over the nodes for about twice its cost, and least_squares asks for
+        the Jacobian at every point it accepts, so both are computed here (one pass saved
+        per iteration)."""
+        _jacobians.moment_derivatives(self, np.asarray(x, float))
+        return self.residuals(x)
+
+    @property
+    def has_jacobian(self) -> bool:
+        """The residuals' Jacobian is analytic (:mod:`.jacobians`)."""
+        return True
+
+    def search_options(self, tol: float | None = None) -> SearchOptions:
+        """The Newton adapter's options (:class:`~jitterid.estimation.search.SearchOptions`):
+        the parameters themselves, Newton decrement 1e-8 (or ``tol``)."""
+        return SearchOptions() if tol is None else SearchOptions(tol=tol)
 
     def objective(self, x: FloatArray) -> float:
         """The criterion value V(theta) of the chosen method."""

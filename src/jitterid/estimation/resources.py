@@ -47,6 +47,7 @@ on time.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +56,7 @@ from ..data import SampledData
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterFamily, JitterLaw
 from ..moments.quadrature import panels_per_sample, relative_cuts
+from ..params import count_params
 from ..systems.model import Model, Signal
 
 __all__: list[str] = []
@@ -179,10 +181,13 @@ def check_fit(
     data: SampledData,
     structure: Model,
     jitter: JitterLaw | JitterFamily,
-    method: str,
+    estimator: Any,
 ) -> None:
-    """Refuse, before any work, a fit whose estimated memory exceeds the budget."""
-    n_jit = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    """Refuse, before any work, a fit whose estimated memory exceeds the budget
+    (``estimator``: the :class:`~jitterid.estimation.estimators.Estimator`; the exact
+    likelihood's quadrature rule counts where it has one)."""
+    method = estimator.name
+    n_jit = count_params(jitter)
     P = n_jit + len(structure.param_names)
     N = data.N
     need = moment_bytes(N, P)
@@ -193,7 +198,7 @@ def check_fit(
         "(a known jitter law, a lower model order), or raise JITTERID_MEMORY_BUDGET if the "
         "machine has the memory"
     )
-    if method == "ml":
+    if estimator.exact_likelihood:
         law = _widest_law(jitter, data.T)
         if law is not None and isinstance(data.u, PiecewiseConstant):
             # the full rule's panels without the slope cuts, or the windowed rule's least

@@ -9,7 +9,6 @@ It holds no reference to the data or to the criterion, so it pickles to a few KB
 from __future__ import annotations
 
 import dataclasses
-import enum
 import json
 import math
 import warnings
@@ -30,6 +29,9 @@ from ..noise.models import NoiseModel, NoiseStructure
 from ..params import ParamLayout
 from ..systems.model import Model, Signal
 from ..systems.tf import TransferFunction
+from .estimators import Estimator, as_estimator
+from .hooks import analysis
+from .status import FitStatus
 
 __all__ = ["COV_TYPES", "FitResult", "FitStatus"]
 
@@ -37,62 +39,6 @@ FloatArray = NDArray[np.float64]
 
 COV_TYPES = ("sandwich", "robust", "oim", "none")
 DISCRETE_METHODS = ("zoh", "foh", "bilinear", "euler", "backward_diff", "impulse")
-
-
-class FitStatus(enum.Enum):
-    """How the search ended; the value is a message that says what to do.
-
-    Examples
-    --------
-    >>> import jitterid as ji
-    >>> ji.FitStatus.CONVERGED.name
-    'CONVERGED'
-    >>> ji.FitStatus.MAX_EVALUATIONS.value.split(":")[0]
-    'failed'
-    """
-
-    CONVERGED = "converged: the optimiser's convergence test was met"
-    MAX_EVALUATIONS = (
-        "failed: the evaluation budget ran out before convergence; raise max_nfev or give a "
-        "better start"
-    )
-    NOT_FINITE = "failed: the criterion was not finite at the end; check the data, bounds and start"
-    OPTIMISER_FAILED = "failed: the optimiser reported an error (see message)"
-    # Checks after a converged search (jitterid.estimation.checks): the search met its test,
-    # but the answer cannot be trusted. The message says which parameter and the numbers.
-    AT_BOUND = (
-        "failed: a parameter ended on or next to its bound, or the jitter scale collapsed "
-        "while the data show jitter (see message); try another start, structure or jitter law"
-    )
-    UNIDENTIFIABLE = (
-        "failed: the information matrix is (nearly) singular, so some parameters are not "
-        "identified (see message); fix some parameters, use fewer, or a richer input"
-    )
-    UNSTABLE_MODEL = (
-        "failed: the fitted model is unstable or improper (see message); use a lower model "
-        "order or another start"
-    )
-    LOCAL_OPTIMUM = (
-        "failed: the search stopped at a local optimum (another start reaches a lower "
-        "criterion, see message); fit without start or from a better start"
-    )
-    NOT_SIGNIFICANT = (
-        "failed: the fitted model explains no significant part of the output (see message); "
-        "check that u drove y, or use a stronger or longer excitation"
-    )
-    LACK_OF_FIT = (
-        "failed: the residuals are far larger than the model (jitter and the known noise) "
-        "allows (see message); try other starts, another structure, or check noise_std"
-    )
-    OVER_ORDER = (
-        "failed: the model has more poles or zeros than the data support (a pole and a zero "
-        "that cancel, or one not told from infinity; see message); use a lower order, or "
-        "compare orders with select_order"
-    )
-
-    @property
-    def success(self) -> bool:
-        return self is FitStatus.CONVERGED
 
 
 def _jitter_std_gradient(family: JitterFamily, theta: FloatArray) -> FloatArray:
@@ -167,6 +113,12 @@ class FitResult:
         The coloured-noise structure (Box-Jenkins), None for white noise.
     noise_model : NoiseModel or None
         The fitted coloured-noise model, None for white noise.
+    estimator : Estimator
+        The estimator object that made the fit, with its options (``method`` is its name);
+        by default the registered estimator of ``method``.
+    layout : ParamLayout
+        The parameter layout the search used (blocks, names, bounds); by default rebuilt
+        from the structure, jitter model and noise structure.
 
     Examples
     --------
@@ -198,8 +150,23 @@ class FitResult:
     jitter_model: JitterLaw | JitterFamily = field(repr=False)
     noise_structure: NoiseStructure | None = field(default=None, repr=False)
     noise_model: NoiseModel | None = field(default=None, repr=False)
+    estimator: Estimator = field(default=None, repr=False)  # type: ignore[assignment]
+    layout: ParamLayout = field(default=None, repr=False)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
+        if self.estimator is None:
+            object.__setattr__(self, "estimator", as_estimator(self.method))
+        if self.layout is None:
+            object.__setattr__(
+                self,
+                "layout",
+                ParamLayout.build(
+                    self.jitter_model,
+                    self.structure,
+                    self.noise_structure,
+                    noise_std="noise_std" in self.names,
+                ),
+            )
         x = np.asarray(self.x, float).reshape(-1)
         cov = np.asarray(self.cov, float)
         if cov.shape != (x.size, x.size):
@@ -227,16 +194,6 @@ class FitResult:
         """``{name: sqrt(cov[i, i])}``; NaN for a parameter on a bound (see :meth:`summary`)."""
         se = np.sqrt(np.abs(np.diag(self.cov)))
         return {n: float(v) for n, v in zip(self.names, se, strict=True)}
-
-    @property
-    def layout(self) -> ParamLayout:
-        """The parameter layout of ``names`` (blocks, bounds)."""
-        return ParamLayout.build(
-            self.jitter_model,
-            self.structure,
-            self.noise_structure,
-            noise_std="noise_std" in self.names,
-        )
 
     @property
     def jitter(self) -> JitterLaw:
@@ -474,7 +431,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.bode_band`.
         """
-        from ..analysis.uncertainty import bode_band
+        bode_band = analysis("bode_band")
 
         return bode_band(self, f_hz, level, **kwargs)
 
@@ -491,7 +448,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.jitter_pdf_band`.
         """
-        from ..analysis.uncertainty import jitter_pdf_band
+        jitter_pdf_band = analysis("jitter_pdf_band")
 
         return jitter_pdf_band(self, tau_s, rng, **kwargs)
 
@@ -507,7 +464,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.physical_quantities`.
         """
-        from ..analysis.quantities import physical_quantities
+        physical_quantities = analysis("physical_quantities")
 
         return physical_quantities(self, level, **kwargs)
 
@@ -524,7 +481,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.step_response`.
         """
-        from ..analysis.responses import step_response
+        step_response = analysis("step_response")
 
         return step_response(self, t_s, level, **kwargs)
 
@@ -541,7 +498,7 @@ class FitResult:
         **kwargs
             Further options of :func:`jitterid.impulse_response`.
         """
-        from ..analysis.responses import impulse_response
+        impulse_response = analysis("impulse_response")
 
         return impulse_response(self, t_s, level, **kwargs)
 
@@ -736,6 +693,8 @@ class FitResult:
         out: dict[str, Any] = {}
         for name in self.__dataclass_fields__:
             v = getattr(self, name)
+            if name == "estimator" and not type(v).__module__.startswith("jitterid."):
+                v = None  # a user's estimator class: by name (method) only
             out[name] = v.name if isinstance(v, FitStatus) else _serial.encode(v)
         return out
 

@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 from ..io import atomic_write
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
-from ..noise.covariance import jittered_autocovariance
+from ..moments.noise_covariance import jittered_autocovariance
 from ..noise.models import NoiseModel
 from .config import Experiment, split_method
 from .store import Estimate

@@ -39,7 +39,7 @@ from .. import __version__
 from ..io import atomic_write
 from .config import Experiment
 
-__all__ = ["Estimate", "Store", "StoreError"]
+__all__ = ["Estimate", "SqliteStore", "Store", "StoreError"]
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -131,23 +131,24 @@ class Estimate:
         return key(self) == key(other)
 
 
-class Store:
-    """SQLite results store for one experiment (``<out>/<name>.sqlite``).
+class SqliteStore:
+    """One SQLite results file held by one writer: the lock, and errors turned into
+    :class:`StoreError` messages. Subclasses define the tables in :meth:`_open`.
 
     Parameters
     ----------
     path : str or Path
         The database file; created with its folder if missing.
-    experiment : Experiment
-        The definition whose results it holds.
     resume : bool
-        Whether existing results may be continued. Without it, a store that already holds
-        results is refused (so nothing is mixed up or overwritten by accident).
+        Whether existing results may be continued (each subclass's :meth:`_open` refuses a
+        file that holds results without it).
     """
 
-    def __init__(self, path: str | Path, experiment: Experiment, *, resume: bool = False) -> None:
+    #: What the file's rows are, for the messages.
+    _ROWS = "realizations"
+
+    def __init__(self, path: str | Path, *, resume: bool = False) -> None:
         self.path = Path(path)
-        self.experiment = experiment
         self._lock: io.BufferedRandom | None = None
         self._db: sqlite3.Connection | None = None
         if self.path.is_dir():
@@ -194,26 +195,99 @@ class Store:
             raise StoreError(
                 f"{self.path} is not a readable jitterid results store ({exc}); it may be corrupt, "
                 "truncated or from another program: move it away (or delete it) and run again "
-                "without --resume; its realizations will be computed anew"
+                f"without --resume; its {self._ROWS} will be computed anew"
             ) from None
         except BaseException:
             self.close()
             raise
 
     def _open(self, resume: bool) -> None:
-        experiment = self.experiment
+        """Connect, create and check the tables (raise StoreError to refuse the file)."""
+        raise NotImplementedError
+
+    def _connect(self, schema: str, columns: dict[str, list[str]]) -> sqlite3.Connection:
+        """Connect with full synchronisation, create ``schema`` and check that every table
+        has ``columns`` and the file passes SQLite's quick check."""
         db = self._db = sqlite3.connect(self.path)
         db.execute("PRAGMA synchronous = FULL")
         with db:
-            db.executescript(_SCHEMA)
-        for table, columns in _COLUMNS.items():
+            db.executescript(schema)
+        for table, cols in columns.items():
             have = [r[1] for r in db.execute(f"PRAGMA table_info({table})")]
-            if have != columns:
+            if have != cols:
                 raise sqlite3.DatabaseError(
                     f"table {table!r} has the columns {have}, not those of this jitterid version"
                 )
         if db.execute("PRAGMA quick_check").fetchone()[0] != "ok":
             raise sqlite3.DatabaseError("the SQLite integrity check fails")
+        return db
+
+    def close(self) -> None:
+        """Close the file and release its lock."""
+        if self._db is not None:
+            self._db.close()
+            self._db = None
+        if self._lock is not None:
+            with contextlib.suppress(OSError):
+                self._lock.close()  # releases the lock
+            self._lock = None
+
+    @property
+    def db(self) -> sqlite3.Connection:
+        """The open connection."""
+        if self._db is None:
+            raise StoreError(f"{self.path} is closed")
+        return self._db
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @contextlib.contextmanager
+    def _errors(self, what: str):
+        """SQLite errors while working -> StoreError saying what is kept and how to go on."""
+        try:
+            yield
+        except sqlite3.IntegrityError as exc:
+            raise StoreError(
+                f"cannot {what} in {self.path}: {exc} (another process wrote the same "
+                "row?); run one writer per --out folder, then --resume"
+            ) from None
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(
+                f"cannot {what} in {self.path}: {exc}; the {self._ROWS} committed before are "
+                "kept: fix the cause (disk space, permissions) and run again with --resume"
+            ) from None
+        except (TypeError, ValueError) as exc:
+            raise StoreError(
+                f"cannot {what} in {self.path}: a stored row is malformed ({exc}); move the "
+                "file away and run again without --resume"
+            ) from None
+
+
+class Store(SqliteStore):
+    """SQLite results store for one experiment (``<out>/<name>.sqlite``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The database file; created with its folder if missing.
+    experiment : Experiment
+        The definition whose results it holds.
+    resume : bool
+        Whether existing results may be continued. Without it, a store that already holds
+        results is refused (so nothing is mixed up or overwritten by accident).
+    """
+
+    def __init__(self, path: str | Path, experiment: Experiment, *, resume: bool = False) -> None:
+        self.experiment = experiment
+        super().__init__(path, resume=resume)
+
+    def _open(self, resume: bool) -> None:
+        experiment = self.experiment
+        db = self._connect(_SCHEMA, _COLUMNS)
         meta = dict(db.execute("SELECT key, value FROM meta").fetchall())
         done = self.count_done()
         fp = experiment.fingerprint()
@@ -278,27 +352,6 @@ class Store:
                 "delete it) and run again without --resume"
             )
 
-    def close(self) -> None:
-        if self._db is not None:
-            self._db.close()
-            self._db = None
-        if self._lock is not None:
-            with contextlib.suppress(OSError):
-                self._lock.close()  # releases the lock
-            self._lock = None
-
-    @property
-    def db(self) -> sqlite3.Connection:
-        if self._db is None:
-            raise StoreError(f"{self.path} is closed")
-        return self._db
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     def count_done(self) -> int:
         return int(self.db.execute("SELECT COUNT(*) FROM realizations").fetchone()[0])
 
@@ -307,27 +360,6 @@ class Store:
         with self._errors("read"):
             rows = self.db.execute("SELECT case_name, realization FROM realizations").fetchall()
         return {(str(c), int(r)) for c, r in rows}
-
-    @contextlib.contextmanager
-    def _errors(self, what: str):
-        """SQLite errors while working -> StoreError saying what is kept and how to go on."""
-        try:
-            yield
-        except sqlite3.IntegrityError as exc:
-            raise StoreError(
-                f"cannot {what} in {self.path}: {exc} (another process wrote the same "
-                "realization?); run one writer per --out folder, then --resume"
-            ) from None
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(
-                f"cannot {what} in {self.path}: {exc}; the realizations committed before are "
-                "kept: fix the cause (disk space, permissions) and run again with --resume"
-            ) from None
-        except (TypeError, ValueError) as exc:
-            raise StoreError(
-                f"cannot {what} in {self.path}: a stored row is malformed ({exc}); move the "
-                "file away and run again without --resume"
-            ) from None
 
     def add_realization(self, rows: Sequence[Estimate], elapsed_s: float) -> None:
         """Commit all estimates of one realization, and mark it done, in one transaction."""

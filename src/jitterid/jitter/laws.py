@@ -40,6 +40,7 @@ from scipy.interpolate import BSpline
 from jitterid import _checks
 
 __all__ = [
+    "BandRule",
     "CustomJitter",
     "Gaussian",
     "GaussianFamily",
@@ -56,6 +57,13 @@ __all__ = [
 #: Half-width of the effective support of :class:`Gaussian`, in standard deviations. The mass
 #: outside ``[-8.5 sigma, 8.5 sigma]`` is ``2 Phi(-8.5) = 1.9e-17``, below double precision.
 GAUSS_SUPPORT_SIGMAS = 8.5
+
+#: The Gaussian's quadrature zones (in band sigmas) and their longest panels, left to right
+#: (:attr:`Gaussian.band_rule`): the 5-point rule's error on a panel of length h near the mode
+#: scales as pdf h^10, so panels are shorter where the density is large (0.6 sigma within
+#: 3 sigma: ~1e-13 per panel) and longer in the tails, where the density is small.
+_GAUSS_ZONES = (3.0, 6.0)
+_GAUSS_ZONE_PANELS = (1.7, 0.9, 0.6, 0.9, 1.7)
 
 #: Largest ``n`` accepted by :class:`SumOfUniforms` (``n + 1`` uniforms). Beyond a few tens the
 #: law is Gaussian to within plotting accuracy anyway (see Fig. 4 of the paper).
@@ -138,6 +146,69 @@ def _fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
+#: Cells of the tabulated CDF that the default sampler (and :class:`CustomJitter`) inverts.
+_CDF_CELLS = 8192
+
+
+def _cdf_table(
+    density: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    edges: NDArray[np.float64],
+    lo: float,
+    hi: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(grid, CDF on the grid) of ``density`` on ``[lo, hi]``: about ``_CDF_CELLS`` uniform
+    cells cut at the ``edges`` (the breakpoints, ``lo`` and ``hi`` included), each integrated
+    by 8-point Gauss-Legendre; the CDF is normalised to end at 1."""
+    widths = np.diff(edges)
+    cells = np.maximum(16, np.round(_CDF_CELLS * widths / (hi - lo)).astype(int))
+    grid = np.concatenate(
+        [np.linspace(edges[i], edges[i + 1], cells[i] + 1)[:-1] for i in range(edges.size - 1)]
+        + [[hi]]
+    )
+    gnodes, gw = _gl_panels(grid, 8)
+    cell_mass = (gw * density(gnodes)).reshape(-1, 8).sum(axis=1)
+    cdf = np.concatenate([[0.0], np.cumsum(cell_mass)])
+    return grid, cdf / cdf[-1]
+
+
+@dataclass(frozen=True)
+class BandRule:
+    """How the jitter quadrature lays out a law ``tau = scale * xi`` (a fixed smooth shape
+    xi, zero beyond ``+-half_width`` scales): by *band* of the scale, so that one node geometry
+    serves every law of the band (only the pdf weights differ) and a search over the scale
+    rebuilds no nodes until it leaves the band (:func:`jitterid.moments.quadrature.rule_frame`).
+
+    Lengths are in units of the band's scale sigma_b <= scale (bands of 2**(1/8)). The window
+    is ``+-half_width 2**(1/8) sigma_b``; ``zones`` (increasing, > 0) cut each half of it into
+    zones, and ``zone_panels`` (``2 len(zones) + 1`` values, left to right) is the longest
+    panel in each: short where the density is large, long in the tails (for the Gaussian:
+    0.6 sigma_b within 3 sigma_b, 0.9 to 6 sigma_b, 1.7 beyond).
+
+    Attributes
+    ----------
+    scale : float
+        The law's scale (s), e.g. a Gaussian's sigma.
+    half_width : float
+        Half-width of the support in scales; the pdf must be zero beyond it.
+    zones : tuple of float
+        Zone edges from the centre, in band scales.
+    zone_panels : tuple of float
+        The longest panel in each zone, in band scales.
+    """
+
+    scale: float
+    half_width: float
+    zones: tuple[float, ...]
+    zone_panels: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.zone_panels) != 2 * len(self.zones) + 1:
+            raise ValueError(
+                f"zone_panels must hold 2 len(zones) + 1 = {2 * len(self.zones) + 1} values (one "
+                f"per zone, left to right); got {len(self.zone_panels)}"
+            )
+
+
 # --------------------------------------------------------------------------------------------
 # base class
 # --------------------------------------------------------------------------------------------
@@ -146,11 +217,20 @@ def _fmt(x: float) -> str:
 class JitterLaw(abc.ABC):
     """Base class of the (immutable) laws of the sampling jitter ``tau``.
 
-    Subclasses are frozen dataclasses. Every law provides the characteristic function
-    :meth:`cf` with the paper's sign convention ``phi(f) = E[exp(-i 2 pi f tau)]`` (footnote 3,
-    Lemma 1), the density :meth:`pdf`, a sampler :meth:`sample`, the moments :attr:`mean`,
-    :attr:`var`, :attr:`std`, a finite :attr:`support` holding the mass and the
-    :meth:`breakpoints` between which the density is analytic.
+    Subclasses are frozen dataclasses. A law declares its characteristic function :meth:`cf`
+    with the paper's sign convention ``phi(f) = E[exp(-i 2 pi f tau)]`` (footnote 3, Lemma 1),
+    its density :meth:`pdf` and a finite :attr:`support` holding the mass; that is enough. The
+    rest has defaults from the density, which a law overrides where it knows better: the
+    :meth:`breakpoints` between which the density is analytic (default: the support's ends,
+    i.e. no kink inside), :attr:`var` (default: by :meth:`expect`), :attr:`mean` (default 0,
+    a symmetric law), a sampler :meth:`sample` (default: the inverted tabulated CDF) and
+    :attr:`params` (default: none).
+
+    A law also declares what it offers to the fast paths (capabilities; the paths ask for
+    them, never for a type): :attr:`band_rule` (a scale law whose quadrature is laid out by
+    band of its scale, shared by the laws of a band: the Gaussian-kernel path) and
+    :attr:`pdf_degree` (a symmetric density that is a polynomial between its breakpoints,
+    evaluated exactly by the exact likelihood from a few values).
 
     Examples
     --------
@@ -189,11 +269,21 @@ class JitterLaw(abc.ABC):
             Jitter values in s.
         """
 
+    @property
     @abc.abstractmethod
+    def support(self) -> tuple[float, float]:
+        """Finite interval ``(lo, hi)`` holding the mass of ``tau``."""
+
+    # -- defaults from the density -------------------------------------------------------------
+
     def sample(
         self, size: int | Sequence[int], rng: np.random.Generator | int
     ) -> NDArray[np.float64]:
         """Draw i.i.d. jitter values.
+
+        By default by inverting the CDF tabulated on about 8192 cells of the support (cut at
+        the :meth:`breakpoints`, 8-point Gauss-Legendre per cell) with linear interpolation,
+        as :class:`CustomJitter` does: exact for the histogram of the density on that grid.
 
         Parameters
         ----------
@@ -208,26 +298,59 @@ class JitterLaw(abc.ABC):
         ndarray of float
             Samples of ``tau`` with shape ``size``.
         """
+        shape = _size(size)
+        gen = _checks.generator(rng)
+        lo, hi = (float(v) for v in self.support)
+        if not hi > lo:
+            return np.full(shape, lo)
+        table = self.__dict__.get("_cdf_table")
+        if table is None:  # once per law (a frozen dataclass: kept outside its fields)
+            table = _cdf_table(
+                lambda x: np.asarray(self.pdf(x), dtype=float),
+                np.asarray(self.breakpoints(), dtype=float),
+                lo,
+                hi,
+            )
+            self.__dict__["_cdf_table"] = table
+        return np.interp(gen.random(shape), table[1], table[0])
 
     @property
-    @abc.abstractmethod
     def var(self) -> float:
-        """Variance ``E[(tau - mean)^2]``."""
+        """Variance ``E[(tau - mean)^2]``; by default by :meth:`expect` (to machine precision
+        for a density analytic between its breakpoints)."""
+        m = self.mean
+        return float(self.expect(lambda t: (t - m) ** 2))
 
-    @property
-    @abc.abstractmethod
-    def support(self) -> tuple[float, float]:
-        """Finite interval ``(lo, hi)`` holding the mass of ``tau``."""
-
-    @abc.abstractmethod
     def breakpoints(self) -> NDArray[np.float64]:
         """Sorted points of ``[lo, hi]``, including ``lo`` and ``hi``, between which the density
-        is analytic (the knots of a piecewise-polynomial density)."""
+        is analytic (the knots of a piecewise-polynomial density). By default the support's
+        ends: a law whose density has a kink or a jump inside declares it here, else the
+        quadratures converge only algebraically there."""
+        return np.array(self.support, dtype=float)
 
     @property
-    @abc.abstractmethod
     def params(self) -> dict[str, float]:
-        """The law's parameters by name."""
+        """The law's parameters by name (by default none)."""
+        return {}
+
+    # -- capabilities of the fast paths --------------------------------------------------------
+
+    @property
+    def band_rule(self) -> BandRule | None:
+        """The band layout of the quadrature (:class:`BandRule`) for a smooth scale law whose
+        nodes may be shared by every law of a band of its scale, or None (the default: the
+        law's own rule from its breakpoints and std). The Gaussian declares it. A subclass
+        whose density is not that of its parent's declaration must set it again."""
+        return None
+
+    @property
+    def pdf_degree(self) -> int | None:
+        """The largest degree of the density's polynomial pieces, for a density symmetric
+        about 0 that is a polynomial between consecutive :meth:`breakpoints`: the exact
+        likelihood then evaluates it from ``degree + 1`` values per piece (Chebyshev
+        interpolation, exact to rounding) instead of calling :meth:`pdf` at every node. None
+        (the default): evaluated by :meth:`pdf`. :class:`SumOfUniforms` declares it."""
+        return None
 
     # -- derived -------------------------------------------------------------------------------
 
@@ -506,6 +629,12 @@ class Gaussian(JitterLaw):
     def params(self) -> dict[str, float]:
         return {"sigma": self.sigma}
 
+    @property
+    def band_rule(self) -> BandRule:
+        """The Gaussian-kernel layout: window +-8.5 sigma, zones at 3 and 6 sigma_b with panels
+        of 0.6, 0.9 and 1.7 sigma_b (:class:`BandRule`)."""
+        return BandRule(self.sigma, GAUSS_SUPPORT_SIGMAS, _GAUSS_ZONES, _GAUSS_ZONE_PANELS)
+
 
 @lru_cache(maxsize=64)
 def _cardinal_bspline(m: int) -> tuple[BSpline, BSpline]:
@@ -624,6 +753,12 @@ class SumOfUniforms(JitterLaw):
         """``(m, b, c)``: ``tau`` is the sum of ``m`` i.i.d. ``U(-b, b)`` and one ``U(-c, c)``
         (``c = 0``: no extra uniform; this is the case at integer ``n``, with ``m = n + 1``)."""
         return (self._m, self._b, self._c)
+
+    @property
+    def pdf_degree(self) -> int:
+        """Degree of the density's pieces: ``m - 1`` for ``m`` equal uniforms, ``m`` with the
+        extra one (the moving average of width 2c)."""
+        return self._m if self._c > 0 else max(self._m - 1, 0)
 
     def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
         arr = _checks.real_array(f, "f")
@@ -778,7 +913,6 @@ class CustomJitter(JitterLaw):
     _grid_cdf: NDArray[np.float64]
 
     _SUBPANELS: ClassVar[int] = 8
-    _CDF_CELLS: ClassVar[int] = 8192
     _CF_FH_MAX: ClassVar[float] = 16.0
 
     def __init__(
@@ -825,17 +959,9 @@ class CustomJitter(JitterLaw):
         object.__setattr__(self, "_var", var)
 
         # tabulated CDF for the sampler
-        widths = np.diff(edges)
-        cells = np.maximum(16, np.round(self._CDF_CELLS * widths / (hi - lo)).astype(int))
-        grid = np.concatenate(
-            [np.linspace(edges[i], edges[i + 1], cells[i] + 1)[:-1] for i in range(edges.size - 1)]
-            + [[hi]]
-        )
-        gnodes, gw = _gl_panels(grid, 8)
-        cell_mass = (gw * self._call(gnodes)).reshape(-1, 8).sum(axis=1)
-        cdf = np.concatenate([[0.0], np.cumsum(cell_mass)])
+        grid, cdf = _cdf_table(self._call, edges, lo, hi)
         object.__setattr__(self, "_grid", grid)
-        object.__setattr__(self, "_grid_cdf", cdf / cdf[-1])
+        object.__setattr__(self, "_grid_cdf", cdf)
 
     def _cut(self, pieces: int) -> NDArray[np.float64]:
         """Breakpoints with every panel cut into ``pieces`` equal sub-panels."""

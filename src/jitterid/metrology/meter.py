@@ -35,6 +35,8 @@ from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
 from ..systems.model import Model
 from ..systems.tones import SineWave
+from .converter import ConverterFigures, converter_figures  # meterio (issue 26, item 3)
+from .reading import summary_extras  # meterio (issue 26, item 5)
 from .sinefit import periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
@@ -161,6 +163,9 @@ class JitterMeasurement:
         The IEEE 1057 slope-regression jitter std the search started from (for comparison).
     T : float
         The nominal sampling interval (s).
+    converter : ConverterFigures or None
+        SNR, SINAD, ENOB, THD, SFDR and the jitter-limited SNR of the record
+        (:meth:`with_converter`; None until then).
 
     Examples
     --------
@@ -195,6 +200,28 @@ class JitterMeasurement:
     message: str
     slope_regression_std: float
     T: float
+    converter: ConverterFigures | None = field(default=None, repr=False)  # meterio
+
+    def with_converter(
+        self, y: ArrayLike, *, full_scale: float | None = None, harmonics: int = 5
+    ) -> JitterMeasurement:
+        """This measurement with its converter figures (:mod:`jitterid.metrology.converter`).
+
+        Parameters
+        ----------
+        y : array_like, shape (N,)
+            The record the measurement was made on.
+        full_scale : float, optional
+            The converter's full-scale range, peak to peak, in units of y.
+        harmonics : int
+            The highest harmonic fitted for the figures (5: HD2-HD5).
+        """
+        import dataclasses
+
+        figs = converter_figures(
+            y, self.T, measurement=self, full_scale=full_scale, harmonics=harmonics
+        )
+        return dataclasses.replace(self, converter=figs)
 
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """Normal-approximation interval of the jitter std, cut at 0.
@@ -244,6 +271,7 @@ class JitterMeasurement:
                     f"     f = {a.frequency_hz:.8g} Hz  ln L = {a.loglik:12.3f}  "
                     f"(ln L - best = {a.loglik - best:9.3f})  std = {_time(a.jitter_std_s)}"
                 )
+        lines.extend(summary_extras(self))  # meterio: the law's evidence, converter figures
         return "\n".join(lines)
 
     def __str__(self) -> str:

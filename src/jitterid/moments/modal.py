@@ -41,8 +41,9 @@ The node geometry (pieces, standard panels, the other panels' nodes) depends on 
 law and on the panel layout only, not on the system, so a :class:`SegmentPlan` built once is
 reused for every parameter value with the same layout
 (:func:`jitterid.moments.quadrature.panel_layout`), from a small process-wide cache
-(:func:`cached_plan`); a Gaussian plan serves every sigma of its band (only the weights
-change). A standard panel (one no switch cuts) has the same offsets and weights in every
+(:func:`cached_plan`); the plan of a band law (a Gaussian: its
+:attr:`~jitterid.jitter.laws.JitterLaw.band_rule`) serves every scale of its band (only the
+weights change). A standard panel (one no switch cuts) has the same offsets and weights in every
 sample, so its node sums are a phasor times a per-law table (:class:`StdTable`). A plan is
 kept in memory up to ``_PLAN_BYTES`` (~1 kB per sample for a Gaussian window over a few
 switches) and otherwise rebuilt chunk by chunk at every evaluation, so memory stays bounded
@@ -65,7 +66,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._state import CachesAreNotState
 from ..inputs import PiecewiseConstant
-from ..jitter.laws import Gaussian, JitterLaw
+from ..jitter.laws import JitterLaw
 from ..systems.structures import ModelStructure, padded
 from ..systems.tf import TransferFunction
 from .quadrature import (
@@ -75,6 +76,7 @@ from .quadrature import (
     Layout,
     PanelChunk,
     _gauss_legendre,
+    band_rule,
     jitter_panels,
     panel_layout,
     panels_per_sample,
@@ -148,7 +150,8 @@ class PieceChunk(CachesAreNotState):
     cn_gw, cn_tau : ndarray or None
         Per node of the other panels, the Gauss-Legendre weight times the half panel and the
         offset t - kT, so that the weights of another law with the same nodes are
-        gw * pdf(tau) (kept for Gaussian plans only, :func:`gaussian_band`).
+        gw * pdf(tau) (kept for the plans of band laws only,
+        :func:`~jitterid.moments.quadrature.scale_band`).
     std : StdTable
         The standard panels' table for the chunk's law.
     """
@@ -386,11 +389,12 @@ class SegmentPlan:
         return np.concatenate((self.edges, [np.nan], self.grade)).tobytes()
 
     def _same_rule(self, law: JitterLaw) -> bool:
-        """Whether ``law`` has this plan's nodes: the same law, or a Gaussian of the same band
-        (the edges are compared by the caller)."""
+        """Whether ``law`` has this plan's nodes: the same law, or another band law (a
+        Gaussian) whose band gives the same edges (compared by the caller): the nodes depend on
+        the law only through the edges, and a band law's plan keeps them for new weights."""
         if law is self.law or law == self.law:
             return True
-        return type(law) is Gaussian and type(self.law) is Gaussian
+        return band_rule(law) is not None and band_rule(self.law) is not None
 
     def matches(
         self,
@@ -402,7 +406,7 @@ class SegmentPlan:
         poles: ArrayLike | None = None,
     ) -> bool:
         """Whether this plan's nodes are the rule for these arguments (same panel edges and
-        graded cuts; the law itself, or a Gaussian of the same band)."""
+        graded cuts; the law itself, or a band law of the same band)."""
         if not (u is self.u and (T, N) == (self.T, self.N) and self._same_rule(law)):
             return False
         if (poles is None) != (self.poles is None):
@@ -417,7 +421,7 @@ class SegmentPlan:
         )
 
     def view(self, law: JitterLaw) -> SegmentPlan:
-        """This plan for another law with the same nodes (a Gaussian of the same band): the
+        """This plan for another law with the same nodes (a band law of the same band): the
         node geometry is shared, the weights are gw * pdf(tau) of ``law``."""
         if law is self.law:
             return self
@@ -432,7 +436,7 @@ class SegmentPlan:
         panels = jitter_panels(
             self.law, self.T, self.N, self._times, self.edges, grade=self.grade, chunk=self.chunk
         )
-        geometry = type(self.law) is Gaussian
+        geometry = band_rule(self.law) is not None  # kept, to reweight for the band's laws
         std = StdTable.make(self.law, self.edges, self.order)
         for pch in panels:
             yield _pieces(pch, self.law, self.T, self.order, std, self._times, geometry)
@@ -517,7 +521,7 @@ def cached_plan(
 ) -> SegmentPlan:
     """The plan for these arguments from a small process-wide cache (least recently used first
     out), so that every criterion fitted to one data set, the BCLS pre-fit and the lazy
-    covariance share one node geometry, and no result object keeps one alive. A Gaussian law
+    covariance share one node geometry, and no result object keeps one alive. A band law
     gets a view of the plan of its band (:meth:`SegmentPlan.view`): a search over sigma
     rebuilds no nodes until sigma leaves the band."""
     with _plans_lock:
@@ -527,10 +531,11 @@ def cached_plan(
                 return plan.view(law)
     plan = SegmentPlan(law, T, N, u, rate, poles=poles)
     with _plans_lock:
-        if type(law) is Gaussian:
-            # A search over sigma leaves a band for good (or returns once): keep one
-            # Gaussian plan per data set, not one per band visited (~90 MB each at 1e5).
-            for key in [k for k, q in _plans.items() if type(q.law) is Gaussian and q.u is u]:
+        if band_rule(law) is not None:
+            # A search over sigma leaves a band for good (or returns once): keep one band
+            # law's plan per data set, not one per band visited (~90 MB each at 1e5).
+            banded = [k for k, q in _plans.items() if band_rule(q.law) is not None and q.u is u]
+            for key in banded:
                 del _plans[key]
         _plans[id(plan)] = plan
     _trim_cache()
@@ -544,22 +549,11 @@ def clear_plans() -> None:
 
 
 # ---------------------------------------------------------------------------- tables (M1)
-def kept_modal(tf: TransferFunction) -> tuple[float, ComplexArray, ComplexArray, IntArray]:
-    """(D, rho, p, columns): poles with Im p >= 0, rho doubled for a complex pair.
-
-    The same convention as the likelihood's node signal, so that the tables and the modal
-    sensitivities of :mod:`jitterid.estimation.likelihood` line up column by column.
-    """
-    d, r, p = tf._modal
-    cols = np.flatnonzero(p.imag >= 0)
-    pk = p[cols]
-    return d, r[cols] * np.where(pk.imag > 0, 2.0, 1.0), pk, cols
-
-
 def modal_sensitivity(
     structure: ModelStructure, theta: FloatArray, tf: TransferFunction
 ) -> tuple[FloatArray, ComplexArray, ComplexArray]:
-    """d(D, rho, p)/dtheta over the kept poles (the convention of :func:`kept_modal`).
+    """d(D, rho, p)/dtheta over the kept poles (the convention of
+    :meth:`jitterid.systems.tf.ModalForm.kept`).
 
     For a simple pole p of G = num / den: dp = -dden(p) / den'(p); the residue
     r = num(p) / den'(p) gives dr = (num'(p) dp + dnum(p)) / den'(p) - r (den''(p) dp +
@@ -574,7 +568,7 @@ def modal_sensitivity(
     n = tf.den.size
     num, den = padded(tf.num, n), tf.den
     dnum, dden = structure.coefficient_derivatives(theta, n)
-    _, _, p, _ = kept_modal(tf)
+    _, _, p, _ = tf.modal.kept()
     # Polynomials and their first two derivatives at the poles as products with Vandermonde
     # rows: one matrix product per quantity for all parameters (np.polyval per parameter
     # costs more than the arithmetic at these sizes).
@@ -641,7 +635,7 @@ class DerivativeTables:
 def tables(tf: TransferFunction, u: PiecewiseConstant) -> Tables:
     """What the coefficients c_j = u_j G(0), beta_jp = rho_p (x_p(t_j) + u_j / p) of (M1) need,
     over the segments of :func:`merged_input` (the rows of the plans)."""
-    d, rho, p, _ = kept_modal(tf)
+    d, rho, p, _ = tf.modal.kept()
     g0 = d - float(np.sum(rho / p).real) if p.size else d
     um = merged_input(u)
     return Tables(um.levels, tf.kept_switch_states(um), g0, rho, p, d)
@@ -658,7 +652,7 @@ def derivative_tables(
     drho (x + u_j / p) + rho (dx/dp - u_j / p^2) dp (x_p(t_j) depends on theta through p only;
     dx/dp from :meth:`TransferFunction.switch_state_sensitivity`).
     """
-    _, rho, p, _ = kept_modal(tf)
+    _, rho, p, _ = tf.modal.kept()
     dd, drho, dp = dmodal
     dg0 = dd - np.sum(drho / p - rho * dp / p**2, axis=1).real if p.size else dd
     return DerivativeTables(tf.kept_switch_state_sensitivity(merged_input(u)), dg0, drho, dp)

@@ -4,13 +4,13 @@ The integrand g(kT + tau) p(tau) is smooth except where the input switches (the 
 has a kink or a jump there) and where the jitter pdf has knots. Each sample's window is
 cut at the pdf's knots (its standard edges kT + :func:`relative_cuts`) and at the switches
 inside it, and nowhere else: no panel is longer than ``1 / rate`` (the signal's fastest
-rate) or than the jitter's standard deviation (for a Gaussian: 0.6 to 1.7 sigma by zone,
-on a window shared by a band of sigma, :func:`rule_frame`); each panel then gets a
-Gauss-Legendre rule, which converges exponentially on analytic integrands. A fast, damped
-mode shortens the panels only right after the switches that restart it
-(:func:`panel_layout`), and a rule over :data:`PANEL_LIMIT` panels is refused before
-anything is allocated. The work is O(N) and is produced in chunks of a bounded number of
-panels, so that memory stays bounded.
+rate) or than the jitter's standard deviation (for a Gaussian, a law that declares a band
+rule: 0.6 to 1.7 sigma by zone, on a window shared by a band of sigma,
+:func:`rule_frame`); each panel then gets a Gauss-Legendre rule, which converges
+exponentially on analytic integrands. A fast, damped mode shortens the panels only right
+after the switches that restart it (:func:`panel_layout`), and a rule over
+:data:`PANEL_LIMIT` panels is refused before anything is allocated. The work is O(N) and is
+produced in chunks of a bounded number of panels, so that memory stays bounded.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..jitter.laws import GAUSS_SUPPORT_SIGMAS, Gaussian, JitterLaw
+from ..jitter.laws import BandRule, JitterLaw
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -89,38 +89,38 @@ def _relative_cuts(
     return np.concatenate([knots[:1], out])
 
 
-#: Zones of a Gaussian rule in units of sigma_b and the longest panel in each: the 5-point
-#: rule's error on a panel of length h near the mode scales as pdf h^10, so panels are
-#: shorter where the density is large (0.6 sigma within 3 sigma: ~1e-13 per panel) and
-#: longer in the tails, where the density is small.
-_GAUSS_ZONES = np.array([3.0, 6.0])
-_GAUSS_ZONE_PANELS = np.array([1.7, 0.9, 0.6, 0.9, 1.7])
+#: Laws that declare a :class:`~jitterid.jitter.laws.BandRule` (the Gaussian) are laid out for
+#: a band of their scale, [sigma_b, sigma_b * 2**(1/8)) with sigma_b a power of 2**(1/8): the
+#: window covers the support of every scale in the band and no panel exceeds its zone's
+#: length in sigma_b <= scale. The nodes are then those of every law in the band (only their
+#: pdf weights differ), so a search over the scale keeps its node geometry.
+_BANDS_PER_OCTAVE = 8
 
 
-#: Gaussian rules are laid out for a band of sigma, [sigma_b, sigma_b * 2**(1/8)) with
-#: sigma_b a power of 2**(1/8): the window covers the support +-8.5 sigma of every sigma in
-#: the band and no panel exceeds sigma_b <= sigma. The nodes are then those of every law in
-#: the band (only their pdf weights differ), so a search over sigma keeps its node geometry.
-_GAUSS_BANDS_PER_OCTAVE = 8
-
-
-def gaussian_band(sigma: float) -> float:
-    """sigma_b, the lower end of the band of Gaussian rules that holds ``sigma``."""
-    e = np.floor(_GAUSS_BANDS_PER_OCTAVE * np.log2(sigma) + 1e-12) / _GAUSS_BANDS_PER_OCTAVE
+def scale_band(scale: float) -> float:
+    """sigma_b, the lower end of the band of rules that holds ``scale``."""
+    e = np.floor(_BANDS_PER_OCTAVE * np.log2(scale) + 1e-12) / _BANDS_PER_OCTAVE
     return float(2.0**e)
+
+
+def band_rule(law: object) -> BandRule | None:
+    """The law's :attr:`~jitterid.jitter.laws.JitterLaw.band_rule` capability; None for the
+    stand-ins of a law that the likelihood lays out (a unit density, a stretched law)."""
+    return law.band_rule if isinstance(law, JitterLaw) else None
 
 
 def rule_frame(law: JitterLaw) -> tuple[FloatArray, float, tuple[float, float]]:
     """(knots, panel scale, clip interval) of the rule for ``law``: the pdf's knots and
-    standard deviation, except for a :class:`Gaussian`, whose rule is that of its band
-    (:func:`gaussian_band`). Node offsets tau are clipped to the third value before the pdf
-    is taken (a node rounded past a knot of a bounded support stays on it); no clipping for
-    a Gaussian, whose pdf is zero beyond its own +-8.5 sigma."""
-    if type(law) is Gaussian:
-        sb = gaussian_band(law.sigma)
-        h = GAUSS_SUPPORT_SIGMAS * sb * 2.0 ** (1.0 / _GAUSS_BANDS_PER_OCTAVE)
-        z = _GAUSS_ZONES * sb
-        return np.array([-h, -z[1], -z[0], z[0], z[1], h]), sb, (-np.inf, np.inf)
+    standard deviation, except for a law that declares a band rule (a Gaussian), whose rule
+    is that of its band (:func:`scale_band`), cut into its zones. Node offsets tau are clipped
+    to the third value before the pdf is taken (a node rounded past a knot of a bounded
+    support stays on it); no clipping for a band law, whose pdf is zero beyond its window."""
+    band = band_rule(law)
+    if band is not None:
+        sb = scale_band(band.scale)
+        h = band.half_width * sb * 2.0 ** (1.0 / _BANDS_PER_OCTAVE)
+        z = np.array(band.zones) * sb
+        return np.concatenate([[-h], -z[::-1], z, [h]]), sb, (-np.inf, np.inf)
     lo, hi = (float(v) for v in law.support)
     return np.asarray(law.breakpoints(), dtype=float), float(law.std), (lo, hi)
 
@@ -129,8 +129,8 @@ def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -
     """Panel edges in tau (relative to kT) of the rule of :func:`jitter_nodes`.
 
     The pdf's knots, subdivided so that no panel exceeds the support width, ``1 / rate``, the
-    jitter's standard deviation or ``max_panel`` (for a Gaussian: the window of its band,
-    :func:`rule_frame`, with panels of 0.6 to 1.7 sigma_b by zone, ``_GAUSS_ZONES``). Two signals
+    jitter's standard deviation or ``max_panel`` (for a band law, a Gaussian: the window of
+    its band, :func:`rule_frame`, with its zones' panels, 0.6 to 1.7 sigma_b). Two signals
     whose rates give the same edges get the same nodes, which lets a caller keep a rule across
     parameter values (:mod:`jitterid.moments.modal`). Empty for a point mass.
     """
@@ -143,8 +143,9 @@ def relative_cuts(law: JitterLaw, rate: float, max_panel: float | None = None) -
         limit = min(limit, 1.0 / rate)
     if max_panel is not None:
         limit = min(limit, max_panel)
-    if type(law) is Gaussian:  # panel lengths by zone (_GAUSS_ZONES)
-        return _relative_cuts(law, limit, knots, _GAUSS_ZONE_PANELS * scale)
+    band = band_rule(law)
+    if band is not None:  # panel lengths by zone
+        return _relative_cuts(law, limit, knots, np.array(band.zone_panels) * scale)
     if scale > 0:
         limit = min(limit, scale)
     return _relative_cuts(law, limit, knots)
@@ -217,8 +218,9 @@ def _panel_layout(law: JitterLaw, p: NDArray[np.complex128], order: int) -> Layo
     if width <= 0 or p.size == 0:
         return Layout(float(np.max(np.abs(p))) if p.size else 0.0, np.zeros(0))
     # the longest panel the law's own rule has (rates below 1 / L0 change no edge)
-    if type(law) is Gaussian:
-        scale = scale * float(np.max(_GAUSS_ZONE_PANELS))
+    band = band_rule(law)
+    if band is not None:
+        scale = scale * float(np.max(band.zone_panels))
     L0 = min(width, scale) if scale > 0 else width
     mag, damp = np.abs(p), -p.real
     fast = (mag * L0 > _GRADE_FROM) & (damp >= _GRADE_DAMPING * mag)

@@ -20,10 +20,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import allocation, count, positive, real_array, sampling_interval
-from ..inputs import Input, PiecewiseConstant, known_input
+from ..inputs import Input, known_input
 from ..jitter.laws import JitterLaw, known_law
 from ..systems.model import MomentPass, Signal
-from ..systems.tf import Response, TransferFunction
+from ..systems.tf import TransferFunction
 from .modal import SegmentPlan, modal_moments, tables
 from .quadrature import DEFAULT_ORDER, jitter_nodes
 from .reference import dtft
@@ -145,13 +145,14 @@ def sample_moments(
     signal.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
     jitter, signal = signal.jitter_equivalent(jitter)  # a delay moves into the jitter
     lo, hi = jitter.support
-    if isinstance(signal, Response) and isinstance(signal.u, PiecewiseConstant) and hi > lo:
-        # The same nodes, summed per input segment from the modal form (:mod:`._modal`):
+    seg = signal.modal_segments
+    if seg is not None and hi > lo:
+        # The same nodes, summed per input segment from the modal form (:mod:`.modal`):
         # a few times faster than evaluating s(t) node by node.
         plan = SegmentPlan(
-            jitter, T, N, signal.u, signal.rate, order=order, poles=signal.system._modal[2]
+            jitter, T, N, seg.u, signal.rate, order=order, poles=seg.system.modal.poles
         )
-        mean, var, _, _ = modal_moments(plan, tables(signal.system, signal.u), keep=False)
+        mean, var, _, _ = modal_moments(plan, tables(seg.system, seg.u), keep=False)
         assert var is not None
         return SampleMoments(mean, var)
     out = moment_pass(signal, jitter, T, N, order=order)

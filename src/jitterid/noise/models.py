@@ -26,7 +26,8 @@ stationary law, from which the first state is drawn. The white measurement noise
 structure (2a) is the separate ``noise_std`` of :func:`jitterid.simulate` and
 :func:`jitterid.fit`; ``noise=None`` there is the OE case.
 
-The covariance of the *jittered* samples v(kT + tau_k) is in :mod:`jitterid.noise.covariance`.
+The covariance of the *jittered* samples v(kT + tau_k) is a moment of the jitter:
+:mod:`jitterid.moments.noise_covariance`.
 """
 
 from __future__ import annotations
@@ -104,7 +105,7 @@ class NoiseModel(CachesAreNotState):
             )
         object.__setattr__(self, "intensity", positive(self.intensity, "intensity"))
         try:
-            self.tf._modal  # noqa: B018 - validates stability and distinct poles now
+            self.tf.modal  # noqa: B018 - validates stability and distinct poles now
         except ValueError as exc:
             raise ValueError(f"tf (the noise model H(s)) is invalid: {exc}") from exc
 
@@ -114,7 +115,7 @@ class NoiseModel(CachesAreNotState):
     @cached_property
     def modes(self) -> tuple[ComplexArray, ComplexArray]:
         """(c, p): r_v(t) = Re sum_j c_j exp(p_j |t|) over all poles p_j, eq. (N1)."""
-        _, r, p = self.tf._modal
+        _, r, p = self.tf.modal
         h_minus_p = np.polyval(self.tf.num, -p) / np.polyval(self.tf.den, -p)
         return self.intensity * r * h_minus_p, p
 
@@ -167,7 +168,7 @@ class NoiseModel(CachesAreNotState):
         rows = np.atleast_2d(t)
         order = np.argsort(rows, axis=1, kind="stable")
         ts = np.take_along_axis(rows, order, axis=1)
-        _, r, p = self.tf._modal
+        _, r, p = self.tf.modal
         keep = p.imag >= 0  # a conjugate pole's state is the conjugate: simulate one of each pair
         pk = p[keep]
         rho = r[keep] * np.where(pk.imag > 0, 2.0, 1.0)  # so that v = Re sum rho z

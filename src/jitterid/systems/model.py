@@ -26,7 +26,7 @@ from __future__ import annotations
 import abc
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -36,10 +36,10 @@ from ..jitter.laws import shifted
 
 if TYPE_CHECKING:
     from ..data import SampledData
-    from ..inputs import Input
+    from ..inputs import Input, PiecewiseConstant
     from ..jitter.laws import JitterLaw
 
-__all__ = ["Bounds", "DelayedSignal", "Model", "MomentPass", "Signal"]
+__all__ = ["Bounds", "DelayedSignal", "ModalSegments", "Model", "MomentPass", "Signal"]
 
 FloatArray = NDArray[np.float64]
 Bounds = tuple[tuple[float, float], ...]
@@ -63,6 +63,24 @@ class MomentPass:
     scale_var: FloatArray | None = None
     mu3: FloatArray | None = None  # E[(s - m_k)^3] (with ``higher``)
     mu4: FloatArray | None = None  # E[(s - m_k)^4] (with ``higher``)
+
+
+class ModalSegments(NamedTuple):
+    """A signal that is the response of an LTI system in modal form to a piecewise-constant
+    input (what :attr:`Signal.modal_segments` declares): its jittered moments, their
+    derivatives and the likelihood's node values are sums per input segment from the modal
+    form (:mod:`jitterid.moments.modal`), with no evaluation of s(t) node by node.
+
+    Attributes
+    ----------
+    system : TransferFunction
+        The system (stable, distinct poles: its :attr:`~jitterid.TransferFunction.modal`).
+    u : PiecewiseConstant
+        The input.
+    """
+
+    system: Any  # a jitterid.systems.tf.TransferFunction (that module imports this one)
+    u: PiecewiseConstant
 
 
 class Signal(abc.ABC):
@@ -106,6 +124,14 @@ class Signal(abc.ABC):
     def has_slope(self) -> bool:
         """Whether :meth:`slope` gives ds/dt in closed form."""
         return False
+
+    @property
+    def modal_segments(self) -> ModalSegments | None:
+        """The signal as an LTI system's response to a piecewise-constant input
+        (:class:`ModalSegments`), which the moments, their derivatives and the exact
+        likelihood sum per input segment from the modal form; None (the default) for any
+        other signal, evaluated at the quadrature nodes."""
+        return None
 
     def gradient(self, t: FloatArray) -> FloatArray | None:
         """ds/dtheta at the instants ``t`` (1-D), shape (P, t.size), or None: no closed form

@@ -12,6 +12,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -20,13 +21,43 @@ from .._checks import finite, real_array
 from .._state import CachesAreNotState, cache_field
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterLaw
-from .model import DelayedSignal, MomentPass, Signal
+from .model import DelayedSignal, ModalSegments, MomentPass, Signal
 from .tones import ToneBases, ToneSignal, _ToneMap
 
-__all__ = ["CoefficientDerivatives", "Response", "TransferFunction"]
+__all__ = ["CoefficientDerivatives", "ModalForm", "Response", "TransferFunction"]
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
+
+IntArray = NDArray[np.intp]
+
+
+class ModalForm(NamedTuple):
+    """The partial-fraction (modal) form G(s) = direct + sum_p residues_p / (s - poles_p) of a
+    stable transfer function with distinct poles (:attr:`TransferFunction.modal`).
+
+    Attributes
+    ----------
+    direct : float
+        The direct term D (the feedthrough; 0 for a strictly proper G).
+    residues : ndarray of complex, shape (n,)
+        The residue of each pole.
+    poles : ndarray of complex, shape (n,)
+        The poles, as :attr:`TransferFunction.poles`.
+    """
+
+    direct: float
+    residues: ComplexArray
+    poles: ComplexArray
+
+    def kept(self) -> tuple[float, ComplexArray, ComplexArray, IntArray]:
+        """(D, rho, p, columns) over the poles with Im p >= 0 (their columns in
+        :attr:`poles`), rho the residue doubled for a complex pair, so that a real input's
+        output is D u + Re sum rho x (the conjugate pole's term is the conjugate)."""
+        cols = np.flatnonzero(self.poles.imag >= 0)
+        pk = self.poles[cols]
+        return self.direct, self.residues[cols] * np.where(pk.imag > 0, 2.0, 1.0), pk, cols
+
 
 # Exponent range kept inside one block of the switch-time recursion: exp(+-_BLOCK) stays far
 # from overflow while the partial sums lose no relative accuracy (see _switch_states).
@@ -156,8 +187,23 @@ class TransferFunction(CachesAreNotState):
         return self.frequency_response(f)
 
     @cached_property
-    def _modal(self) -> tuple[float, ComplexArray, ComplexArray]:
-        """(D, residues, poles) of the partial-fraction form G = D + sum r / (s - p)."""
+    def modal(self) -> ModalForm:
+        """The partial-fraction form G = D + sum r / (s - p) (:class:`ModalForm`): the one
+        home of the modal form, on which the exact response, the moments' segment route and
+        the likelihood build.
+
+        Raises
+        ------
+        ValueError
+            If the system is not stable or has (nearly) repeated poles.
+
+        Examples
+        --------
+        >>> import jitterid as ji
+        >>> m = ji.TransferFunction([2.0], [1.0, 3.0, 2.0]).modal
+        >>> m.direct, m.poles.real.round(6).tolist(), m.residues.real.round(6).tolist()
+        (0.0, [-2.0, -1.0], [-2.0, 2.0])
+        """
         if not self.is_stable:
             bad = self.poles[self.poles.real >= 0]
             kind = "an integrator (a pole at 0)" if np.any(np.abs(bad) == 0) else "unstable modes"
@@ -183,7 +229,7 @@ class TransferFunction(CachesAreNotState):
                     "perturb them slightly (accuracy ~1e-16 / separation) or re-parameterise"
                 )
         r = np.polyval(rem, p) / np.polyval(np.polyder(self.den), p) if p.size else p
-        return d, np.asarray(r, complex), p
+        return ModalForm(d, np.asarray(r, complex), p)
 
     def response(self, u: Input, derivatives: CoefficientDerivatives | None = None) -> Signal:
         """The exact output s(t) = (g * u)(t) to input ``u`` from rest: a :class:`Response`,
@@ -224,7 +270,7 @@ class TransferFunction(CachesAreNotState):
         memo = self._states_memo
         if memo is not None and memo[0] is u:
             return memo[1], memo[2]
-        p = self._modal[2]
+        p = self.modal.poles
         rec = _Recursion.build(p[p.imag >= 0], u.times)
         states = rec.solve(u.levels[:, None] * rec.expm1 / rec.p)
         object.__setattr__(self, "_states_memo", (u, rec, states, None))
@@ -258,7 +304,7 @@ class TransferFunction(CachesAreNotState):
             assert memo is not None
         full = memo[3]
         if full is None:  # the conjugate columns, made only when asked for
-            full = _conjugate_fill(self._modal[2], memo[2])
+            full = _conjugate_fill(self.modal.poles, memo[2])
             object.__setattr__(self, "_states_memo", (*memo[:3], full))
         return full
 
@@ -277,7 +323,7 @@ class TransferFunction(CachesAreNotState):
         u : PiecewiseConstant
             The input, with boundaries t_j.
         """
-        return _conjugate_fill(self._modal[2], self.kept_switch_state_sensitivity(u))
+        return _conjugate_fill(self.modal.poles, self.kept_switch_state_sensitivity(u))
 
     def kept_switch_state_sensitivity(self, u: PiecewiseConstant) -> ComplexArray:
         """:meth:`switch_state_sensitivity` over the poles with Im p >= 0, (J+1, n_kept).
@@ -427,7 +473,7 @@ class Response(Signal, CachesAreNotState):
                 "derivatives must be a CoefficientDerivatives or None; got "
                 f"{type(self.derivatives).__name__}"
             )
-        _, _, p = self.system._modal  # validates stability early
+        _, _, p = self.system.modal  # validates stability early
         rate = float(np.max(np.abs(p))) if p.size else 0.0
         if isinstance(self.u, Multisine) and self.u.freqs.size:
             rate = max(rate, float(2 * np.pi * np.max(self.u.freqs)))
@@ -435,6 +481,13 @@ class Response(Signal, CachesAreNotState):
         object.__setattr__(self, "end", self.u.end)
         object.__setattr__(self, "breaks", self.u.breaks)
         object.__setattr__(self, "rate", rate)
+
+    @property
+    def modal_segments(self) -> ModalSegments | None:
+        """This response's system and input (a
+        :class:`~jitterid.systems.model.ModalSegments`) when the input is piecewise constant,
+        the one test of the segment route; None for a multisine."""
+        return ModalSegments(self.system, self.u) if isinstance(self.u, PiecewiseConstant) else None
 
     def check_covers(self, t_max: float, what: str) -> None:
         """Refuse instants past the input's end (:meth:`jitterid.inputs.Input.check_covers`).
@@ -663,7 +716,7 @@ class Response(Signal, CachesAreNotState):
         tones = self._tones
         if tones is not None:  # the steady state: tones in real arithmetic (class doc)
             return tones(t)
-        d, r, p = self.system._modal
+        d, r, p = self.system.modal
         if isinstance(self.u, PiecewiseConstant):
             return self._piecewise(t, d, r, p)
         return self._multisine(t, d, r, p)

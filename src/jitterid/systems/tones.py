@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import positive
+from ._sinefit import periodogram_peak, sine_fit_4
 from .model import Bounds, Model, MomentPass, Signal
 
 if TYPE_CHECKING:
@@ -536,8 +537,6 @@ class SineWave(Model):
         """
         if self.frequency_hz is not None:
             return [float(self.frequency_hz)]
-        from ..metrology.sinefit import periodogram_peak, sine_fit_4
-
         y, T = np.asarray(data.y, dtype=float), float(data.T)
         t = np.arange(y.size, dtype=float) * T
         fit4 = sine_fit_4(y, t, periodogram_peak(y, T))

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_solve, solve_triangular
 
 from .base import ColouredContext, ComplexArray, CriterionContext, Estimator, FloatArray, register
+from .leastsquares import BCLS
 
 __all__ = ["AsML", "AsMLDiag"]
 
@@ -59,6 +60,7 @@ class AsML(Estimator):
     """
 
     name = "asml"
+    first_stage_class = BCLS
     rank = 3
     equation = "(22)"
     full_covariance = True
@@ -131,6 +133,7 @@ class AsMLDiag(Estimator):
     """
 
     name = "asml-diag"
+    first_stage_class = BCLS
     rank = 4
     equation = "(23)"
     coloured_noise = True

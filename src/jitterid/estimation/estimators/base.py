@@ -27,6 +27,7 @@ estimator is a subclass with :func:`register`, its criteria in its own module.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
 
@@ -34,8 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
+    from ...moments.noise_covariance import SampleCovariance
     from ...moments.sample import SampleMoments
-    from ...noise.covariance import SampleCovariance
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -139,6 +140,22 @@ class Estimator:
         With coloured noise, the criterion depends on the noise covariance Sigma_y. False
         (BCLS (14)): its Box-Jenkins estimate of the system is its white-noise one, and the
         noise model enters only the error bars.
+    search : str
+        The search adapter of :data:`jitterid.estimation.search.SEARCHES` that minimises the
+        criterion: ``"least_squares"`` (trust-region least squares on :meth:`residuals`),
+        ``"newton"`` (damped Newton on :meth:`objective_gradient`) or ``"likelihood"`` (the
+        exact likelihood's own maximisation with scored starts,
+        :mod:`jitterid.estimation.ml`). Default: from ``least_squares``.
+    exact_likelihood : bool
+        The criterion is the exact likelihood: the problem builds
+        :class:`~jitterid.estimation.likelihood.ExactLikelihood` (its quadrature rule), the
+        covariance uses its observed information, and the noise std must be positive.
+    scores_own_starts : bool
+        The search scores its own starts for a jitter family (the likelihood's search);
+        otherwise the driver moves a start off a zero jitter scale (Newton searches).
+    first_stage_class : type or None
+        The estimator whose fit starts this one on the default route (:meth:`first_stage`);
+        None: fitted in one stage.
 
     Notes
     -----
@@ -169,6 +186,38 @@ class Estimator:
     coloured_noise: ClassVar[bool] = False
     identifies_noise_model: ClassVar[bool] = False
     weighs_by_noise: ClassVar[bool] = True
+    exact_likelihood: ClassVar[bool] = False
+    scores_own_starts: ClassVar[bool] = False
+    first_stage_class: ClassVar[type[Estimator] | None] = None
+
+    # ------------------------------------------------------------------ the fit's hooks
+    # :func:`jitterid.fit` drives every estimator through the same sequence (module
+    # :mod:`jitterid.estimation.fit`); these say what the estimator needs of each step.
+    @property
+    def is_likelihood(self) -> bool:
+        """The criterion is -2 ln of a likelihood (exact, or the Gaussian one of the sample
+        moments): its inverse observed information is a covariance (``"oim"``), and its
+        differences between nested models are likelihood-ratio statistics."""
+        return "oim" in self.cov_types
+
+    @property
+    def search(self) -> str:
+        """The search adapter's key in :data:`jitterid.estimation.search.SEARCHES`."""
+        return "least_squares" if self.least_squares else "newton"
+
+    def first_stage(self) -> Estimator:
+        """The estimator of the default route's first stage (Section 4.5), an instance of
+        ``first_stage_class`` (BCLS for the paper's second-stage estimators), whose estimate
+        starts this one; without one (``ls``, ``bcls``) the estimator is its own first stage,
+        fitted from the ordinary output-error start."""
+        cls = self.first_stage_class
+        return self if cls is None else cls()
+
+    def noise_start(self, rms: float | None, plug_in: Callable[[], float]) -> float:
+        """The start of an estimated noise std: ``rms`` is the ordinary output-error fit's
+        residual rms, ``plug_in()`` the noise std that the first stage's residuals leave
+        beyond the jitter (:func:`jitterid.estimation.fit.noise_from_residuals`)."""
+        return max(rms or 0.0, 1e-6)
 
     # ------------------------------------------------------------------ the criterion
     def objective(self, problem: CriterionContext, x: FloatArray) -> float:

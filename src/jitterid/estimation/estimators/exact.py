@@ -4,9 +4,11 @@ re-design) is :mod:`jitterid.estimation.ml`."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from .base import CriterionContext, Estimator, FloatArray, register
+from .leastsquares import BCLS
 
 __all__ = ["ML"]
 
@@ -29,6 +31,18 @@ class ML(Estimator):
     """
 
     name = "ml"
+    first_stage_class = BCLS
+    exact_likelihood = True
+    scores_own_starts = True
+
+    @property
+    def search(self) -> str:
+        return "likelihood"
+
+    def noise_start(self, rms: float | None, plug_in: Callable[[], float]) -> float:
+        # the likelihood's cost grows like 1 / noise: start close to the plug-in value
+        return max(plug_in(), 0.05 * (rms or 0.0), 1e-12)
+
     rank = 6
     equation = "notes 4"
     cov_types = ("oim", "robust", "none")

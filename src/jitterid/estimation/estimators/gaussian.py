@@ -4,7 +4,7 @@ DFT bins it equals (22) with the full covariance and pseudo-covariance, in O(N).
 
 With coloured noise (Box-Jenkins) the diagonal w becomes Sigma_y = diag(d) + Toeplitz(gamma)
 of (C2): V = (y - m)^T Sigma_y^{-1} (y - m) + ln det Sigma_y, still O(N) through the banded
-form (C4) of :class:`jitterid.noise.covariance.SampleCovariance`."""
+form (C4) of :class:`jitterid.moments.noise_covariance.SampleCovariance`."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ...noise.covariance import toeplitz_products
+from ...moments.noise_covariance import toeplitz_products
 from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
+from .leastsquares import BCLS
 
 __all__ = ["GaussianCriterion"]
 
@@ -38,6 +39,7 @@ class GaussianCriterion(Estimator):
     """
 
     name = "gaussian"
+    first_stage_class = BCLS
     rank = 5
     equation = "notes 3"
     cov_types = ("sandwich", "robust", "oim", "none")

@@ -8,7 +8,8 @@ problem therefore freezes R at ``weights_at`` (feasible generalised least square
 new estimate. ``Problem(weights_at=None)`` keeps the literal form, for comparison.
 
 With coloured noise (Box-Jenkins) R = E Sigma_y E^H with Sigma_y of (C2), frozen the same
-way (:func:`jitterid.estimation.boxjenkins.fit_bj`); the noise parameters are plug-in values.
+way (:class:`jitterid.estimation.boxjenkins.BoxJenkinsRoute`); the noise parameters are
+plug-in values.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 from scipy.linalg import cho_solve, solve_triangular
 
 from .base import ColouredContext, CriterionContext, Estimator, FloatArray, register
+from .leastsquares import BCLS
 
 __all__ = ["WBCLS"]
 
@@ -47,6 +49,7 @@ class WBCLS(Estimator):
     """
 
     name = "wbcls"
+    first_stage_class = BCLS
     rank = 2
     equation = "(20)"
     least_squares = True

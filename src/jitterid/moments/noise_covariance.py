@@ -55,11 +55,11 @@ from .._checks import count, positive, real_array
 from .._state import CachesAreNotState
 from ..inputs import Input
 from ..jitter.laws import JitterLaw, known_law
-from ..moments.quadrature import _relative_cuts
-from ..moments.reference import dtft
-from ..moments.sample import covariance_from_variances, sample_moments
+from ..noise.models import NoiseModel
 from ..systems.tf import TransferFunction
-from .models import NoiseModel
+from .quadrature import _relative_cuts
+from .reference import dtft
+from .sample import covariance_from_variances, sample_moments
 
 __all__ = [
     "JitteredAutocovariance",

@@ -1,0 +1,443 @@
+"""The white-noise route of :func:`jitterid.fit`: OE (2a) and JOE (2c), every estimator,
+the exact likelihood included (:mod:`jitterid.estimation.route` lists the hooks).
+
+The search follows Section 4.5: an ordinary output-error fit that ignores the jitter gives
+the system's starting point; for a free jitter law a small grid of starting values is tried
+with the estimator's first stage (:meth:`Estimator.first_stage`, BCLS for the paper's
+second-stage estimators), whose estimate starts the estimator itself. Each search goes
+through the estimator's adapter (:func:`jitterid.estimation.search.run_search`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import least_squares
+
+from .._checks import real_array
+from ..data import SampledData
+from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
+from ..params import count_params
+from ..systems.model import Model
+from ..systems.structures import ModelStructure
+from .checks import SCREEN_SAMPLES, PostContext, Scaling, check_data, check_method_jitter
+from .covariance import covariance, noise_variance_ml
+from .estimators import LS, Estimator
+from .problem import Problem, default_frequencies, free_moment_plans
+from .resources import check_fit as check_fit_resources
+from .result import FitResult
+from .route import Staged
+from .search import Outcome, run_search
+
+__all__ = ["OutputErrorRoute", "noise_from_residuals"]
+
+FloatArray = NDArray[np.float64]
+_BAD = 1e10  # residual returned where the model cannot be evaluated (e.g. unstable)
+
+
+def _oe_start(data: SampledData, structure: Model) -> tuple[FloatArray, float]:
+    """Ordinary output-error fit ignoring jitter (time domain); returns (theta, rms residual)."""
+    t = data.t_nominal
+    if not structure.param_names:
+        r0 = data.y - structure.signal((), data.u)(t)
+        return np.zeros(0), float(np.sqrt(np.mean(r0**2)))
+
+    # The samples at kT are the moments of a point-mass jitter: the same O(N) path and
+    # analytic Jacobian as the jitter-aware criteria (jitterid.estimation.jacobians).
+    oe = Problem(data, structure, NoJitter(), LS(), default_frequencies(data.N, data.T), None)
+
+    def resid(x: FloatArray) -> FloatArray:
+        try:
+            return data.y - oe.derivatives(x)[0].mean  # with the Jacobian: one pass
+        except ValueError:
+            return np.full(data.N, _BAD)
+
+    def jac(x: FloatArray) -> FloatArray:
+        try:
+            return -oe.derivatives(x)[2].T
+        except ValueError:  # only where resid failed too; such a step is never taken
+            return np.zeros((data.N, x.size))
+
+    lo, hi = np.array(structure.bounds).T
+    # Score every start by one evaluation; search from the best only (a start with the
+    # right time scale is what matters, and each full search costs ~30 evaluations).
+    gains = list(structure.gain_params)
+    scored = []
+    for x0 in structure.initial_points(data):
+        x0 = np.clip(x0, lo, hi)
+        try:
+            s = oe.moments(x0).mean
+        except ValueError:  # e.g. unstable: last resort only
+            scored.append((np.inf, x0))
+            continue
+        if gains and np.dot(s, s) > 0:  # give each start its least-squares gain
+            # s is linear in the gain parameters: the scaled start's output is c s
+            c = np.dot(data.y, s) / np.dot(s, s)
+            scaled = x0.copy()
+            scaled[gains] *= c
+            if np.all((scaled >= lo) & (scaled <= hi)):  # a bounded gain keeps its start
+                x0, s = scaled, c * s
+        scored.append((float(np.sum((data.y - s) ** 2)), x0))
+    x0 = min(scored, key=lambda item: item[0])[1]
+    sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=200)
+    return sol.x, float(np.sqrt(2 * sol.cost / data.N))
+
+
+def noise_from_residuals(first: Problem, x: FloatArray) -> float:
+    """Plug-in sigma_v from a first-stage (BCLS) fit: E|Y - mu|^2 = R(f, f) =
+    sum_k Var s_k + N sigma_v^2 (notes 2)."""
+    r = first.residuals(x)
+    power = float(np.sum(r**2)) / first.freqs.size
+    signal_var = float(np.sum(first.moments(x).var))
+    return float(np.sqrt(max(power - signal_var, 1e-12 * power) / first.data.N))
+
+
+def _off_zero_jitter(
+    problem: Problem, x0: FloatArray, jstarts: Sequence[Sequence[float]]
+) -> tuple[FloatArray, int]:
+    """The Newton-searched criteria are even in a jitter family's scale, so their gradient
+    vanishes where the BCLS stage collapsed the scale onto zero (its boundary minimum): a
+    search from there never leaves. In that case each of the family's default starts (with
+    the BCLS system) is scored by one criterion value and the best start searched. Elsewhere
+    the BCLS point is kept as it is. Returns the start and the evaluations used."""
+    jitter = problem.jitter
+    scale = getattr(jitter, "scale_index", None)
+    lay = problem.layout
+    if not lay.jitter or scale is None or x0[scale] >= 1e-3 * problem.data.T:
+        return x0, 0
+    lo, hi = lay.lower_upper()
+    best, best_v, n = x0, np.inf, 0
+    for cand in [x0] + [lay.replace(x0, "jitter", js) for js in jstarts]:
+        cand = np.clip(cand, lo, hi)
+        n += 1
+        try:
+            v = problem.objective(cand)
+        except ValueError:
+            continue
+        if np.isfinite(v) and v < best_v:
+            best, best_v = cand, v
+    return best, n
+
+
+class OutputErrorRoute:
+    """White measurement noise: the problem is :class:`~jitterid.estimation.problem
+    .Problem` (module docstring)."""
+
+    def __init__(
+        self,
+        data: SampledData,
+        structure: Model,
+        jitter: JitterLaw | JitterFamily,
+        estimator: Estimator,
+        *,
+        freqs: ArrayLike | None,
+        noise_std: float | None,
+        max_nfev: int,
+    ) -> None:
+        est = estimator
+        check_method_jitter(est.ignores_jitter, est.name, jitter)
+        if est.ignores_jitter and not structure.param_names:
+            raise ValueError(f"method {est.name!r} with a known system has nothing to estimate")
+        n_jit = count_params(jitter)
+        check_data(data, n_jit + len(structure.param_names), structure.uses_input, jitter)
+        check_fit_resources(data, structure, jitter, est)  # memory up front (resources.py)
+        f = (
+            default_frequencies(data.N, data.T)
+            if freqs is None
+            else np.atleast_1d(real_array(freqs, "freqs"))
+        )
+        if f.size < 1:
+            raise ValueError("freqs must hold at least one frequency")
+        noise = data.noise_std if noise_std is None else noise_std
+        if est.exact_likelihood and noise is not None and not noise > 0:
+            raise ValueError(
+                f"method {est.name!r} needs measurement noise: the exact likelihood of "
+                f"noise-free samples is singular (noise_std = {noise!r}); pass a positive "
+                "noise_std"
+            )
+        # The search runs on y / sy and u / su (powers of two near their rms; checks.Scaling)
+        # so that the optimisers' absolute tolerances do not depend on the data's units;
+        # every parameter, the criterion and the covariance map back exactly.
+        self.orig = data
+        self.scaling = Scaling.build(data, structure, n_jit)
+        self.data = self.scaling.data(data)
+        self.structure = structure
+        self.jitter = jitter
+        self.estimator = est
+        self.freqs = f
+        self.max_nfev = max_nfev
+        # the user's noise std in the search's units (a plug-in may replace it, search())
+        self.given_noise = None if noise is None else noise / self.scaling.sy
+        self.jstarts: Sequence[Sequence[float]] = (
+            jitter.default_starts(self.data.T) if isinstance(jitter, JitterFamily) else [()]
+        )
+        self._oe: tuple[FloatArray, float] | None = None  # the ordinary OE fit, once
+
+    # ------------------------------------------------------------------ helpers
+    def make(
+        self, est: Estimator, noise_std: float | None, weights_at: FloatArray | None = None
+    ) -> Problem:
+        return Problem(
+            self.data,
+            self.structure,
+            self.jitter,
+            est,
+            self.freqs,
+            noise_std,
+            weights_at=weights_at,
+        )
+
+    def oe(self) -> tuple[FloatArray, float]:
+        """The ordinary output-error fit (theta, rms residual), computed once."""
+        if self._oe is None:
+            self._oe = _oe_start(self.data, self.structure)
+        return self._oe
+
+    def _plugin_noise(self, first: Estimator) -> float:
+        pre = self.make(first, None)
+        _, out = run_search(
+            pre, np.r_[np.asarray(self.jstarts[0], float), self.oe()[0]], self.max_nfev
+        )
+        return noise_from_residuals(pre, out.x)
+
+    # ------------------------------------------------------------------ 1. starts, search
+    def search(self, start: ArrayLike | FitResult | None) -> Staged:
+        """The starts of Section 4.5 and the search (``start``: a vector in the result's
+        ``names`` order, a first-stage FitResult, or None)."""
+        est, first = self.estimator, self.estimator.first_stage()
+        single = first is est  # its own first stage (ls, bcls)
+        # a criterion that needs the noise variance but cannot estimate it (wbcls) plugs in
+        # the first stage's estimate when none is given
+        plug = est.needs_noise and not est.estimates_noise
+        noise = self.given_noise
+        max_nfev = self.max_nfev
+        prefit = start if isinstance(start, FitResult) else None
+        vector = None if isinstance(start, FitResult) else start
+        nfev = 0
+        rms: float | None = None
+        if vector is not None:
+            if plug and noise is None:
+                noise = self._plugin_noise(first)
+            problem = self.make(est, noise if est.needs_noise else None)
+            x0 = np.atleast_1d(real_array(vector, "start"))
+            if x0.size != len(problem.names):
+                raise ValueError(
+                    f"start must have {len(problem.names)} values {problem.names}; got {x0.size}"
+                )
+            problem, best = run_search(problem, self.scaling.to_scaled(x0), max_nfev)
+            nfev = best.nfev
+        else:
+            pre = self.make(first, None)
+            found: Outcome | None = None
+            if prefit is not None:
+                _check_prefit(
+                    prefit,
+                    pre
+                    if self.scaling.identity
+                    else Problem(self.orig, self.structure, self.jitter, first, self.freqs, None),
+                )
+                found = Outcome(
+                    self.scaling.to_scaled(prefit.x),
+                    prefit.cost,
+                    prefit.status,
+                    prefit.message,
+                    prefit.nfev,
+                )
+                nfev = prefit.nfev
+            else:
+                theta_sys, rms = self.oe()
+                for js in self.jstarts:
+                    _, out = run_search(pre, np.r_[np.asarray(js, float), theta_sys], max_nfev)
+                    nfev += out.nfev
+                    if found is None or out.cost < found.cost:
+                        found = out
+            assert found is not None
+            best = found
+            problem = pre
+            if not single:
+                x_pre = best.x
+                if plug and noise is None:
+                    noise = noise_from_residuals(pre, x_pre)
+                problem = self.make(est, noise if est.needs_noise else None)
+                if problem.estimates_noise and rms is None:
+                    rms = self.oe()[1]
+                if problem.estimates_noise:
+                    noise0 = est.noise_start(rms, lambda: noise_from_residuals(pre, x_pre))
+                    x0 = np.r_[x_pre, noise0]
+                else:
+                    x0 = x_pre
+                if not est.least_squares and not est.scores_own_starts:
+                    x0, scored = _off_zero_jitter(problem, x0, self.jstarts)
+                    nfev += scored
+                problem, best = run_search(problem, x0, max_nfev)
+                nfev += best.nfev
+        return Staged(
+            problem,
+            best._replace(nfev=nfev),
+            noise,
+            {"single": single, "start": start, "prefit": prefit},
+        )
+
+    # ------------------------------------------------------------------ 2. covariance
+    def covariance(self, staged: Staged, cov_type: str) -> tuple[FloatArray, str | None, str]:
+        """(covariance, why it could not be computed or None, a note for the message); the
+        white-noise std the covariance used goes to ``staged.noise_std``."""
+        problem, x = staged.problem, staged.outcome.x
+        noise = staged.noise_std
+        staged.extra["cov_requested"] = cov_type != "none"  # an all-NaN one is then a failure
+        cov = np.full((x.size, x.size), np.nan)
+        noise_rec: float | None = None
+        try:
+            if problem.uses_noise:
+                noise_rec = problem.split(x)[2]
+            elif noise is not None:
+                noise_rec = float(noise)
+            elif cov_type == "sandwich":  # the covariance needs sigma_v: its ML value
+                mom = problem.moments(x)
+                noise_rec = float(np.sqrt(noise_variance_ml(self.data.y - mom.mean, mom.var)))
+            staged.noise_std = noise_rec
+            cov = covariance(problem, x, cov_type, noise_rec)
+        except ValueError as exc:  # e.g. an unstable model: the checks say why
+            staged.noise_std = noise_rec
+            return cov, str(exc), ""
+        return cov, None, ""
+
+    # ------------------------------------------------------------------ 3. checks
+    def post_context(self, staged: Staged, cov: FloatArray, cov_error: str | None) -> PostContext:
+        problem, x = staged.problem, staged.outcome.x
+        est, structure = self.estimator, self.structure
+        extra = staged.extra
+
+        def default_starts() -> list[FloatArray]:
+            # A search that already ran from every default start (the first stage) has
+            # nothing to compare; after a given start or a second stage, the criterion at
+            # the default starts must not be lower than at the estimate.
+            if (
+                (extra["start"] is None and extra["single"])
+                or extra["prefit"] is not None
+                or not structure.param_names
+            ):
+                return []
+            th, rms = self.oe()
+            out = [np.r_[np.asarray(js, float), th] for js in self.jstarts]
+            if problem.estimates_noise:
+                out = [np.r_[v, max(rms, 1e-6)] for v in out]
+            lo, hi = problem.layout.lower_upper()
+            return [np.clip(v, lo, hi) for v in out]
+
+        known_variance: Callable[[FloatArray], FloatArray] | None = None
+        given = self.given_noise
+        # (a noise std of 0, e.g. noise-free simulated data, leaves nothing to standardise by)
+        if given and not est.ignores_jitter and not problem.estimates_noise:
+            known_noise = float(given)
+
+            def known_variance(v: FloatArray) -> FloatArray:
+                # Var y_k plus the spread of the fitted mean, dm_k^T Cov dm_k: an inefficient
+                # estimator (bcls) leaves residuals of many noise stds where Var s_k is tiny
+                mom, _, dm, _ = problem.derivatives(v)
+                spread = np.einsum("pk,pq,qk->k", dm, np.nan_to_num(cov), dm)
+                return np.asarray(mom.var + known_noise**2 + spread, dtype=float)
+
+        return PostContext(
+            data=self.data,
+            structure=structure,
+            jitter=self.jitter,
+            names=problem.names,
+            bounds=problem.bounds,
+            x=x,
+            cost=float(staged.outcome.cost),
+            cov=cov,
+            objective=problem.objective,
+            model_mean=lambda v: problem.moments(v).mean,
+            oe_system=lambda: self.oe()[0],
+            starts=default_starts,
+            cov_error=cov_error,
+            known_variance=known_variance,
+            screen=_screen(problem),
+            cov_requested=extra.get("cov_requested"),
+        )
+
+    # ------------------------------------------------------------------ 4. units
+    def to_data_units(self, staged: Staged, x: FloatArray) -> Problem:
+        """The problem in the data's units at the estimate ``x`` (already mapped back)."""
+        problem = staged.problem
+        sc = self.scaling
+        if sc.identity:
+            return problem
+        staged.noise_std = None if staged.noise_std is None else staged.noise_std * sc.sy
+        w = problem.weights_at
+        problem.release()
+        if problem.likelihood is not None:  # its rule, before the next one is designed
+            problem.likelihood.release()
+            free_moment_plans(self.data.N)  # and the moment plans of the checks
+        return Problem(
+            self.orig,
+            self.structure,
+            self.jitter,
+            self.estimator,
+            self.freqs,
+            None if problem.noise_std is None else problem.noise_std * sc.sy,
+            weights_at=None if w is None else sc.to_original(w),
+        )
+
+    # ------------------------------------------------------------------ 5. result
+    def result_fields(self, problem: Any, x: FloatArray, staged: Staged) -> dict[str, Any]:
+        problem.release()  # a fresh signal for the result, without the criterion's caches
+        law = problem.jitter_law(x)
+        theta = problem.layout.block(x, "system")
+        structure = self.structure
+        fitted = structure.system(theta) if isinstance(structure, ModelStructure) else None
+        problem.release()
+        return {
+            "system": fitted,
+            "jitter_law": law,
+            "noise_std": staged.noise_std,
+            "structure": structure,
+            "jitter_model": self.jitter,
+        }
+
+
+def _screen(problem: Problem) -> Callable[[FloatArray], FloatArray] | None:
+    """The exact likelihood's -2 ln p_k over the first ``SCREEN_SAMPLES`` samples, for the
+    checks' first look at far points (``PostContext.screen``), on records of at least four
+    times as many samples (None otherwise, and for the other criteria)."""
+    lik = problem.likelihood
+    if lik is None or lik.N < 4 * SCREEN_SAMPLES:
+        return None
+    head = lik.leading(SCREEN_SAMPLES)
+    y = problem.data.y[:SCREEN_SAMPLES]
+    return lambda v: -2 * head.logpdf(v, y)
+
+
+def _check_prefit(prefit: FitResult, pre: Problem) -> None:
+    """A ``start`` FitResult must be the first-stage fit of this very problem (same data,
+    structure, jitter model, frequencies and estimator): its cost, re-evaluated here, must
+    match."""
+    made_by = getattr(prefit, "estimator", None) or prefit.method
+    same = made_by == pre.estimator if not isinstance(made_by, str) else made_by == pre.method
+    if not same or prefit.names != pre.names:
+        raise ValueError(
+            f"start: a FitResult passed as start must come from fit(..., method={pre.method!r}) "
+            f"with parameters {pre.names}; got method {prefit.method!r} with {prefit.names}"
+        )
+    # A search that ended (converged, then flagged by the checks after it: a jitter scale
+    # collapsed onto its bound, an unidentified shape, ...) is a valid start: the next stage
+    # is what repairs it. A search that did not end is not.
+    if prefit.status.name in ("MAX_EVALUATIONS", "NOT_FINITE", "OPTIMISER_FAILED"):
+        raise ValueError(
+            f"start: the {pre.method} fit passed as start did not converge ({prefit.status.name}); "
+            "fit without it, or from a parameter vector"
+        )
+    cost = pre.objective(prefit.x)
+    if (
+        prefit.freqs.shape != pre.freqs.shape
+        or not np.allclose(prefit.freqs, pre.freqs)
+        or not np.isclose(cost, prefit.cost, rtol=1e-9, atol=0.0)
+    ):
+        raise ValueError(
+            "start: the FitResult passed as start was fitted to other data, jitter model or "
+            "frequencies (its cost does not match this problem); fit it to the same data first"
+        )
