@@ -16,11 +16,19 @@ __all__: list[str] = []
 
 
 def real_array(x: ArrayLike, name: str, *, ndim: int | None = None) -> NDArray[np.float64]:
-    """Return ``x`` as a finite float array, or raise naming ``name``."""
+    """Return ``x`` as a finite float array, or raise naming ``name`` (complex values are
+    refused, not cast: dropping the imaginary part would be a silent wrong answer)."""
     try:
-        arr = np.asarray(x, dtype=float)
+        raw = np.asarray(x)
+        complex_values = raw.dtype.kind == "c"
+        arr = np.asarray(raw.real if complex_values else raw, dtype=float)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be an array of real numbers; got {type(x).__name__}") from exc
+    if complex_values:
+        raise TypeError(
+            f"{name} must be real; got complex values. Give the real quantity that was "
+            f"measured (e.g. {name}.real, or abs({name}) for a magnitude)"
+        )
     if ndim is not None and arr.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-dimensional; got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -41,6 +49,25 @@ def positive(x: float, name: str, *, allow_zero: bool = False) -> float:
     if not np.isfinite(val) or val < 0 or (val == 0 and not allow_zero):
         need = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"{name} must be finite and {need}; got {x!r}")
+    return val
+
+
+#: Range of a sampling interval (s). Inside it the model's time scale 1/T and its powers (the
+#: coefficients of a rational model, the frequencies) are finite doubles; outside it (say
+#: T = 1e-300 s) they overflow deep inside the estimators, so T is refused up front.
+T_RANGE_S = (1e-24, 1e24)
+
+
+def sampling_interval(T: float, name: str = "T") -> float:
+    """Return ``T`` as a float if it is a sampling interval inside :data:`T_RANGE_S`."""
+    val = positive(T, name)
+    lo, hi = T_RANGE_S
+    if not lo <= val <= hi:
+        raise ValueError(
+            f"{name} = {val:g} s is outside the range of sampling intervals jitterid handles "
+            f"[{lo:g}, {hi:g}] s; give the times in another unit (e.g. ms or us, scaling the "
+            "model's parameters with them)"
+        )
     return val
 
 

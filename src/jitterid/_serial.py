@@ -58,23 +58,66 @@ def encode(obj: Any) -> Any:
     )
 
 
-def decode(data: Any) -> Any:
-    """Inverse of :func:`encode`."""
+#: Deepest nesting of value objects :func:`decode` follows (a model holds a model holds a
+#: system ...: a handful of levels in practice); deeper input is refused, not recursed into.
+MAX_DEPTH = 32
+
+
+def decode(data: Any, _depth: int = 0) -> Any:
+    """Inverse of :func:`encode`.
+
+    Only a class :func:`encode` can write is built: a dataclass with init fields *defined* in
+    the ``jitterid`` module its tag names, reached through classes only (not through a module
+    attribute, which could lead anywhere). Anything else, an unknown module or class, fields
+    the class does not take and nesting deeper than :data:`MAX_DEPTH` raise
+    :class:`ValueError` naming the problem.
+
+    Parameters
+    ----------
+    data : Any
+        The JSON-compatible form :func:`encode` returned.
+    """
+    if _depth > MAX_DEPTH:
+        raise ValueError(f"the value objects are nested more than {MAX_DEPTH} levels deep")
     if isinstance(data, list):
-        return [decode(v) for v in data]
+        return [decode(v, _depth + 1) for v in data]
     if isinstance(data, str) and data in ("inf", "-inf", "nan"):
         return float(data)
     if not isinstance(data, dict):
         return data
     if _TAG not in data:
-        return {k: decode(v) for k, v in data.items()}
-    module, _, name = str(data[_TAG]).partition(":")
-    if not module.startswith("jitterid.") or not name:
-        raise ValueError(f"refusing to decode class {data[_TAG]!r}: not a jitterid class")
-    cls: Any = importlib.import_module(module)
+        return {k: decode(v, _depth + 1) for k, v in data.items()}
+    cls = _value_class(data[_TAG])
+    kwargs = {k: decode(v, _depth + 1) for k, v in data.items() if k != _TAG}
+    try:
+        return cls(**kwargs)
+    except TypeError as exc:  # a missing or unknown field (or one of the wrong kind)
+        raise ValueError(f"cannot build {data[_TAG]!r} from its fields: {exc}") from None
+
+
+def _value_class(tag: Any) -> type:
+    """The class a ``__class__`` tag names, if :func:`encode` could have written it."""
+    module, _, name = str(tag).partition(":")
+    if not isinstance(tag, str) or not module.startswith("jitterid.") or not name:
+        raise ValueError(f"refusing to decode class {tag!r}: not a jitterid class")
+    try:
+        obj: Any = importlib.import_module(module)
+    except ImportError:
+        raise ValueError(f"refusing to decode {tag!r}: no module {module!r} in jitterid") from None
     for part in name.split("."):
-        cls = getattr(cls, part)
-    if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
-        raise ValueError(f"refusing to decode {data[_TAG]!r}: not a jitterid value object")
-    kwargs = {k: decode(v) for k, v in data.items() if k != _TAG}
-    return cls(**kwargs)
+        obj = getattr(obj, part, None)
+        if not isinstance(obj, type):  # through classes only, never a module attribute
+            # the file's content is wrong (not an argument's type): ValueError
+            raise ValueError(  # noqa: TRY004
+                f"refusing to decode {tag!r}: {module} defines no class {name!r}"
+            )
+    params = getattr(obj, "__dataclass_params__", None)
+    if not (
+        obj.__module__ == module
+        and obj.__qualname__ == name
+        and dataclasses.is_dataclass(obj)
+        and params is not None
+        and params.init
+    ):
+        raise ValueError(f"refusing to decode {tag!r}: not a jitterid value object")
+    return obj  # type: ignore[return-value]

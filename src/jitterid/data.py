@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ._checks import positive, real_array
+from ._checks import positive, real_array, sampling_interval
+from ._repr import brief
 from .inputs import Input
 
 __all__ = ["SampledData"]
@@ -62,7 +63,7 @@ class SampledData:
         y = real_array(self.y, "y", ndim=1)
         if y.size < 4:
             raise ValueError(f"y must hold at least 4 samples; got {y.size}")
-        T = positive(self.T, "T")
+        T = sampling_interval(self.T, "T")
         if self.u is not None and not isinstance(self.u, Input):
             raise TypeError(f"u must be a jitterid input or None; got {type(self.u).__name__}")
         if self.noise_std is not None:
@@ -83,6 +84,17 @@ class SampledData:
         y.setflags(write=False)
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "T", T)
+
+    def __repr__(self) -> str:
+        parts = [f"y={brief(self.y)}", f"T={self.T!r}"]
+        if self.u is not None:
+            parts.append(f"u={self.u!r}")
+        for name in ("noise_std", "resolution"):
+            if getattr(self, name) is not None:
+                parts.append(f"{name}={getattr(self, name)!r}")
+        if self.instants is not None:
+            parts.append(f"instants={brief(self.instants)}")
+        return f"SampledData({', '.join(parts)})"
 
     @property
     def N(self) -> int:

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._checks import generator, positive, real_array
+from ._checks import finite, generator, positive, real_array, sampling_interval
+from ._repr import brief
 
 __all__ = [
     "Input",
@@ -30,6 +31,28 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+
+def _round_up(t_max: float, end: float) -> float:
+    """A tidy time past ``t_max`` > ``end`` (the overshoot with half again, one digit)."""
+    over = 1.5 * (t_max - end)
+    step = 10.0 ** np.floor(np.log10(over))
+    return float(end + np.ceil(over / step) * step)
+
+
+def known_input(u: object, name: str = "u") -> Input:
+    """``u`` if it is a jitterid input, else a TypeError naming ``name`` and the fix."""
+    if isinstance(u, Input):
+        return u
+    hint = (
+        " (an array of input values: wrap it, zoh_input(values, T) holds each for T)"
+        if isinstance(u, (np.ndarray, list, tuple))
+        else ""
+    )
+    raise TypeError(
+        f"{name} must be a jitterid input (zoh_input, telegraph_input, Multisine or "
+        f"PiecewiseConstant); got {type(u).__name__}{hint}"
+    )
 
 
 class Input:
@@ -73,10 +96,35 @@ class Input:
             What ``t_max`` is, for the error message.
         """
         if t_max >= self.end:
-            raise ValueError(
-                f"the input ends at t = {self.end:g} but {what} reaches t = {t_max:g}; "
-                "give an input that lasts longer (e.g. a larger duration) or use fewer samples"
+            raise ValueError(self.coverage_message(t_max, what))
+
+    def coverage_message(self, t_max: float, what: str = "the sampled interval") -> str:
+        """What is wrong and how to fix it when the input ends before ``t_max`` (or, for a
+        ``t_max`` just before the end, when it stops a search from going further): the one
+        wording of every check of the input's end (the data checks, the moments, the
+        likelihood, :func:`jitterid.simulate`, the checks after a fit).
+
+        Parameters
+        ----------
+        t_max : float
+            The last instant (s) that must be covered.
+        what : str, optional
+            What ``t_max`` is.
+        """
+        if t_max < self.end:
+            return (
+                f"{what} reaches t = {t_max:g}, at the end of the input (t = {self.end:g}): "
+                "nothing further can be evaluated, the input being unknown past its end"
+                + self._extension_hint(t_max)
             )
+        return (
+            f"the input ends at t = {self.end:g} but {what} reaches t = {t_max:g}; give an "
+            "input that lasts longer (e.g. a larger duration) or use fewer samples"
+            + self._extension_hint(t_max)
+        )
+
+    def _extension_hint(self, t_max: float) -> str:
+        return ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,10 +175,51 @@ class PiecewiseConstant(Input):
         object.__setattr__(self, "start", float(times[0]))
         object.__setattr__(self, "end", float(times[-1]))
 
+    def __repr__(self) -> str:
+        return f"PiecewiseConstant(times={brief(self.times)}, levels={brief(self.levels)})"
+
     @property
     def breaks(self) -> FloatArray:
         """Times where u jumps (the start and every switch), where the output is not smooth."""
         return self.times[:-1]
+
+    def hold_last(self, until: float) -> PiecewiseConstant:
+        """This input with its last level held until ``until`` (s): what a DAC or a
+        zero-order hold does after its last sample, so that an input file with one value
+        per sample covers the jitter's reach past the last sampling instant.
+
+        Parameters
+        ----------
+        until : float
+            The new end (s); an end before the current one is refused.
+
+        Examples
+        --------
+        >>> import jitterid as ji
+        >>> u = ji.zoh_input([1.0, -1.0], T=0.5).hold_last(1.25)
+        >>> u.times.tolist(), u.levels.tolist()
+        ([0.0, 0.5, 1.25], [1.0, -1.0])
+        """
+        end = finite(until, "until")
+        if end < self.end:
+            raise ValueError(
+                f"until = {end:g} is before the input's end {self.end:g}; give a later time"
+            )
+        times = self.times.copy()
+        times[-1] = end
+        return PiecewiseConstant(times, self.levels)
+
+    def _extension_hint(self, t_max: float) -> str:
+        until = (
+            f"u.hold_last({_round_up(t_max, self.end):g})"
+            if t_max > self.end
+            else "u.hold_last(t) with t a few jitter widths past the last sample"
+        )
+        return (
+            ", or, for an input that stays at its last value (a DAC, a zero-order hold), hold "
+            f"it over the jitter's reach: {until} (jitterid.load(..., hold_input=True), "
+            "jitterid fit --hold-input)"
+        )
 
     def __call__(self, t: ArrayLike) -> FloatArray:
         t = np.asarray(t, dtype=float)
@@ -220,6 +309,13 @@ class Multisine(Input):
             object.__setattr__(self, name, val)
         object.__setattr__(self, "end", end)
         object.__setattr__(self, "start", start)
+
+    def __repr__(self) -> str:
+        return (
+            f"Multisine(freqs={brief(self.freqs)}, amplitudes={brief(self.amplitudes)}, "
+            f"end={self.end!r}, phases={brief(self.phases)}, start={self.start!r}, "
+            f"steady_state={self.steady_state!r})"
+        )
 
     @property
     def breaks(self) -> FloatArray:
@@ -325,7 +421,7 @@ def zoh_input(samples: ArrayLike, T: float, start: float = 0.0) -> PiecewiseCons
     >>> u.times.tolist(), u.levels.tolist()
     ([0.0, 0.5, 1.0, 1.5], [0.0, 1.0, -1.0])
     """
-    T = positive(T, "T")
+    T = sampling_interval(T, "T")
     u = real_array(samples, "samples", ndim=1)
     if u.size < 1:
         raise ValueError("samples must hold at least one value")

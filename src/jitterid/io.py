@@ -54,6 +54,7 @@ import json
 import math
 import os
 import re
+import stat
 import tempfile
 import zipfile
 from collections.abc import Callable, Mapping
@@ -762,6 +763,7 @@ def load(
     T: float | str | None = None,
     noise_std: float | None = None,
     require_input: bool = True,
+    hold_input: bool = False,
 ) -> Dataset:
     """Read a data file (and its input) into a :class:`Dataset`.
 
@@ -783,6 +785,11 @@ def load(
         None. True (the default) refuses it, since a system fit needs the input. A file
         holding only a ``y`` column (no ``k`` or ``t``) is read as the samples k = 0, 1,
         ... when T is known (``T=`` or a ``# T:`` line).
+    hold_input : bool
+        Hold the input file's last value after its end, for the jitter's tail (as a DAC
+        does, and as a ``u`` column always is): an input file with one value per sample ends
+        one interval after the last sample, before a jittered last instant may fall. The
+        dataset's ``notes`` say so. Default False: the input ends where the file says.
 
     Returns
     -------
@@ -880,6 +887,14 @@ def load(
     else:
         u, itab = _input(input, t0, T_s, n, unit)
         sources.append(Source("input", str(itab.path), _sha256(itab.path)))
+        if hold_input and isinstance(u, PiecewiseConstant):
+            end = max(u.end, T_s * (n - 1 + max(n, _U_TAIL)))
+            u = u.hold_last(end)
+            notes.append(
+                f"the input's last value u = {u.levels[-1]:g} is held after the end of the "
+                f"input file until t = {end:g} s (hold_input), where the jittered last "
+                "instants may fall"
+            )
         u_unit = str(itab.meta.get("u_unit", tab.meta.get("u_unit", "")))
     noise = noise_std if noise_std is not None else tab.meta.get("noise_std")
     if noise is not None:
@@ -951,10 +966,34 @@ def parse_time(text: str | float, default_unit: str = "s", name: str = "time") -
 
 def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = False) -> Path:
     """Write ``path`` all at once: ``write(fh)`` fills a temporary file in the same folder,
-    which then replaces ``path`` (no partial or 0-byte file is ever left behind)."""
+    which then replaces ``path`` (no partial or 0-byte file is ever left behind).
+
+    The file gets the permissions an ordinary ``open(path, "w")`` would give: those of the
+    file it replaces, or for a new file ``0o666`` less the process's umask (0644 under the
+    usual umask 022, as the SQLite store), not the 0600 of a bare temporary file.
+
+    Parameters
+    ----------
+    path : Path
+        The file to (re)write.
+    write : callable
+        ``write(fh)`` writes the content into the open file object ``fh``.
+    binary : bool, default False
+        Open ``fh`` in binary mode (else text, UTF-8, no newline translation).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        mode = 0o666 & ~_umask()
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, mode)
         fh: IO[Any] = (
             os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
         )
@@ -968,6 +1007,18 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
             os.unlink(tmp)
         raise
     return path
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where the system allows (Linux
+    ``/proc/self/status``: setting it to read it back is not thread-safe)."""
+    with contextlib.suppress(OSError, ValueError), open("/proc/self/status", "rb") as fh:
+        for line in fh:
+            if line.startswith(b"Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)  # pragma: no cover - not Linux
+    os.umask(mask)  # pragma: no cover
+    return mask  # pragma: no cover
 
 
 def _to_unit(seconds: float, unit: str) -> float | str:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ._checks import count, generator, positive
+from ._checks import count, generator, positive, sampling_interval
 from .data import SampledData
-from .inputs import Input
-from .jitter.laws import JitterLaw
+from .inputs import Input, known_input
+from .jitter.laws import JitterLaw, known_law
 from .noise.models import NoiseModel
 from .systems.model import Signal
 from .systems.tf import TransferFunction
@@ -75,11 +75,10 @@ def simulate(
     >>> data.y.shape, data.T
     ((100,), 0.1)
     """
-    T = positive(T, "T")
+    T = sampling_interval(T, "T")
     N = count(N, "N", minimum=4)
     noise_std = positive(noise_std, "noise_std", allow_zero=True)
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitterid jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     if noise_model is not None and not isinstance(noise_model, NoiseModel):
         raise TypeError(
             "noise_model must be a NoiseModel (e.g. NoiseModel(TransferFunction([b], [1, c]))) "
@@ -92,6 +91,7 @@ def simulate(
     elif isinstance(system, TransferFunction):
         if u is None:
             raise ValueError("u (the known input) is required with a TransferFunction")
+        u = known_input(u)
         u.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
         signal = system.response(u)
     else:

@@ -20,6 +20,7 @@ import jitterid as ji
 from jitterid.analysis import selection
 from jitterid.analysis.selection import OrderRow, over_order
 from jitterid.cli import main
+from jitterid.estimation import checks
 from jitterid.estimation.resources import moment_bytes
 
 T, NOISE = 1.0, 0.01
@@ -181,7 +182,7 @@ def test_root_sensitivities_match_differences_of_numpy_roots(den):
     den = np.asarray(den, float)
     P = den.size
     dcoef = np.eye(P)  # the parameters are the coefficients themselves
-    roots, grad = selection._root_gradients(den, dcoef)
+    roots, grad = checks._root_gradients(den, dcoef)
     h = 1e-6
     for i in range(P):
         up, dn = den.copy(), den.copy()

@@ -128,7 +128,8 @@ def test_no_warning_on_ordinary_fits(tmp_path, law, spec, method):
     assert "Cross-check: the" in report
 
 
-def test_an_ls_fit_has_no_cross_check(tmp_path):
+def test_an_ls_fit_is_cross_checked_too(tmp_path):
+    # issue 25: ls ignores the jitter (it assumes none): the detection contradicts it here
     res, result, _ = _fit(
         tmp_path,
         _paper(3, ji.Uniform(0.5)),
@@ -140,8 +141,8 @@ def test_an_ls_fit_has_no_cross_check(tmp_path):
         "ls",
     )
     assert res.exit_code == 0, res.output
-    assert "jitter_cross_check" not in result["diagnostics"]
-    assert result["warnings"] == []
+    assert result["diagnostics"]["jitter_cross_check"]["verdict"] == "too small"
+    assert any("method 'ls' ignores the jitter" in w for w in result["warnings"])
 
 
 def test_the_cross_check_on_its_own():

@@ -33,8 +33,9 @@ from scipy import optimize, stats
 from .._checks import count, real_array
 from ..data import SampledData
 from ..estimation.covariance import noise_variance_ml
+from ..estimation.estimators import as_estimator
 from ..estimation.result import FitResult
-from ..jitter.laws import JitterFamily, JitterLaw
+from ..jitter.laws import JitterFamily, JitterLaw, known_law
 from ..moments.sample import sample_moments
 from ..systems.tf import TransferFunction
 
@@ -358,7 +359,8 @@ def cross_check_jitter(result: FitResult, detection: JitterDetection) -> JitterC
     Parameters
     ----------
     result : FitResult
-        A jitter-aware fit (a jitter family or a known law).
+        A fit: jitter-aware (a jitter family or a known law), or one that ignores the
+        jitter (``ls``), which is ``"too small"`` wherever the test finds jitter.
     detection : JitterDetection
         :func:`detect_jitter` on the same data (from an ordinary fit).
 
@@ -401,7 +403,16 @@ def cross_check_jitter(result: FitResult, detection: JitterDetection) -> JitterC
     )
     verdict, message = "consistent", ""
     collapsed = std <= CROSS_COLLAPSE * T
-    if p < CROSS_DETECTED_P and (collapsed or std + 2 * se_ok < lo / CROSS_FACTOR):
+    if as_estimator(result.method).ignores_jitter:  # ls: it assumes no jitter, whatever given
+        if p < CROSS_DETECTED_P:
+            verdict = "too small"
+            message = (
+                f"method {result.method!r} ignores the jitter (it fits as if there were none), "
+                f"while {found}: its estimates are biased (the gain is seen as |G| |phi(f)|, low "
+                "at high frequencies); fit with --method bcls, asml, gaussian or ml and a "
+                "--jitter law or family"
+            )
+    elif p < CROSS_DETECTED_P and (collapsed or std + 2 * se_ok < lo / CROSS_FACTOR):
         verdict = "too small"
         head = (
             f"the {what} jitter std is {std:.3g} s"
@@ -694,11 +705,7 @@ def ls_gain_factor(jitter: JitterLaw, f: ArrayLike) -> FloatArray:
     >>> ji.ls_gain_factor(ji.Uniform(0.05), [0.0, 1.0, 5.0]).round(4).tolist()
     [1.0, 0.9836, 0.6366]
     """
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(
-            "jitter must be a jitter law such as Uniform(0.5) or Gaussian(0.1); "
-            f"got {type(jitter).__name__}"
-        )
+    jitter = known_law(jitter)
     freqs = real_array(f, "f")
     return np.asarray(np.abs(jitter.cf(freqs)), dtype=float)
 
@@ -724,8 +731,7 @@ def bias_frequency(jitter: JitterLaw, tol: float = 0.01) -> float:
     0.781
     """
     tol = _level(tol)
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     if jitter.std == 0:  # a point mass (NoJitter, or a law shifted from it)
         return float("inf")
     # |phi| ~ 1 - 2 pi^2 sigma^2 f^2 near 0: bracket around that guess, then refine.

@@ -50,7 +50,14 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from ..data import SampledData
-from ..estimation.checks import check_arguments
+from ..estimation.checks import (
+    CANCEL_REL,
+    CANCEL_SE,
+    FAST_POLE,
+    check_arguments,
+    check_method_jitter,
+    over_order_symptom,
+)
 from ..estimation.covariance import noise_variance_ml
 from ..estimation.estimators import Estimator, as_estimator
 from ..estimation.fit import fit
@@ -76,15 +83,6 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
-#: a pole and a zero closer than this fraction of |p| cancel (a 5 % pair moves the gain by
-#: about 5 % |p| / |Re p|: far below what a model order is for)
-CANCEL_REL = 0.05
-#: a separation |p - z| (or a reciprocal 1/p, 1/z) within this many standard errors of zero
-#: is not distinguished from a cancellation (about 95 % two-sided)
-CANCEL_SE = 2.0
-#: a pole or zero with |p| T above this decays (or acts) within T / 1000 of an input switch:
-#: the samples cannot tell it from a gain, i.e. from one at infinity
-FAST_POLE = 1e3
 #: the criteria :func:`select_order` ranks by
 CRITERIA = ("aic", "bic", "validation")
 #: errors of one candidate's fit that become its row (the selection goes on)
@@ -159,10 +157,10 @@ class OrderRow:
         """Why the row is not trustworthy (empty if it is)."""
         if self.status is None:
             return f"the fit raised an error: {self.error}"
+        if self.over_order and self.status in (FitStatus.CONVERGED, FitStatus.OVER_ORDER):
+            return f"over-order model: {self.over_order}"
         if not self.status.success:
             return f"{self.status.name}: {self.status.value}"
-        if self.over_order:
-            return f"over-order model: {self.over_order}"
         if not math.isfinite(self.loglik):
             return "the log-likelihood could not be computed" + (
                 f" ({self.notes[-1]})" if self.notes else ""
@@ -174,10 +172,10 @@ class OrderRow:
         """A short word for the table: ``ok``, ``error``, ``over-order`` or the status name."""
         if self.status is None:
             return "error"
+        if self.status is FitStatus.OVER_ORDER or (self.status.success and self.over_order):
+            return "over-order"
         if not self.status.success:
             return self.status.name
-        if self.over_order:
-            return "over-order"
         return "ok" if math.isfinite(self.loglik) else "no log-lik"
 
     def value(self, criterion: str) -> float:
@@ -542,102 +540,25 @@ def _noise_counted(res: FitResult, plugged: bool) -> bool:
 # ------------------------------------------------------------------------------ over-order
 
 
-def _root_gradients(coef: FloatArray, dcoef: FloatArray) -> tuple[ComplexArray, ComplexArray]:
-    """Roots r_j of the polynomial ``coef`` (highest power first) and dr_j/dtheta, shape
-    (roots, P), from dr/dc_i = -r^(d - i) / c'(r) (a simple root)."""
-    d = coef.size - 1
-    if d < 1:
-        return np.zeros(0, complex), np.zeros((0, dcoef.shape[0]), complex)
-    roots = np.roots(coef).astype(complex)
-    with np.errstate(all="ignore"):
-        deriv = np.polyval(np.polyder(coef), roots)
-        powers = roots[:, None] ** np.arange(d, -1, -1)[None, :]  # (roots, d + 1)
-        dr_dc = -powers / deriv[:, None]
-        grad = dr_dc @ dcoef[:, -coef.size :].T  # (roots, P)
-    return roots, np.asarray(grad, dtype=complex)
-
-
-def _se_abs(v: complex, g: ComplexArray, cov: FloatArray) -> float:
-    """Delta-method standard error of |v| given dv/dtheta = g and Cov theta."""
-    if v == 0 or not np.all(np.isfinite(g)):
-        return float("nan")
-    gr = np.real(np.conj(v) / abs(v) * g)
-    var = float(gr @ cov @ gr)
-    return math.sqrt(var) if math.isfinite(var) and var >= 0 else float("nan")
-
-
 def over_order(res: FitResult, T: float) -> str:
-    """The over-order symptom of a fitted LTI model (module notes), or "".
+    """The over-order symptom of a fitted LTI model (module notes), or "": the predicate
+    :func:`jitterid.estimation.checks.over_order_symptom` (also a check of every single
+    fit), on the fit's system block and its covariance.
 
-    A pole-zero pair that cancels, or a pole or zero indistinguishable from infinity; the
-    standard errors come from the fit's covariance (the system block), by the delta method
-    through the roots' sensitivities dr/dc = -r^(d - i) / c'(r).
+    Parameters
+    ----------
+    res : FitResult
+        The fit.
+    T : float
+        The sampling interval (s).
     """
-    tf = res.system
     structure = res.structure
-    if tf is None or not isinstance(structure, ModelStructure) or not structure.param_names:
+    if res.system is None or not isinstance(structure, ModelStructure):
         return ""
     sl = res.layout.slice("system")
-    theta = np.asarray(res.x[sl], dtype=float)
-    cov = np.asarray(res.cov[sl, sl], dtype=float)
-    n = tf.den.size
-    try:
-        dnum, dden = structure.coefficient_derivatives(theta, n)
-        poles, gp = _root_gradients(np.asarray(tf.den, float), dden)
-        zeros, gz = _root_gradients(np.asarray(tf.num, float), dnum)
-    except (ValueError, ArithmeticError):
-        return ""
-    if not np.all(np.isfinite(cov)):
-        cov = np.full_like(cov, np.nan)
-    found: list[tuple[float, str]] = []  # (how far inside the threshold: smaller is worse, text)
-    for j, p in enumerate(poles):
-        for k, z in enumerate(zeros):
-            d = complex(p - z)
-            se = _se_abs(d, gp[j] - gz[k], cov)
-            limit = max(CANCEL_REL * abs(p), CANCEL_SE * se if math.isfinite(se) else 0.0)
-            if abs(d) <= limit:
-                why = (
-                    f"{abs(d) / se:.2g} standard errors"
-                    if math.isfinite(se) and se > 0
-                    else "no standard error"
-                )
-                if abs(d) <= CANCEL_REL * abs(p):
-                    rel = abs(d) / max(abs(p), 1e-300)
-                    how = f"cancel (|p - z| = {abs(d):.3g} rad/s, {rel:.2g} |p|)"
-                else:  # far apart, but not told apart by the data
-                    how = f"are not told apart (|p - z| = {abs(d):.3g} rad/s is {why})"
-                text = f"pole {_c(p)} and zero {_c(z)} rad/s {how}"
-                found.append((abs(d) / limit if limit > 0 else 0.0, text))
-    for what, roots, grads in (("pole", poles, gp), ("zero", zeros, gz)):
-        for r, g in zip(roots, grads, strict=True):
-            if r == 0:
-                continue
-            inv = 1.0 / complex(r)
-            se = _se_abs(inv, -g / complex(r) ** 2, cov)
-            if abs(r) * T > FAST_POLE:
-                text = (
-                    f"{what} {_c(r)} rad/s acts within T/{abs(r) * T:.3g} (|{what[0]}| T > "
-                    f"{FAST_POLE:g}): the samples cannot tell it from one at infinity"
-                )
-                found.append((0.0, text))
-            elif math.isfinite(se) and abs(inv) <= CANCEL_SE * se:
-                text = (
-                    f"{what} {_c(r)} rad/s is not distinguished from infinity (1/|{what[0]}| = "
-                    f"{abs(inv):.3g} s, {abs(inv) / se:.2g} standard errors from 0)"
-                )
-                found.append((abs(inv) / (CANCEL_SE * se), text))
-    if not found:
-        return ""
-    found.sort(key=lambda item: item[0])
-    more = f" (and {len(found) - 1} more)" if len(found) > 1 else ""
-    return found[0][1] + more
-
-
-def _c(z: complex) -> str:
-    z = complex(z)
-    if abs(z.imag) <= 1e-12 * max(abs(z.real), 1e-300):
-        return f"{z.real:.4g}"
-    return f"{z.real:.4g}{z.imag:+.4g}i"
+    return over_order_symptom(
+        structure, np.asarray(res.x[sl], dtype=float), np.asarray(res.cov[sl, sl], dtype=float), T
+    )
 
 
 # ------------------------------------------------------------------------------ nesting
@@ -829,10 +750,10 @@ def _choose(rows: Sequence[OrderRow], criterion: str) -> tuple[int | None, str]:
 def _short(row: OrderRow, criterion: str) -> str:
     if row.status is None:
         return "the fit raised an error"
+    if row.status is FitStatus.OVER_ORDER or (row.success and row.over_order):
+        return "over-order"
     if not row.success:
         return row.status.name
-    if row.over_order:
-        return "over-order"
     if not math.isfinite(row.value(criterion)):
         return f"no {criterion} value"
     return "not trustworthy"
@@ -912,6 +833,7 @@ def select_order(
             f"(UniformFamily(), ...), the same for every candidate; got {type(jitter).__name__}"
         )
     est = as_estimator(method)  # ValueError naming method, before any fit
+    check_method_jitter(est.ignores_jitter, est.name, jitter)  # fit would refuse every one
     est.check_cov_type(fit_kwargs.get("cov_type"))
     if not isinstance(criterion, str) or criterion.lower() not in CRITERIA:
         raise ValueError(f"criterion must be one of {list(CRITERIA)}; got {criterion!r}")

@@ -8,10 +8,8 @@ reported on one line as an internal error (exit 1) for the user to report.
 
 from __future__ import annotations
 
-# The group lives in ._main; the command modules register themselves on it when imported.
-from . import data as _data  # noqa: F401
-from . import jitter as _jitter  # noqa: F401
-from . import reproduce as _reproduce  # noqa: F401
-from ._main import INTERNAL, main
+# The group lives in ._main; a command's module registers it there when the group imports it
+# (on first use), so that `jitterid --help` imports nothing heavy.
+from ._main import COMMANDS, INTERNAL, main
 
-__all__ = ["INTERNAL", "main"]
+__all__ = ["COMMANDS", "INTERNAL", "main"]

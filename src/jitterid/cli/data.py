@@ -173,14 +173,33 @@ _T_opt = click.option(
 )
 
 
-def _load(data_path: str, input_path: str | None, T: str | None, noise: float | None) -> Dataset:
+def _load(
+    data_path: str,
+    input_path: str | None,
+    T: str | None,
+    noise: float | None,
+    hold_input: bool = False,
+) -> Dataset:
     with _clean_errors("cannot use the data"):
-        return load(data_path, input_path, T=T, noise_std=noise)
+        return load(data_path, input_path, T=T, noise_std=noise, hold_input=hold_input)
 
 
 def _file_unit(ds: Dataset) -> str:
     unit = str(ds.metadata.get("time_unit", "s"))
     return unit if unit in TIME_UNITS else "s"
+
+
+def _png_path(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """A ``--plot FILE`` option: the figure is written as PNG, so FILE must end in .png
+    (refused before any work; a .txt name got PNG bytes); its folder must be writable."""
+    if value is None:
+        return None
+    if Path(value).suffix.lower() != ".png":
+        raise click.BadParameter(
+            f"{value!r}: the plot is written as a PNG image; give a file name ending in .png"
+        )
+    _check_out_dir(Path(value).parent, "'--plot'")
+    return value
 
 
 def _check_out_dir(out: Path, option: str = "'--out'") -> None:
@@ -405,7 +424,11 @@ def simulate(
 @_T_opt
 @click.option("--level", type=float, default=0.95, show_default=True, callback=_level)
 @click.option(
-    "--plot", "plot_path", type=click.Path(dir_okay=False), help="Write the residual plot (PNG)."
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    callback=_png_path,
+    help="Write the residual plot to this .png file.",
 )
 def detect(
     data_path: str,
@@ -423,8 +446,6 @@ def detect(
     """
     with _param("'--model'"):
         structure = parse_model(model_spec)
-    if plot_path:
-        _check_out_dir(Path(plot_path).parent or Path("."), "'--plot'")
     ds = _load(data_path, input_path, T, None)
     with _clean_errors("the ordinary fit failed"):
         ls = fit_model(ds.data, structure, NoJitter(), "ls")
@@ -542,6 +563,13 @@ def _params_line(res: object) -> str:
     type=click.Path(dir_okay=False),
     help="The input file of --validation, unless it has a 'u' column.",
 )
+@click.option(
+    "--hold-input",
+    is_flag=True,
+    help="Hold the --input file's last value after its end (as a DAC does): an input file "
+    "with one value per sample ends before a jittered last instant may fall, which the fit "
+    "otherwise reports (the jitter's reach past the input's end).",
+)
 def fit(
     data_path: str,
     input_path: str | None,
@@ -561,6 +589,7 @@ def fit(
     criterion: str,
     validation_path: str | None,
     validation_input: str | None,
+    hold_input: bool,
 ) -> None:
     """Fit a continuous-time model to DATA, accounting for sampling jitter.
 
@@ -620,7 +649,7 @@ def fit(
         )
     out_dir = Path(out)
     _check_out_dir(out_dir)
-    ds = _load(data_path, input_path, T, noise_std)
+    ds = _load(data_path, input_path, T, noise_std, hold_input)
     with _param("'--jitter'"):
         jitter = parse_jitter(jitter_spec, time_unit=_file_unit(ds))
     order, chosen = None, None
@@ -670,7 +699,7 @@ def fit(
             skipped, "jitter detection", lambda: detect_jitter(ds.data, ls, level=level)
         )
         xc = None
-        if det is not None and method != "ls":
+        if det is not None:  # for ls too: it assumes no jitter, which the test may contradict
             xc = _diagnostic(skipped, "jitter cross-check", lambda: cross_check_jitter(res, det))
         checks: list[Any] = []
         z = _diagnostic(skipped, "residual checks", lambda: standardized_residuals(ds.data, res))
@@ -839,7 +868,13 @@ def _safe_summary(res: Any) -> str:
     callback=_level,
     help="Tolerated gain bias.",
 )
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write |phi(f)| (PNG).")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False),
+    callback=_png_path,
+    help="Write |phi(f)| to this .png file.",
+)
 def bias(
     jitter_spec: str, T: float, fmax: float | None, points: int, tol: float, plot_path: str | None
 ) -> None:

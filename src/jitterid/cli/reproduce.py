@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
@@ -21,8 +20,14 @@ from ..experiments import (
 )
 from ..experiments.bj import spectra_figure
 from ..experiments.loader import MAX_RUNS
-from ..experiments.report import markdown_report
-from ..experiments.runner import dask_client, run_experiment, store_path
+from ..experiments.report import markdown_report, nothing_converged
+from ..experiments.runner import (
+    dask_client,
+    default_workers,
+    local_workers,
+    run_experiment,
+    store_path,
+)
 from ..experiments.store import Store, StoreError
 from ..io import atomic_write
 from ._main import main
@@ -32,16 +37,12 @@ if TYPE_CHECKING:
 
 __all__ = ["reproduce", "run"]
 
+#: The name cli/jitter.py imports; the count is decided in experiments.runner (one place).
+_default_workers = default_workers
+
 FIGURES = ("fig1", "fig2", "fig3", "fig4", "fig5")
 STUDIES = ("bj",)  # beyond the paper: Table 2's system with coloured noise (issue 7)
 TARGETS = (*PAPER_EXPERIMENTS, *FIGURES, *STUDIES, "all")
-
-
-def _default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
 
 
 def _common(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -106,6 +107,8 @@ class _Options:
     progress: bool
     share: bool = True
     client: Client | None = None  # one Dask client for every table of the command
+    # the studies of the command in which no fit converged (the command then exits with 3)
+    empty: list[str] = dataclasses.field(default_factory=list)
 
 
 def _study(exp: Experiment, opt: _Options, command: str) -> Store:
@@ -137,7 +140,11 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
         store.close()
         raise click.ClickException(str(exc)) from None
     rate = summary.new / summary.wall_s if summary.wall_s > 0 else 0.0
-    where = f"Dask scheduler {opt.scheduler}" if opt.scheduler else f"{opt.workers} worker(s)"
+    where = (
+        f"Dask scheduler {opt.scheduler}"
+        if opt.scheduler
+        else f"{local_workers(opt.workers, summary.new)} worker(s)"
+    )
     note = (
         f"{summary.new} new realizations in {summary.wall_s:.1f} s on {where}; "
         f"{summary.already_done} were already stored"
@@ -157,7 +164,22 @@ def _study(exp: Experiment, opt: _Options, command: str) -> Store:
         f"{exp.name}: {summary.total} realizations ({summary.already_done} already stored, "
         f"{summary.new} new, {rate:.2f}/s) -> {summary.store}, {report}, {csv_path}"
     )
+    if nothing_converged(exp, estimates):
+        opt.empty.append(exp.name)
     return store
+
+
+def _exit_if_empty(opt: _Options) -> None:
+    """Exit with status 3 (as ``jitterid fit`` does for a fit that did not converge) when a
+    study produced no converged fit: its report says why, first."""
+    if opt.empty:
+        names = ", ".join(opt.empty)
+        click.echo(
+            f"error: no fit converged in {names}; the report says how they ended "
+            f"({opt.out / (opt.empty[0] + '.md')})",
+            err=True,
+        )
+        raise click.exceptions.Exit(3)
 
 
 def _options(
@@ -171,7 +193,7 @@ def _options(
 ) -> _Options:
     return _Options(
         out if out is not None else default_out,
-        workers if workers is not None else _default_workers(),
+        workers if workers is not None else default_workers(),
         scheduler,
         resume,
         not no_progress,
@@ -183,7 +205,7 @@ def _command(words: list[str], runs: int, out: Path) -> str:
     return " ".join(["jitterid", *words, "--runs", str(runs), "--out", str(out)])
 
 
-@main.command()
+@main.command(short_help="Reproduce the paper's Tables 1-3 and Figures 1-5 (TARGET, or 'all').")
 @click.argument("target", type=click.Choice(TARGETS))
 @_common
 @click.option(
@@ -208,7 +230,8 @@ def reproduce(
     once), exported to OUT/tableN.csv and reported with the paper's numbers side by side in
     OUT/tableN.md. Figure 5 uses the Table 2 results (and runs Table 2 if they are missing).
     'bj' (not in 'all') is Table 2's system with coloured noise, OE against Box-Jenkins
-    estimators: OUT/bj.md and the noise spectra OUT/bj_spectra.png.
+    estimators: OUT/bj.md and the noise spectra OUT/bj_spectra.png. Exit status 3 when no
+    fit of a table converged (its report says how they ended, first).
     """
     if print_toml:
         if target not in (*PAPER_EXPERIMENTS, *STUDIES):
@@ -227,6 +250,7 @@ def reproduce(
         raise click.ClickException(str(exc)) from None
     except OSError as exc:  # a figure or index that cannot be written
         raise click.ClickException(f"cannot write into {opt.out}: {exc}") from None
+    _exit_if_empty(opt)
 
 
 def _with_client(opt: _Options, stack: ExitStack) -> _Options:
@@ -298,7 +322,7 @@ def _write_figure_index(out: Path) -> None:
     atomic_write(out / "figures.md", lambda fh: fh.write(text))
 
 
-@main.command()
+@main.command(short_help="Run the Monte Carlo study defined in EXPERIMENT (a TOML file).")
 @click.argument("experiment", type=click.Path(dir_okay=False, path_type=Path))
 @_common
 def run(
@@ -314,7 +338,8 @@ def run(
     """Run the Monte Carlo study defined in EXPERIMENT (a TOML file).
 
     Start from a packaged definition: `jitterid reproduce table2 --print-toml > my.toml`.
-    The file is checked completely before any work starts.
+    The file is checked completely before any work starts. Exit status 3 when no fit
+    converged (the report says how they ended, first).
     """
     try:
         exp = load_experiment(experiment)
@@ -325,3 +350,4 @@ def run(
     _check_scheduler(scheduler)
     opt = _options(out, Path("out") / exp.name, workers, scheduler, resume, no_progress, no_share)
     _study(exp, opt, _command(["run", str(experiment)], exp.runs, opt.out)).close()
+    _exit_if_empty(opt)

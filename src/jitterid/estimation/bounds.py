@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import count, generator, positive
+from .._checks import count, generator, positive, sampling_interval
 from ..data import SampledData
 from ..inputs import Input
 from ..jitter.laws import JitterFamily, JitterLaw
@@ -46,7 +46,7 @@ def _problem_setup(
     # a dict by name, a vector (jitter-family then system parameters; noise_std is passed
     # separately) or a FitResult, whose entries are taken by name
     x = ParamLayout.build(jitter, structure).vector(true_params, "true_params")
-    positive(T, "T")
+    sampling_interval(T, "T")
     count(N, "N", minimum=1)
     positive(noise_std, "noise_std")
     return structure, x

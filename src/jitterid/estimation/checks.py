@@ -42,10 +42,24 @@ answer cannot be trusted gets its own non-success
   rejects it at 1e-6 (w_k including the fitted mean's spread): the search ended far from
   any fit of the data, or the given jitter law or noise std is contradicted by the data
   (measured: U(-0.5, 0.5) data fitted with the triangular law of half its variance, 15 of
-  20 bcls fits; no false alarm in 120 correctly specified paper-setting fits);
+  20 bcls fits; no false alarm in 120 correctly specified paper-setting fits). With a jitter
+  family it says that the estimated scale is too small for the residuals and points to
+  'gaussian' or 'ml': a mean-based criterion (bcls) can leave the scale low on a correctly
+  specified record (issue 25: 8 of 320 paper-setting bcls fits, 2.5 %, none at N = 1000
+  or noise std 0.05; tests/estimation/test_lack_of_fit_rate.py);
 * ``NOT_SIGNIFICANT``: the fitted model does not explain significantly more of y than the
   zero model (an F test of the residual sums of squares at the 1e-3 level): the data carry
-  no detectable response to the input (e.g. pure noise).
+  no detectable response to the input (e.g. pure noise), or a gain fixed at 0 by the user
+  makes the model's output zero. It is also what a non-finite covariance reports when the
+  fit explains nothing (the other parameters then have no information by construction).
+
+* ``OVER_ORDER``: a pole and a zero that cancel, or a pole or zero not told from infinity
+  (:func:`over_order_symptom`, the test :func:`jitterid.select_order` applies to its rows):
+  the model has more poles or zeros than the data support.
+
+A covariance that was asked for (``PostContext.cov_requested``) and is NaN throughout is a
+singular information matrix (``UNIDENTIFIABLE``), never "not computed": NaN standard errors
+are never next to ``CONVERGED`` unless ``cov_type="none"`` asked for none.
 """
 
 from __future__ import annotations
@@ -71,6 +85,7 @@ from .status import FitStatus
 __all__: list[str] = []
 
 FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
 
 #: samples needed: at least MIN_SAMPLES_PER_PARAM * P + MIN_SAMPLES_EXTRA
 MIN_SAMPLES_PER_PARAM = 2
@@ -87,6 +102,21 @@ MAX_CONDITION = 1e10
 #: with a known noise std does not explain the data
 LACK_OF_FIT_RATIO = 3.0
 LACK_OF_FIT_P = 1e-6
+#: a pole and a zero closer than this fraction of |p| cancel (a 5 % pair moves the gain by
+#: about 5 % |p| / |Re p|: far below what a model order is for)
+CANCEL_REL = 0.05
+#: a separation |p - z| (or a reciprocal 1/p, 1/z) within this many standard errors of zero
+#: is not distinguished from a cancellation (about 95 % two-sided)
+CANCEL_SE = 2.0
+#: a pole or zero with |p| T above this decays (or acts) within T / 1000 of an input switch:
+#: the samples cannot tell it from a gain, i.e. from one at infinity
+FAST_POLE = 1e3
+#: a rate bound (rad/s) this many times above 1/(N T) is above every rate the record shows
+_FLOOR_RESOLVED = 100.0
+#: a fitted jitter reach within this many T of the input's end was stopped by it (a
+#: converged family search sits on the end to ~1e-8 T; a failed search a few % before it)
+_REACH_CONVERGED = 1e-4
+_REACH_FAILED = 0.05
 
 
 # ------------------------------------------------------------------------ before the search
@@ -118,12 +148,50 @@ def check_arguments(noise_std: object, max_nfev: object) -> tuple[float | None, 
     return noise_std, int(m)
 
 
-def check_data(data: SampledData, n_params: int, uses_input: bool = True) -> None:
+def check_method_jitter(ignores_jitter: bool, method: str, jitter: object) -> None:
+    """Refuse an estimator that ignores the jitter (``ls``) with a jitter family: it cannot
+    estimate the family's parameters (the one rule for :func:`jitterid.fit` and
+    :func:`jitterid.select_order`)."""
+    if ignores_jitter and isinstance(jitter, JitterFamily):
+        raise ValueError(
+            f"method {method!r} ignores the jitter, so it cannot estimate jitter parameters; "
+            "pass a known law (or NoJitter()) or use 'bcls'/'asml'"
+        )
+
+
+def check_data(
+    data: SampledData,
+    n_params: int,
+    uses_input: bool = True,
+    jitter: JitterLaw | JitterFamily | None = None,
+) -> None:
     """Refuse data that cannot identify anything (module docstring); the input checks only
-    for a model driven by one (``uses_input``, :attr:`jitterid.systems.model.Model.uses_input`)."""
+    for a model driven by one (``uses_input``, :attr:`jitterid.systems.model.Model.uses_input`).
+    With a known jitter law (``jitter``), the input must also last past the jitter's reach
+    after the last sample (:func:`input_reach`)."""
     if uses_input:
         _check_input(data)
+        if isinstance(jitter, JitterLaw):
+            problem = input_reach(data, jitter)
+            if problem is not None:
+                raise ValueError(f"data.u: {problem}")
     _check_y_and_size(data, n_params)
+
+
+def input_reach(
+    data: SampledData, law: JitterLaw, delay_s: float = 0.0, margin: float = 0.0
+) -> str | None:
+    """Why the input does not cover the last jittered sampling instant (N-1) T + the law's
+    reach (less a model's ``delay_s``), or None if it does; ``margin`` (s) also counts a
+    reach within that distance of the end (a search stopped by the end). The one rule of
+    the input's end for every method (:meth:`jitterid.inputs.Input.coverage_message`)."""
+    u = data.u
+    if u is None:
+        return None
+    reach = (data.N - 1) * data.T + float(law.support[1]) - delay_s
+    if reach < u.end - margin:
+        return None
+    return u.coverage_message(reach, "the jitter (the last jittered sampling instant)")
 
 
 def _check_input(data: SampledData) -> None:
@@ -136,9 +204,8 @@ def _check_input(data: SampledData) -> None:
         )
     if t[-1] >= u.end:
         raise ValueError(
-            f"data.u: the input ends at t = {u.end:g} but the samples reach t = {t[-1]:g} "
-            f"(N = {data.N}, T = {data.T:g}); after its end the input is taken as zero, so "
-            "the fit would be wrong. Give the input over the whole record or use fewer samples"
+            f"data.u: {u.coverage_message(t[-1], f'the samples (N = {data.N}, T = {data.T:g})')}"
+            " (after its end the input is taken as zero, so the fit would be wrong)"
         )
     mid = np.minimum(t + 0.5 * data.T, np.nextafter(u.end, -np.inf))
     if not (np.any(u(t) != 0) or np.any(u(mid) != 0)):
@@ -276,6 +343,10 @@ class PostContext:
     # likelihood's -2 ln p_k over its first SCREEN_SAMPLES samples), for a cheap first look
     # at points far from the estimate on a long record (None: every point in full)
     screen: Callable[[FloatArray], FloatArray] | None = None
+    # whether a covariance was asked for (cov_type other than "none"): then a covariance
+    # that is NaN throughout is a failure (a singular information matrix), not "not
+    # computed". None: not said (an all-NaN covariance is then taken as not computed)
+    cov_requested: bool | None = None
 
 
 def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
@@ -283,16 +354,22 @@ def _n_jitter(jitter: JitterLaw | JitterFamily) -> int:
 
 
 def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitStatus, str]:
-    """The status and message after the checks; only a CONVERGED search is re-examined."""
+    """The status and message after the checks; only a CONVERGED search is re-examined (a
+    failed one whose jitter reaches the input's end is told so: :func:`_input_end`)."""
     if status is not FitStatus.CONVERGED:
+        ended = _input_end(ctx, margin=_REACH_FAILED * ctx.data.T)
+        if ended is not None:
+            return status, f"{message}; the likely cause: {ended}"
         return status, message
     checks = (
+        _input_end_reached,
         _at_bound,
         _noise_at_floor,
         _unstable,
         _unidentifiable,
         _local_optimum,
         _not_significant,
+        _over_order,
         _lack_of_fit,
     )
     for check in checks:
@@ -300,6 +377,36 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
         if out is not None:
             return out[0], f"{out[1]} (search: {message})"
     return status, message
+
+
+def _input_end(ctx: PostContext, margin: float) -> str | None:
+    """:func:`input_reach` at the estimate's jitter law (a family's at its estimate)."""
+    if ctx.data.u is None or not ctx.structure.uses_input:
+        return None
+    nj = _n_jitter(ctx.jitter)
+    try:
+        law = (
+            ctx.jitter.law(list(ctx.x[:nj])) if isinstance(ctx.jitter, JitterFamily) else ctx.jitter
+        )
+    except ValueError:
+        return None
+    delay = float(ctx.x[ctx.names.index("delay_s")]) if "delay_s" in ctx.names else 0.0
+    return input_reach(ctx.data, law, delay, margin)
+
+
+def _input_end_reached(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    """A jitter family's scale stopped where its reach meets the input's end: the search
+    could not widen the law further (the moments are not defined past the input), so the
+    estimate is at an artificial bound, not at the criterion's optimum."""
+    if not isinstance(ctx.jitter, JitterFamily):
+        return None
+    ended = _input_end(ctx, margin=_REACH_CONVERGED * ctx.data.T)
+    if ended is None:
+        return None
+    return FitStatus.AT_BOUND, (
+        f"the jitter's estimate stopped where its reach meets the end of the input: {ended}. "
+        "The estimate is held there by the input, not by the data"
+    )
 
 
 def _theta(ctx: PostContext) -> FloatArray:
@@ -371,6 +478,18 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
                     "hold only if the bound is a physical limit; widen or drop it (bounds=, "
                     "--bounds) to see where the optimum is"
                 )
+            record = ctx.data.N * ctx.data.T
+            if name in ("pr", "pi") and abs(b) * record > _FLOOR_RESOLVED:
+                # PolePairGain's floors are rates in rad/s: on data on a slow time scale they
+                # lie far above every rate the record can show
+                return FitStatus.AT_BOUND, (
+                    f"the system parameter {name} = {v:.6g} is on its floor {b:g} rad/s "
+                    f"(PolePairGain's pr_min/pi_min), {abs(b) * record:.3g} times the slowest "
+                    f"rate the record resolves, 1/(N T) = {1 / record:.3g} rad/s: the data are "
+                    f"on a slower time scale than the floors (T = {ctx.data.T:g} s). Give the "
+                    "times in a larger unit, so that T is near 1 (the rates are then per that "
+                    "unit), or PolePairGain(pr_min=..., pi_min=...) below the rates you expect"
+                )
             return FitStatus.AT_BOUND, (
                 f"the system parameter {name} = {v:.6g} is on its bound {b:g}: the optimum lies "
                 "outside the structure's admissible set (e.g. a real pole pair for PolePairGain, "
@@ -413,7 +532,7 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
         )
     cov = np.asarray(ctx.cov, float)
     p = ctx.x.size
-    if p == 0 or np.all(np.isnan(cov)):  # "none" or nothing free
+    if p == 0 or (np.all(np.isnan(cov)) and not ctx.cov_requested):  # "none"
         return None
     on = np.array(
         [_near(v, lo) or _near(v, hi) for v, (lo, hi) in zip(ctx.x, ctx.bounds, strict=True)]
@@ -429,6 +548,10 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
         return None
     d = np.diag(c)
     if not np.all(np.isfinite(c)) or np.any(d <= 0):
+        # a model that explains nothing has no information on its other parameters: say that
+        insignificant = _not_significant(ctx)
+        if insignificant is not None:
+            return insignificant
         bad = [n for n, v in zip(names, d, strict=True) if not (np.isfinite(v) and v > 0)]
         return FitStatus.UNIDENTIFIABLE, (
             "the information matrix is singular (no finite covariance for "
@@ -456,6 +579,24 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
             "use a structure with fewer parameters, a known jitter law, or a richer input"
         )
     return None
+
+
+def _over_order(ctx: PostContext) -> tuple[FitStatus, str] | None:
+    """The over-order symptom of :func:`over_order_symptom` (the test of
+    :func:`jitterid.select_order`'s rows) on a single fit: the system block of the estimate
+    and of its covariance (the scaling of the search moves no pole or zero)."""
+    if not (ctx.structure.param_names and isinstance(ctx.structure, ModelStructure)):
+        return None
+    nj = _n_jitter(ctx.jitter)
+    block = slice(nj, nj + len(ctx.structure.param_names))
+    cov = np.asarray(ctx.cov, float)[block, block]
+    symptom = over_order_symptom(ctx.structure, _theta(ctx), cov, ctx.data.T)
+    if not symptom:
+        return None
+    return FitStatus.OVER_ORDER, (
+        f"over-order model: {symptom}; use a lower order (fewer poles and zeros), or compare "
+        "orders with select_order (jitterid fit with --model repeated)"
+    )
 
 
 def _structure_starts(ctx: PostContext) -> list[tuple[FloatArray, str]]:
@@ -531,8 +672,18 @@ def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
     )
 
 
+def _has_gain(structure: Model) -> bool:
+    """Whether the model scales its output by gain parameters, free or set by the user (a
+    :class:`~jitterid.Constrained` structure whose gain is fixed, e.g. to 0, has none free)."""
+    inner = structure.structure if isinstance(structure, Constrained) else structure
+    return bool(inner.gain_params)
+
+
 def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
-    if not ctx.structure.param_names or not ctx.structure.gain_params:
+    """An F test of the fit against the zero model (module doc), for every model with a gain,
+    free or fixed: a gain fixed at 0 (``Constrained(..., fixed={"k0": 0})``) leaves a model
+    that explains nothing, whatever its other parameters."""
+    if not ctx.structure.param_names or not _has_gain(ctx.structure):
         return None
     y = ctx.data.y
     try:
@@ -549,6 +700,18 @@ def _not_significant(ctx: PostContext) -> tuple[FitStatus, str] | None:
     pval = float(stats.f.sf(fstat, p, dof))
     if pval < SIGNIFICANCE:
         return None
+    st = ctx.structure
+    if isinstance(st, Constrained):
+        names = st.structure.param_names
+        zero = [names[i] for i in st.structure.gain_params if st.fixed.get(names[i]) == 0]
+        if zero:
+            return FitStatus.NOT_SIGNIFICANT, (
+                f"the fitted model explains no significant part of y (F test against the zero "
+                f"model: F = {fstat:.3g}, p = {pval:.2g} >= {SIGNIFICANCE:g}): its gain "
+                f"{', '.join(zero)} is fixed at 0, so its output is zero whatever the other "
+                "parameters (which the data then cannot determine). Fix the gain to a non-zero "
+                "value or leave it free"
+            )
     return FitStatus.NOT_SIGNIFICANT, (
         f"the fitted model explains no significant part of y (F test against the zero model: "
         f"F = {fstat:.3g}, p = {pval:.2g} >= {SIGNIFICANCE:g}): the data show no detectable "
@@ -579,9 +742,129 @@ def _lack_of_fit(ctx: PostContext) -> tuple[FitStatus, str] | None:
     pval = float(stats.chi2.sf(ratio * n, n))
     if ratio <= LACK_OF_FIT_RATIO or pval >= LACK_OF_FIT_P:
         return None
+    if isinstance(ctx.jitter, JitterFamily):
+        try:
+            std = f" (std {ctx.jitter.law(list(ctx.x[: _n_jitter(ctx.jitter)])).std:.3g} s)"
+        except ValueError:
+            std = ""
+        return FitStatus.LACK_OF_FIT, (
+            f"the residuals' mean square is {ratio:.3g} times what the fitted model allows "
+            f"with the known noise std (chi-square p = {pval:.2g}): the jitter law estimated"
+            f"{std} is too small for the residuals. A criterion on the samples' mean (bcls, "
+            "wbcls, asml) sees the jitter only through its attenuation of the response and can "
+            "leave its scale low; fit with method 'gaussian' or 'ml', which also fit the "
+            "samples' variance, or give the jitter law if it is known (if this is already "
+            "such a fit, check noise_std, the data's units and the structure)"
+        )
     return FitStatus.LACK_OF_FIT, (
         f"the residuals' mean square is {ratio:.3g} times what the model allows with the "
         f"known noise std (chi-square p = {pval:.2g}): the fit does not explain the data. "
         "Try other starts (for a sinusoid, a frequency within 1/(N T) of the periodogram's "
         "peak), another structure or jitter law, or check noise_std and the data's units"
     )
+
+
+# ------------------------------------------------------------------------ over-order
+
+
+def _root_gradients(coef: FloatArray, dcoef: FloatArray) -> tuple[ComplexArray, ComplexArray]:
+    """Roots r_j of the polynomial ``coef`` (highest power first) and dr_j/dtheta, shape
+    (roots, P), from dr/dc_i = -r^(d - i) / c'(r) (a simple root)."""
+    d = coef.size - 1
+    if d < 1:
+        return np.zeros(0, complex), np.zeros((0, dcoef.shape[0]), complex)
+    roots = np.roots(coef).astype(complex)
+    with np.errstate(all="ignore"):
+        deriv = np.polyval(np.polyder(coef), roots)
+        powers = roots[:, None] ** np.arange(d, -1, -1)[None, :]  # (roots, d + 1)
+        dr_dc = -powers / deriv[:, None]
+        grad = dr_dc @ dcoef[:, -coef.size :].T  # (roots, P)
+    return roots, np.asarray(grad, dtype=complex)
+
+
+def _se_abs(v: complex, g: ComplexArray, cov: FloatArray) -> float:
+    """Delta-method standard error of |v| given dv/dtheta = g and Cov theta."""
+    if v == 0 or not np.all(np.isfinite(g)):
+        return float("nan")
+    gr = np.real(np.conj(v) / abs(v) * g)
+    var = float(gr @ cov @ gr)
+    return math.sqrt(var) if math.isfinite(var) and var >= 0 else float("nan")
+
+
+def over_order_symptom(
+    structure: ModelStructure, theta: FloatArray, cov: FloatArray, T: float
+) -> str:
+    """The over-order symptom of an LTI model at ``theta`` with covariance ``cov`` (of the
+    system parameters), or "": a pole and a zero that cancel (|p - z| at most
+    :data:`CANCEL_REL` |p|, or within :data:`CANCEL_SE` standard errors of |p - z|), or a pole
+    or zero indistinguishable from infinity (its reciprocal within :data:`CANCEL_SE`
+    standard errors of 0, or |p| T above :data:`FAST_POLE`). The standard errors come by the
+    delta method through the roots' sensitivities dr/dc = -r^(d - i) / c'(r). The one
+    predicate of :func:`jitterid.select_order` (its rows) and of every fit (``OVER_ORDER``).
+    """
+    if not structure.param_names:
+        return ""
+    theta = np.asarray(theta, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    try:
+        tf = structure.system(theta)
+    except (ValueError, ArithmeticError):
+        return ""
+    n = tf.den.size
+    try:
+        dnum, dden = structure.coefficient_derivatives(theta, n)
+        poles, gp = _root_gradients(np.asarray(tf.den, float), dden)
+        zeros, gz = _root_gradients(np.asarray(tf.num, float), dnum)
+    except (ValueError, ArithmeticError):
+        return ""
+    if not np.all(np.isfinite(cov)):
+        cov = np.full_like(cov, np.nan)
+    found: list[tuple[float, str]] = []  # (how far inside the threshold: smaller is worse, text)
+    for j, p in enumerate(poles):
+        for k, z in enumerate(zeros):
+            d = complex(p - z)
+            se = _se_abs(d, gp[j] - gz[k], cov)
+            limit = max(CANCEL_REL * abs(p), CANCEL_SE * se if math.isfinite(se) else 0.0)
+            if abs(d) <= limit:
+                why = (
+                    f"{abs(d) / se:.2g} standard errors"
+                    if math.isfinite(se) and se > 0
+                    else "no standard error"
+                )
+                if abs(d) <= CANCEL_REL * abs(p):
+                    rel = abs(d) / max(abs(p), 1e-300)
+                    how = f"cancel (|p - z| = {abs(d):.3g} rad/s, {rel:.2g} |p|)"
+                else:  # far apart, but not told apart by the data
+                    how = f"are not told apart (|p - z| = {abs(d):.3g} rad/s is {why})"
+                text = f"pole {_c(p)} and zero {_c(z)} rad/s {how}"
+                found.append((abs(d) / limit if limit > 0 else 0.0, text))
+    for what, roots, grads in (("pole", poles, gp), ("zero", zeros, gz)):
+        for r, g in zip(roots, grads, strict=True):
+            if r == 0:
+                continue
+            inv = 1.0 / complex(r)
+            se = _se_abs(inv, -g / complex(r) ** 2, cov)
+            if abs(r) * T > FAST_POLE:
+                text = (
+                    f"{what} {_c(r)} rad/s acts within T/{abs(r) * T:.3g} (|{what[0]}| T > "
+                    f"{FAST_POLE:g}): the samples cannot tell it from one at infinity"
+                )
+                found.append((0.0, text))
+            elif math.isfinite(se) and abs(inv) <= CANCEL_SE * se:
+                text = (
+                    f"{what} {_c(r)} rad/s is not distinguished from infinity (1/|{what[0]}| = "
+                    f"{abs(inv):.3g} s, {abs(inv) / se:.2g} standard errors from 0)"
+                )
+                found.append((abs(inv) / (CANCEL_SE * se), text))
+    if not found:
+        return ""
+    found.sort(key=lambda item: item[0])
+    more = f" (and {len(found) - 1} more)" if len(found) > 1 else ""
+    return found[0][1] + more
+
+
+def _c(z: complex) -> str:
+    z = complex(z)
+    if abs(z.imag) <= 1e-12 * max(abs(z.real), 1e-300):
+        return f"{z.real:.4g}"
+    return f"{z.real:.4g}{z.imag:+.4g}i"

@@ -7,7 +7,10 @@ conveniences that start from a result (``result.step_response(t_s)``,
 ``result.physical_quantities()``, ``result.bode_band(f_hz)``, ...) and the post-fit check
 that asks :func:`jitterid.detect_jitter` whether a collapsed jitter scale hides jitter reach
 those functions through this registry instead: :mod:`jitterid.analysis` registers them when
-it is imported, which ``import jitterid`` does before any fit can run.
+it is imported. ``import jitterid`` imports no subpackage (so that ``jitterid --help`` stays
+light): the package's ``__init__`` gives the registry a loader instead
+(:func:`register_loader`), which imports :mod:`jitterid.analysis` at the first lookup that
+finds nothing, in whatever process the fit runs (a Dask worker too).
 """
 
 from __future__ import annotations
@@ -15,9 +18,24 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["analysis", "register_analysis"]
+__all__ = ["analysis", "register_analysis", "register_loader"]
 
 _REGISTRY: dict[str, Callable[..., Any]] = {}
+_LOADERS: list[Callable[[], object]] = []
+
+
+def register_loader(load: Callable[[], object]) -> None:
+    """Have ``load()`` fill the registry (import the package that registers) at the first
+    lookup of a name not registered yet; each loader runs once.
+
+    Parameters
+    ----------
+    load : callable
+        Called with no argument.
+    """
+    if not callable(load):
+        raise TypeError(f"load must be a callable; got {type(load).__name__}")
+    _LOADERS.append(load)
 
 
 def register_analysis(*functions: Callable[..., Any]) -> None:
@@ -54,6 +72,8 @@ def analysis(name: str) -> Callable[..., Any]:
     >>> analysis("step_response") is ji.step_response
     True
     """
+    while name not in _REGISTRY and _LOADERS:
+        _LOADERS.pop(0)()
     try:
         return _REGISTRY[name]
     except KeyError:

@@ -92,10 +92,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import finite_diff
-from .._checks import count, positive, real_array
+from .._checks import count, positive, real_array, sampling_interval
 from .._memory import trim
+from .._state import CachesAreNotState, cache_field
 from ..inputs import Input, PiecewiseConstant
-from ..jitter.laws import JitterFamily, JitterLaw
+from ..jitter.laws import JitterFamily, JitterLaw, known_law
 from ..moments.quadrature import PanelChunk, jitter_nodes, jitter_panels, rule_frame
 from ..params import ParamLayout, count_params
 from ..systems.model import Model, Signal
@@ -146,6 +147,8 @@ _ORDER_TABLE = np.array(
 )
 _SCORE_STEP = 1e-7  # relative forward step of the differenced scores (finite_diff.forward)
 _FISHER_STEP = 1e-4  # relative central step of (L3) (finite_diff.central_pair)
+_DENSE = 96  # nodes of a sample up to which (L3)'s y-grid sums every node (_log_mixture)
+_BAND = 10.0  # ... beyond, the nodes this many noise std's farther than the nearest
 FISHER_SCALE_STEP = 0.05  # ... or at most this fraction of a parameter's natural scale
 
 
@@ -746,7 +749,7 @@ def _fits(rule: _Rule, design: tuple[Signal, float] | None, sig: Signal, sigma: 
 
 # ---------------------------------------------------------------------------- the likelihood
 @dataclass(eq=False)
-class ExactLikelihood:
+class ExactLikelihood(CachesAreNotState):
     """The exact log-likelihood (L1) of N jittered samples as a function of the parameters.
 
     Parameters
@@ -822,14 +825,16 @@ class ExactLikelihood:
     _profile: _SlopeProfile | None = field(init=False, default=None, repr=False)
     _design: tuple[Signal, float] | None = field(init=False, default=None, repr=False)
     _window_y: FloatArray | None = field(init=False, default=None, repr=False)
-    _pieces: _Held | None = field(init=False, default=None, repr=False)
-    _cache: dict[tuple[float, ...], _Rule] = field(init=False, default_factory=dict)
-    _memo: tuple[bytes, bool, FloatArray, tuple[FloatArray, FloatArray, FloatArray]] | None = field(
-        init=False, default=None, repr=False
+    # caches (what _forget drops): made again from the design when needed, never pickled
+    # (cache_field returns a dataclasses.Field, which RUF009 does not know)
+    _pieces: _Held | None = cache_field()  # noqa: RUF009
+    _cache: dict[tuple[float, ...], _Rule] = cache_field(default_factory=dict)  # noqa: RUF009
+    _memo: tuple[bytes, bool, FloatArray, tuple[FloatArray, FloatArray, FloatArray]] | None = (
+        cache_field()
     )
     _spares: list[
         tuple[tuple[Signal, float] | None, _Held | None, dict[tuple[float, ...], _Rule]]
-    ] = field(init=False, default_factory=list, repr=False)
+    ] = cache_field(default_factory=list)  # noqa: RUF009
 
     def __post_init__(self) -> None:
         self.structure = as_structure(self.structure)
@@ -840,7 +845,7 @@ class ExactLikelihood:
             )
         if self.u is not None and not isinstance(self.u, Input):
             raise TypeError(f"u must be a jitterid input or None; got {type(self.u).__name__}")
-        self.T = positive(self.T, "T")
+        self.T = sampling_interval(self.T, "T")
         self.N = count(self.N, "N", minimum=1)
         if self.noise_std is not None:
             self.noise_std = positive(self.noise_std, "noise_std")
@@ -1636,14 +1641,44 @@ class ExactLikelihood:
                 logs = []
                 for nd, s, sv in per_variant:
                     a, b = _segment(nd, k)
-                    z = nd.logw[a:b] - 0.5 * ((grid[:, None] - s[a:b]) / sv) ** 2
-                    top = np.max(z, axis=1)
-                    lse = top + np.log(np.sum(np.exp(z - top[:, None]), axis=1))
-                    logs.append(lse - np.log(sv) - _LOG_SQRT_2PI)
+                    logs.append(_log_mixture(grid, s[a:b], nd.logw[a:b], sv))
                 L = np.array(logs)
                 g = (L[1::2] - L[2::2]) / steps[:, None]
                 info += (g * (np.exp(L[0]) * dy)) @ g.T
         return 0.5 * (info + info.T)
+
+
+def _log_mixture(grid: FloatArray, s: FloatArray, logw: FloatArray, sigma: float) -> FloatArray:
+    """ln sum_j exp(logw_j) N(y; s_j, sigma^2) at every y of ``grid``: the density of (L1) of
+    one sample on the Fisher information's y-grid.
+
+    Summed over every node where a sample has few (``_DENSE``); otherwise over the nodes
+    within sqrt(d^2 + ``_BAND``^2) noise std's of each y, d that of the nearest node: a node
+    left out adds less than exp(-_BAND^2 / 2) = 2e-22 of the nearest one's term. Both the
+    grid and the nodes grow like the signal's range over the noise std, so the full sum costs
+    their product, (range / sigma)^2 per sample: a steep sine in small noise (issue 25).
+    """
+    if s.size <= _DENSE:
+        z = logw - 0.5 * ((grid[:, None] - s) / sigma) ** 2
+    else:
+        keep = logw > -np.inf
+        order = np.argsort(s[keep])
+        s, logw = s[keep][order], logw[keep][order]
+        # the nodes within sqrt(d^2 + _BAND^2) noise std's of y, d that of the nearest one
+        at = np.searchsorted(s, grid)
+        near = np.minimum(
+            np.abs(grid - s[np.maximum(at - 1, 0)]), np.abs(grid - s[np.minimum(at, s.size - 1)])
+        )
+        reach = np.sqrt(near**2 + (_BAND * sigma) ** 2)
+        lo = np.searchsorted(s, grid - reach, side="left")
+        hi = np.searchsorted(s, grid + reach, side="right")
+        idx = lo[:, None] + np.arange(int(np.max(hi - lo)))[None, :]
+        inside = idx < hi[:, None]
+        idx = np.minimum(idx, s.size - 1)
+        z = np.where(inside, logw[idx] - 0.5 * ((grid[:, None] - s[idx]) / sigma) ** 2, -np.inf)
+    top = np.max(z, axis=1)
+    lse = top + np.log(np.sum(np.exp(z - top[:, None]), axis=1))
+    return np.asarray(lse - np.log(sigma) - _LOG_SQRT_2PI, dtype=float)
 
 
 def _positive_definite(M: FloatArray) -> bool:
@@ -1712,8 +1747,7 @@ def log_density(
     """
     if not isinstance(system, TransferFunction):
         raise TypeError(f"system must be a TransferFunction; got {type(system).__name__}")
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     yv = real_array(y, "y", ndim=1)
     lik = ExactLikelihood(system, jitter, u, T, yv.size, noise_std, order=order, panel=panel)
     return lik.logpdf(np.zeros(0), yv)

@@ -23,7 +23,7 @@ from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..params import count_params
 from ..systems.model import Model
 from ..systems.structures import ModelStructure
-from .checks import SCREEN_SAMPLES, PostContext, Scaling, check_data
+from .checks import SCREEN_SAMPLES, PostContext, Scaling, check_data, check_method_jitter
 from .covariance import covariance, noise_variance_ml
 from .estimators import LS, Estimator
 from .problem import Problem, default_frequencies, free_moment_plans
@@ -138,15 +138,11 @@ class OutputErrorRoute:
         max_nfev: int,
     ) -> None:
         est = estimator
-        if est.ignores_jitter and isinstance(jitter, JitterFamily):
-            raise ValueError(
-                f"method {est.name!r} ignores the jitter, so it cannot estimate jitter "
-                "parameters; pass a known law (or NoJitter()) or use 'bcls'/'asml'"
-            )
+        check_method_jitter(est.ignores_jitter, est.name, jitter)
         if est.ignores_jitter and not structure.param_names:
             raise ValueError(f"method {est.name!r} with a known system has nothing to estimate")
         n_jit = count_params(jitter)
-        check_data(data, n_jit + len(structure.param_names), structure.uses_input)
+        check_data(data, n_jit + len(structure.param_names), structure.uses_input, jitter)
         check_fit_resources(data, structure, jitter, est)  # memory up front (resources.py)
         f = (
             default_frequencies(data.N, data.T)
@@ -291,6 +287,7 @@ class OutputErrorRoute:
         white-noise std the covariance used goes to ``staged.noise_std``."""
         problem, x = staged.problem, staged.outcome.x
         noise = staged.noise_std
+        staged.extra["cov_requested"] = cov_type != "none"  # an all-NaN one is then a failure
         cov = np.full((x.size, x.size), np.nan)
         noise_rec: float | None = None
         try:
@@ -360,6 +357,7 @@ class OutputErrorRoute:
             cov_error=cov_error,
             known_variance=known_variance,
             screen=_screen(problem),
+            cov_requested=extra.get("cov_requested"),
         )
 
     # ------------------------------------------------------------------ 4. units

@@ -8,6 +8,7 @@ It holds no reference to the data or to the criterion, so it pickles to a few KB
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import warnings
@@ -19,7 +20,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from .. import _serial, finite_diff
-from .._checks import count
+from .._checks import count, nesting_depth
 from ..data import SampledData
 from ..inputs import Input
 from ..jitter.laws import JitterFamily, JitterLaw
@@ -201,6 +202,20 @@ class FitResult:
             "FitResult.jitter is deprecated; use FitResult.jitter_law", DeprecationWarning, 2
         )
         return self.jitter_law
+
+    @property
+    def ignored_jitter(self) -> str:
+        """Why the jitter law given was not used, or ``""``: a method that ignores the jitter
+        (``ls``) fits as if there were none, whatever law it was given, so its estimates carry
+        the bias that law causes (the gain seen as |G| |phi(f)|)."""
+        given = self.jitter_model
+        if isinstance(given, JitterLaw) and given.std > 0 and self.jitter_law.std == 0:
+            return (
+                f"method {self.method!r} ignores the jitter law given, {given!r}: it fits as if "
+                "there were no jitter, so its estimates carry the bias that law causes (the "
+                "gain is seen as |G| |phi(f)|); use bcls, asml, gaussian or ml to account for it"
+            )
+        return ""
 
     @property
     def jitter_std(self) -> float:
@@ -517,6 +532,9 @@ class FitResult:
         else:
             sd = f"std {self.jitter_std:.4g}, known"
         lines.append(f"  jitter law {self.jitter_law}  ({sd})")
+        ignored = self.ignored_jitter
+        if ignored:
+            lines.append(f"  note: {ignored}")
         fixed = getattr(self.structure, "fixed", None)
         if fixed:  # a Constrained structure: values held, not estimated
             lines.append(
@@ -688,18 +706,63 @@ class FitResult:
         ----------
         d : dict
             The dictionary :meth:`to_dict` returned (e.g. after a JSON round trip).
+
+        Raises
+        ------
+        ValueError
+            ``d`` is not such a dictionary: not a mapping, a field missing or unknown, a
+            value of the wrong kind, or a class that is not one of jitterid's value objects.
         """
-        kw = {k: _serial.decode(v) for k, v in d.items()}
-        try:
-            kw["status"] = FitStatus[d["status"]]
-        except KeyError:
+        if not isinstance(d, dict):
+            raise TypeError(
+                f"d must be the dictionary FitResult.to_dict() writes; got {type(d).__name__}"
+            )
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        required = [
+            n
+            for n, f in fields.items()
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        ]
+        missing = [n for n in required if n not in d]
+        unknown = sorted(str(k) for k in d if k not in fields)
+        if missing or unknown:
             raise ValueError(
-                f"status must be one of {[s.name for s in FitStatus]}; got {d.get('status')!r}"
-            ) from None
-        for k in ("x", "freqs"):
-            kw[k] = np.asarray(kw[k], float)
-        kw["cov"] = np.asarray(kw["cov"], float).reshape(len(kw["x"]), len(kw["x"]))
-        return cls(**kw)
+                "not a FitResult: "
+                + "; ".join(
+                    (["missing field(s) " + ", ".join(missing)] if missing else [])
+                    + (["unknown field(s) " + ", ".join(unknown)] if unknown else [])
+                )
+            )
+        kw = {k: _serial.decode(v) for k, v in d.items()}
+        status = d["status"]
+        if not (isinstance(status, str) and status in FitStatus.__members__):
+            raise ValueError(f"status must be one of {[s.name for s in FitStatus]}; got {status!r}")
+        kw["status"] = FitStatus[status]
+        kinds: dict[str, tuple[type, ...]] = {
+            "structure": (Model,),
+            "jitter_model": (JitterLaw, JitterFamily),
+            "jitter_law": (JitterLaw,),
+            "system": (TransferFunction, type(None)),
+            "noise_structure": (NoiseStructure, type(None)),
+            "noise_model": (NoiseModel, type(None)),
+            "method": (str,),
+            "cov_type": (str,),
+            "message": (str,),
+            "names": (list, tuple),
+        }
+        for k, kind in kinds.items():
+            if k in kw and not isinstance(kw[k], kind):
+                raise ValueError(
+                    f"not a FitResult: {k} must be a {' or '.join(t.__name__ for t in kind)}; "
+                    f"got {type(kw[k]).__name__}"
+                )
+        try:
+            for k in ("x", "freqs"):
+                kw[k] = np.asarray(kw[k], float)
+            kw["cov"] = np.asarray(kw["cov"], float).reshape(len(kw["x"]), len(kw["x"]))
+            return cls(**kw)
+        except (TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise ValueError(f"not a FitResult: {exc}") from None
 
     def to_json(self) -> str:
         """The result as a JSON string (:meth:`from_json` reads it back)."""
@@ -713,5 +776,23 @@ class FitResult:
         ----------
         text : str
             The JSON text :meth:`to_json` returned.
+
+        Raises
+        ------
+        ValueError
+            ``text`` is not JSON (``json.JSONDecodeError``), is nested more deeply than a
+            result can be, or is not a result (see :meth:`from_dict`).
         """
-        return cls.from_dict(json.loads(text))
+        if not isinstance(text, (str, bytes, bytearray)):
+            raise TypeError(f"text must be the JSON to_json() wrote; got {type(text).__name__}")
+        plain = text if isinstance(text, str) else text.decode("utf-8", "replace")
+        if nesting_depth(plain) > _serial.MAX_DEPTH:
+            raise ValueError(
+                f"not a FitResult: the JSON is nested more than {_serial.MAX_DEPTH} levels deep"
+            )
+        d = json.loads(plain)
+        if isinstance(d, dict):
+            return cls.from_dict(d)
+        raise ValueError(
+            f"not a FitResult: the JSON holds {type(d).__name__}, not the object to_json() writes"
+        )

@@ -52,6 +52,11 @@ class FitStatus(enum.Enum):
         "failed: the residuals are far larger than the model (jitter and the known noise) "
         "allows (see message); try other starts, another structure, or check noise_std"
     )
+    OVER_ORDER = (
+        "failed: the model has more poles or zeros than the data support (a pole and a zero "
+        "that cancel, or one not told from infinity; see message); use a lower order, or "
+        "compare orders with select_order"
+    )
 
     @property
     def success(self) -> bool:

@@ -622,10 +622,9 @@ def run_batch(
     """
     from tqdm import tqdm
 
-    from .runner import _check_address
+    from .runner import _check_address, local_workers
 
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+    local_workers(workers)  # refuses a count that is not an integer >= 1
     if scheduler is not None:
         _check_address(scheduler)
     opts = options if options is not None else BatchOptions()
@@ -669,9 +668,10 @@ def _execute(
     """The tasks' rows in completion order: here, or a few per worker in flight on Dask."""
     if count <= 0:
         return
-    from .runner import dask_client
+    from .runner import dask_client, local_workers
 
-    n = workers if scheduler is not None else min(workers, count)
+    # a local cluster no larger than the work (the one rule: runner.local_workers)
+    n = workers if scheduler is not None else local_workers(workers, count)
     with ExitStack() as stack:
         client = stack.enter_context(dask_client(n, scheduler))
         if client is None:  # one local worker: this process

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .._checks import TooLargeError, allocation, nesting_depth
+from .._checks import T_RANGE_S, TooLargeError, allocation, nesting_depth
 from ..estimation.estimators import coloured_method_names, method_names
 from ..jitter import registry
 from ._schema import ExperimentError, Section, _show
@@ -125,6 +125,12 @@ def parse_experiment(data: dict[str, Any], source: str = "<experiment>") -> Expe
     T, N = sa.number("T", above=0), sa.integer("N", minimum=4)
     if T > MAX_TIME_S:
         raise sa.fail("T", f"= {T:g} s is beyond any sampling problem (at most {MAX_TIME_S:g} s)")
+    if T_RANGE_S[0] > T:
+        raise sa.fail(
+            "T",
+            f"= {T:g} s is below the shortest sampling interval jitterid handles "
+            f"({T_RANGE_S[0]:g} s); give the times in another unit",
+        )
     _fits(sa, "N", 16.0 * N, f"N = {N}", "use fewer samples")
     system = _system(
         top.table("system", ("structure", "truth", "num", "den", "num_order", "den_order"))

@@ -9,9 +9,11 @@ the same bit for bit with 1 worker, many workers or a remote cluster. The parent
 the only writer of the store and commits each realization as soon as it arrives; at most a
 few realizations per worker are in flight at once.
 
-A local cluster (``workers > 1``) listens on the loopback interface only (127.0.0.1) and
-serves no dashboard. Connecting to a ``scheduler`` runs code on that cluster and unpickles
-what it sends back: use only a cluster you trust as you trust your own machine.
+:func:`local_workers` decides how many local processes run: never more than the realizations
+left, and one means this process (no Dask). A local cluster listens on the loopback interface
+only (127.0.0.1) and serves no dashboard and no HTTP endpoint (:func:`local_cluster`).
+Connecting to a ``scheduler`` runs code on that cluster and unpickles what it sends back: use
+only a cluster you trust as you trust your own machine.
 
 Within a realization the BCLS search runs once and is shared by every method that starts
 from it (``fit(..., start=bcls_result)``, identical numbers to separate calls); the stored
@@ -30,13 +32,14 @@ same numbers, at the cost before the sharing (for benchmarks and checks).
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Iterable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
@@ -61,6 +64,9 @@ if TYPE_CHECKING:
 __all__ = [
     "RunSummary",
     "dask_client",
+    "default_workers",
+    "local_cluster",
+    "local_workers",
     "realize",
     "run_experiment",
     "seed_stream",
@@ -362,8 +368,7 @@ def run_experiment(
     -------
     RunSummary
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+    local_workers(workers)  # refuses a count that is not an integer >= 1
     if scheduler is not None:
         _check_address(scheduler)
     t0 = time.perf_counter()
@@ -414,27 +419,74 @@ def _check_address(scheduler: str) -> None:
         )
 
 
-def local_cluster(workers: int) -> LocalCluster:
+def default_workers() -> int:
+    """The worker count when none is given: one per CPU this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def local_workers(workers: int, count: int | None = None) -> int:
+    """How many local worker processes run ``count`` realizations with ``workers`` asked for.
+
+    The one place that decides it: never more processes than realizations (``count``, when
+    known), and 1 means this process, no Dask (:func:`dask_client` gives no client then).
+
+    Parameters
+    ----------
+    workers : int
+        The number asked for (>= 1).
+    count : int, optional
+        The number of realizations left to run; None when not known yet.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+    return workers if count is None else max(1, min(workers, count))
+
+
+def local_cluster(workers: int, dashboard_address: str | None = None) -> LocalCluster:
     """A local Dask cluster of ``workers`` single-threaded processes, listening on loopback
-    only (127.0.0.1), with no dashboard."""
+    only (127.0.0.1).
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes.
+    dashboard_address : str, optional
+        None (default): no dashboard and no HTTP endpoint. Dask's scheduler and workers always
+        open an HTTP server; here it listens on a free loopback port (never a fixed one such as
+        8787, which another process may hold) and serves no route (no ``/info``, ``/json``,
+        ``/metrics`` or logs). An address (e.g. ``"127.0.0.1:8787"``) asks for Dask's usual
+        dashboard and endpoints there.
+    """
+    import dask
     from dask.distributed import LocalCluster
 
-    return LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
+    kwargs: dict[str, Any] = {
+        "n_workers": workers,
+        "threads_per_worker": 1,
+        "processes": True,
+        "host": "127.0.0.1",
+        "silence_logs": logging.ERROR,
+    }
+    if dashboard_address is not None:
+        return LocalCluster(dashboard_address=dashboard_address, **kwargs)
+    # The worker processes (started by the nannies) take the configuration set here.
+    no_routes: dict[str, list[str]] = {
+        "distributed.scheduler.http.routes": [],
+        "distributed.worker.http.routes": [],
+    }
+    with dask.config.set(no_routes):
+        return LocalCluster(dashboard_address="127.0.0.1:0", **kwargs)
 
 
 @contextmanager
 def dask_client(workers: int, scheduler: str | None = None) -> Iterator[Client | None]:
     """A Dask client for :func:`run_experiment` ``(..., client=)``: connected to
     ``scheduler``, or to a :func:`local_cluster` of ``workers`` processes; None (run in this
-    process) for one local worker."""
-    if scheduler is None and workers == 1:
+    process) for one local worker (see :func:`local_workers`)."""
+    if scheduler is None and local_workers(workers) == 1:
         yield None
         return
     from dask.distributed import Client
@@ -466,17 +518,16 @@ def _execute(
     """Results of the ``count`` ``tasks`` in completion order (a few per worker in flight)."""
     if count <= 0:
         return
-    if client is None and scheduler is None and workers == 1:
-        for ci, r, stream in tasks:
-            yield realize(exp, ci, r, stream, share)
-        return
     with ExitStack() as stack:
         if client is None:
             # a local cluster no larger than the work (a remote one is what it is)
-            n = workers if scheduler is not None else min(workers, count)
+            n = workers if scheduler is not None else local_workers(workers, count)
             client = stack.enter_context(dask_client(n, scheduler))
-        assert client is not None
-        yield from _submit(client, exp, tasks, share)
+        if client is None:  # one local worker: this process
+            for ci, r, stream in tasks:
+                yield realize(exp, ci, r, stream, share)
+        else:
+            yield from _submit(client, exp, tasks, share)
 
 
 def _submit(

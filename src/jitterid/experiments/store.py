@@ -6,6 +6,13 @@ realization or none of it; ``--resume`` then runs exactly the realizations not m
 Primary keys make a duplicate impossible. The file remembers the fingerprint of the
 experiment definition and refuses to mix results of a different one.
 
+Every stored estimate row has a checksum (SHA-256 of the row as SQLite returns it, table
+``row_checksums``), written in the row's transaction. Opening the store checks the rows of
+every finished realization against them, so a value changed, a row added or removed in
+place after it was stored is refused, naming the rows, instead of being reported as a
+result. A store written before the checksums existed gets them on its first open (its rows
+are taken as found).
+
 One writer at a time: an open store holds an exclusive lock on its file, so a second
 process writing to the same ``--out`` is refused at once with a message (not a SQLite
 error half way). A file that is not a jitterid store (corrupt, truncated, another schema,
@@ -18,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import hashlib
 import io
 import json
 import math
@@ -44,7 +52,16 @@ CREATE TABLE IF NOT EXISTS estimates (
     noise_std REAL, cost REAL, success INTEGER NOT NULL, status TEXT NOT NULL,
     message TEXT NOT NULL, nfev INTEGER NOT NULL, elapsed_s REAL NOT NULL,
     PRIMARY KEY (case_name, realization, method));
+CREATE TABLE IF NOT EXISTS row_checksums (
+    case_name TEXT NOT NULL, realization INTEGER NOT NULL, method TEXT NOT NULL,
+    sha256 TEXT NOT NULL, PRIMARY KEY (case_name, realization, method));
 """
+
+#: The columns of ``estimates`` in the order the checksum covers them.
+_ROW = (
+    "experiment, case_name, realization, method, params, stderr, jitter_std, noise_std, cost, "
+    "success, status, message, nfev, elapsed_s"
+)
 
 
 try:  # an advisory lock on the store file (POSIX); elsewhere SQLite's own locking only
@@ -72,6 +89,7 @@ _COLUMNS = {
         "nfev",
         "elapsed_s",
     ],
+    "row_checksums": ["case_name", "realization", "method", "sha256"],
 }
 
 
@@ -286,13 +304,52 @@ class Store(SqliteStore):
                 f"{self.path} already holds {done} finished realizations; pass --resume to "
                 "continue (or reuse) them, or use another --out folder"
             )
+        self._check_rows(migrate=meta.get("row_checksums") != "1")
         with db:
+            db.execute("INSERT OR REPLACE INTO meta VALUES ('row_checksums', '1')")
             for k, v in (("experiment", experiment.name), ("fingerprint", fp)):
                 db.execute("INSERT OR IGNORE INTO meta VALUES (?, ?)", (k, v))
             db.execute("INSERT OR REPLACE INTO meta VALUES ('jitterid_version', ?)", (__version__,))
             db.execute(
                 "INSERT OR REPLACE INTO meta VALUES ('definition', ?)",
                 (json.dumps(_definition(experiment), sort_keys=True),),
+            )
+
+    def _check_rows(self, migrate: bool) -> None:
+        """Compare every estimate row of a finished realization with its checksum; refuse a
+        store where one was changed, added or removed after it was stored. ``migrate``: a
+        store from before the checksums (none recorded yet) gets them, its rows as found."""
+        db = self.db
+        rows = db.execute(
+            f"SELECT {_ROW} FROM estimates WHERE (case_name, realization) IN "
+            "(SELECT case_name, realization FROM realizations)"
+        ).fetchall()
+        have = {
+            (str(c), int(r), str(m)): str(h)
+            for c, r, m, h in db.execute(
+                "SELECT case_name, realization, method, sha256 FROM row_checksums WHERE "
+                "(case_name, realization) IN (SELECT case_name, realization FROM realizations)"
+            )
+        }
+        sums = {(str(row[1]), int(row[2]), str(row[3])): _checksum(row) for row in rows}
+        if migrate and not have:
+            with db:
+                db.executemany(
+                    "INSERT OR REPLACE INTO row_checksums VALUES (?, ?, ?, ?)",
+                    [(*k, h) for k, h in sums.items()],
+                )
+            return
+        changed = sorted(k for k, h in sums.items() if have.get(k) != h)
+        removed = sorted(set(have) - set(sums))
+        if changed or removed:
+            what = [f"{c}/{r}/{m} changed or added" for c, r, m in changed[:3]]
+            what += [f"{c}/{r}/{m} removed" for c, r, m in removed[:3]]
+            n = len(changed) + len(removed)
+            raise StoreError(
+                f"{self.path} was modified after its results were stored: {n} estimate row(s) "
+                f"do not match their checksums ({'; '.join(what)}{', ...' if n > 6 else ''}; "
+                "case/realization/method). Its results cannot be trusted: move it away (or "
+                "delete it) and run again without --resume"
             )
 
     def count_done(self) -> int:
@@ -312,10 +369,11 @@ class Store(SqliteStore):
         db = self.db
         with self._errors(f"store realization {first.realization} of case {first.case_name!r}"), db:
             # Rows of a realization not marked done are leftovers (a damaged store): replace.
-            db.execute(
-                "DELETE FROM estimates WHERE case_name = ? AND realization = ?",
-                (first.case_name, first.realization),
-            )
+            for table in ("estimates", "row_checksums"):
+                db.execute(
+                    f"DELETE FROM {table} WHERE case_name = ? AND realization = ?",
+                    (first.case_name, first.realization),
+                )
             db.execute(
                 "INSERT INTO realizations VALUES (?, ?, ?)",
                 (first.case_name, first.realization, elapsed_s),
@@ -341,6 +399,14 @@ class Store(SqliteStore):
                     )
                     for e in rows
                 ],
+            )
+            stored = db.execute(
+                f"SELECT {_ROW} FROM estimates WHERE case_name = ? AND realization = ?",
+                (first.case_name, first.realization),
+            ).fetchall()
+            db.executemany(
+                "INSERT INTO row_checksums VALUES (?, ?, ?, ?)",
+                [(row[1], row[2], row[3], _checksum(row)) for row in stored],
             )
 
     def estimates(self, runs: int | None = None) -> list[Estimate]:
@@ -428,6 +494,12 @@ class Store(SqliteStore):
                 )
 
         return atomic_write(out, write)
+
+
+def _checksum(row: Sequence[object]) -> str:
+    """SHA-256 of an estimate row as SQLite returns it (floats written exactly by repr)."""
+    text = json.dumps([repr(v) if isinstance(v, float) else v for v in row])
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def _json_dict(text: str) -> dict[str, float]:

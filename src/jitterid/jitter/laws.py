@@ -81,6 +81,10 @@ _GL_NODES = 64
 #: Lower bound on scale parameters (a, sigma) of the families, unless the caller sets one.
 _SCALE_FLOOR = 1e-12
 
+#: Largest scale parameter (a, sigma) of a law: its square, the variance, stays a finite
+#: double with room to spare (a jitter of 1e150 s is no sampling instant anyway).
+SCALE_MAX = 1e150
+
 
 # --------------------------------------------------------------------------------------------
 # helpers
@@ -125,6 +129,17 @@ def _fourier_sum(
         fs = flat[start : start + chunk]
         out[start : start + chunk] = np.exp(-2j * np.pi * np.outer(fs, nodes)) @ weights
     return out.reshape(f.shape)
+
+
+def _scale(x: float, name: str) -> float:
+    """A law's scale parameter: finite, > 0 and at most :data:`SCALE_MAX`."""
+    val = _checks.positive(x, name)
+    if val > SCALE_MAX:
+        raise ValueError(
+            f"{name} must be at most {SCALE_MAX:g} s (its square, the variance, must be a "
+            f"finite number); got {x!r}. Check the units of the jitter"
+        )
+    return val
 
 
 def _fmt(x: float) -> str:
@@ -510,7 +525,7 @@ class Uniform(JitterLaw):
     a: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "a", _checks.positive(self.a, "a"))
+        object.__setattr__(self, "a", _scale(self.a, "a"))
 
     def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
         arr = _checks.real_array(f, "f")
@@ -575,7 +590,7 @@ class Gaussian(JitterLaw):
     sigma: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "sigma", _checks.positive(self.sigma, "sigma"))
+        object.__setattr__(self, "sigma", _scale(self.sigma, "sigma"))
 
     def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
         arr = _checks.real_array(f, "f")
@@ -712,7 +727,7 @@ class SumOfUniforms(JitterLaw):
                 f"n must be at most {N_MAX:g} (beyond that the law is Gaussian to plotting "
                 f"accuracy; use Gaussian(a / sqrt(3 (n + 1))) instead); got {self.n!r}"
             )
-        a = _checks.positive(self.a, "a")
+        a = _scale(self.a, "a")
         object.__setattr__(self, "n", n)
         object.__setattr__(self, "a", a)
         nu = n + 1.0
@@ -1125,6 +1140,24 @@ class Shifted(JitterLaw):
     @property
     def params(self) -> dict[str, float]:
         return {**self.law.params, "mean_s": self.mean_s}
+
+
+def known_law(jitter: Any, name: str = "jitter") -> JitterLaw:
+    """``jitter`` if it is a jitter law, else a TypeError naming ``name`` and the fix (a
+    family is not a law until its parameters are known)."""
+    if isinstance(jitter, JitterLaw):
+        return jitter
+    if isinstance(jitter, JitterFamily):
+        raise TypeError(
+            f"{name} must be a jitter law with known parameters; got the family "
+            f"{type(jitter).__name__}, whose "
+            "law is known only with its parameters: take family.law(params) (e.g. "
+            f"{type(jitter).__name__}().law([...])) or estimate them with jitterid.fit"
+        )
+    raise TypeError(
+        f"{name} must be a jitter law such as Uniform(0.5), Gaussian(0.1) or NoJitter(); got "
+        f"{type(jitter).__name__}"
+    )
 
 
 def shifted(law: JitterLaw, offset_s: float) -> JitterLaw:

@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._state import CachesAreNotState
 from ..inputs import PiecewiseConstant
 from ..jitter.laws import JitterLaw
 from ..systems.structures import ModelStructure, padded
@@ -120,7 +121,7 @@ class StdTable:
 
 
 @dataclass(frozen=True, eq=False)
-class PieceChunk:
+class PieceChunk(CachesAreNotState):
     """The rule for samples k0..k1-1 grouped into pieces (one sample, one input segment).
 
     A piece's nodes are those of its standard panels (which no cut shortened: the same

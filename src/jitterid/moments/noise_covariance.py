@@ -52,8 +52,9 @@ from scipy.linalg import cho_solve_banded, cholesky_banded, matmul_toeplitz
 from scipy.linalg.lapack import dtbtrs
 
 from .._checks import count, positive, real_array
+from .._state import CachesAreNotState
 from ..inputs import Input
-from ..jitter.laws import JitterLaw
+from ..jitter.laws import JitterLaw, known_law
 from ..noise.models import NoiseModel
 from ..systems.tf import TransferFunction
 from .quadrature import _relative_cuts
@@ -139,7 +140,7 @@ def _new_rule(
 
 
 @dataclass(frozen=True)
-class JitteredAutocovariance:
+class JitteredAutocovariance(CachesAreNotState):
     """gamma(m) = Cov(v_k, v_{k+m}) of jittered samples of v, eqs. (C1) and (C3).
 
     Attributes
@@ -246,8 +247,7 @@ def jittered_autocovariance(
     """
     if not isinstance(noise, NoiseModel):
         raise TypeError(f"noise must be a NoiseModel; got {type(noise).__name__}")
-    if not isinstance(jitter, JitterLaw):
-        raise TypeError(f"jitter must be a jitterid jitter law; got {type(jitter).__name__}")
+    jitter = known_law(jitter)
     T = positive(T, "T")
     c, p = noise.modes
     lo, hi = (float(v) for v in jitter.support)
@@ -399,7 +399,7 @@ def _band(SL: FloatArray, SR: FloatArray, gam: FloatArray, D: FloatArray, width:
 
 
 @dataclass(frozen=True, eq=False)
-class SampleCovariance:
+class SampleCovariance(CachesAreNotState):
     """Sigma_y = diag(d) + Toeplitz(gamma) of eq. (C2), with the O(N) operations of (C4).
 
     Parameters

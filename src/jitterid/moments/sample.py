@@ -19,9 +19,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import count, positive, real_array
-from ..inputs import Input
-from ..jitter.laws import JitterLaw
+from .._checks import allocation, count, positive, real_array, sampling_interval
+from ..inputs import Input, known_input
+from ..jitter.laws import JitterLaw, known_law
 from ..systems.model import MomentPass, Signal
 from ..systems.tf import TransferFunction
 from .modal import SegmentPlan, modal_moments, tables
@@ -134,8 +134,14 @@ def sample_moments(
     >>> mom.mean.shape, bool(np.all(mom.var >= 0))
     ((8,), True)
     """
-    T = positive(T, "T")
+    T = sampling_interval(T, "T")
     N = count(N, "N", minimum=1)
+    jitter = known_law(jitter)
+    if not isinstance(signal, Signal):
+        raise TypeError(
+            "signal must be a jitterid signal (system.response(u), model.signal(params)); got "
+            f"{type(signal).__name__}"
+        )
     signal.check_covers((N - 1) * T + jitter.support[1], "the last jittered sampling instant")
     jitter, signal = signal.jitter_equivalent(jitter)  # a delay moves into the jitter
     lo, hi = jitter.support
@@ -269,8 +275,18 @@ def expected_dft(
     ((2,), dtype('complex128'))
     """
     freqs = _frequencies(f)
-    mom = sample_moments(system.response(u), jitter, T, N)
+    mom = sample_moments(_response(system, u), jitter, T, N)
     return dtft(mom.mean, T, freqs)
+
+
+def _response(system: TransferFunction, u: Input) -> Signal:
+    """``system.response(u)`` once both are of the right kind."""
+    if not isinstance(system, TransferFunction):
+        raise TypeError(
+            f"system must be a TransferFunction (e.g. model.system(params)); got "
+            f"{type(system).__name__}"
+        )
+    return system.response(known_input(u))
 
 
 def _noise_var(noise_std: float) -> float:
@@ -393,8 +409,19 @@ def _second_moment(
     """sum_k w_k exp(-i 2 pi (f - sign psi) k T): R_Y for sign = 1, C_Y for sign = -1."""
     freqs = _frequencies(f)
     other = freqs if psi is None else _frequencies(psi)
-    w = sample_moments(system.response(u), jitter, T, N).var + _noise_var(noise_std)
+    allocation(
+        freqs.size * other.size,
+        f"the {freqs.size} x {other.size} DFT covariance",
+        bytes_each=_PAIR_BYTES,
+        fix="ask for fewer frequencies, or for the matrix in blocks of rows (f) and columns (psi)",
+    )
+    w = sample_moments(_response(system, u), jitter, T, N).var + _noise_var(noise_std)
     return covariance_from_variances(w, T, freqs, sign * other)
+
+
+#: Peak bytes per (f, psi) pair of :func:`covariance_from_variances`: the differences, their
+#: rounded copy, np.unique's sort and inverse index (8 bytes each) and the complex result (16).
+_PAIR_BYTES = 56
 
 
 def covariance_from_variances(

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import count, generator, parameter_vector, positive, real_array
+from .._state import CachesAreNotState
 from ..systems.tf import TransferFunction
 
 __all__ = ["KnownNoise", "NoiseModel", "NoiseStructure", "RationalNoise", "as_noise_structure"]
@@ -63,7 +64,7 @@ def _integral_exp(q: ComplexArray, delta: FloatArray) -> ComplexArray:
 
 
 @dataclass(frozen=True, eq=False)
-class NoiseModel:
+class NoiseModel(CachesAreNotState):
     """Coloured noise v(t) = (h * e)(t) with H(s) = ``tf`` and e white of ``intensity``, eq. (1c).
 
     Parameters

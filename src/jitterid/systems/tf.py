@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import finite, real_array
+from .._state import CachesAreNotState, cache_field
 from ..inputs import Input, Multisine, PiecewiseConstant
 from ..jitter.laws import JitterLaw
 from .model import DelayedSignal, ModalSegments, MomentPass, Signal
@@ -64,7 +65,7 @@ _BLOCK = 500.0
 
 
 @dataclass(frozen=True, eq=False)
-class TransferFunction:
+class TransferFunction(CachesAreNotState):
     """A continuous-time transfer function G(s) = e^{-s delay_s} num(s) / den(s).
 
     Parameters
@@ -96,6 +97,10 @@ class TransferFunction:
     num: FloatArray
     den: FloatArray
     delay_s: float = 0.0
+    # (input, recursion, states, conjugate-filled states) of the last input (_recursion)
+    _states_memo: tuple[PiecewiseConstant, _Recursion, ComplexArray, ComplexArray | None] | None = (
+        cache_field()
+    )
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "delay_s", finite(self.delay_s, "delay_s"))
@@ -262,7 +267,7 @@ class TransferFunction:
         exponentials. The memo lives on the system (not on a :class:`Response`), so no
         reference cycle keeps the arrays alive.
         """
-        memo = self.__dict__.get("_states_memo")
+        memo = self._states_memo
         if memo is not None and memo[0] is u:
             return memo[1], memo[2]
         p = self.modal.poles
@@ -292,14 +297,16 @@ class TransferFunction:
         u : PiecewiseConstant
             The input, with boundaries t_j.
         """
-        memo = self.__dict__.get("_states_memo")
+        memo = self._states_memo
         if memo is None or memo[0] is not u:
             self._recursion(u)
-            memo = self.__dict__["_states_memo"]
-        if memo[3] is None:  # the conjugate columns, made only when asked for
-            memo = (*memo[:3], _conjugate_fill(self.modal.poles, memo[2]))
-            object.__setattr__(self, "_states_memo", memo)
-        return memo[3]
+            memo = self._states_memo
+            assert memo is not None
+        full = memo[3]
+        if full is None:  # the conjugate columns, made only when asked for
+            full = _conjugate_fill(self.modal.poles, memo[2])
+            object.__setattr__(self, "_states_memo", (*memo[:3], full))
+        return full
 
     def switch_state_sensitivity(self, u: PiecewiseConstant) -> ComplexArray:
         """dx_p(t_j)/dp at every boundary of ``u``, shape (J+1, n), exact.
@@ -397,7 +404,7 @@ class CoefficientDerivatives:
 
 
 @dataclass(frozen=True, eq=False)
-class Response(Signal):
+class Response(Signal, CachesAreNotState):
     """The exact output s(t) of ``system`` to input ``u`` (at rest before ``u.start``): the
     :class:`~jitterid.systems.model.Signal` of an LTI structure.
 
@@ -776,7 +783,7 @@ def _conjugate_fill(p: ComplexArray, half: ComplexArray) -> ComplexArray:
 
 
 @dataclass(frozen=True, eq=False)
-class _Recursion:
+class _Recursion(CachesAreNotState):
     """Solver of x_0 = 0, x_{j+1} = e^{p dt_j} x_j + f_j at the boundaries t_j of an input.
 
     The boundaries are cut into blocks whose span keeps |Re p| (t - t0) <= _BLOCK; inside a
