@@ -40,7 +40,7 @@ from ..analysis.diagnostics import (
 )
 from ..analysis.selection import OrderSelection, select_order
 from ..data import SampledData
-from ..estimation.estimators import method_names
+from ..estimation.estimators import as_estimator, method_names
 from ..estimation.fit import fit as fit_model
 from ..inputs import telegraph_input, zoh_input
 from ..io import TIME_UNITS, Dataset, atomic_write, load, parse_time, save_data, save_input
@@ -637,12 +637,12 @@ def fit(
         structure = constrain(structure, j0, start=start_items, bounds=bound_items, fix=fix_items)
     except OptionError as exc:
         raise click.BadParameter(str(exc), param_hint=f"'{exc.option}'") from None
-    if method == "ls" and not structure.param_names:
+    if as_estimator(method).ignores_jitter and not structure.param_names:
         raise click.UsageError(
             "--fix holds every parameter of the model, so --method ls has nothing to estimate; "
             "free a parameter, or estimate the jitter with another method and a jitter family"
         )
-    if method == "ls" and isinstance(j0, JitterFamily):
+    if as_estimator(method).ignores_jitter and isinstance(j0, JitterFamily):
         raise click.UsageError(
             "--method ls ignores jitter, so it cannot estimate a jitter family; use another "
             "method, or --jitter none / a known law"
@@ -673,7 +673,8 @@ def fit(
             model_specs[order.chosen],
             order.result,
         )
-    stages = ["ordinary LS fit", *([] if method == "ls" else [f"{method} fit"])]
+    ordinary_only = as_estimator(method).ignores_jitter  # ls: the ordinary fit is the fit
+    stages = ["ordinary LS fit", *([] if ordinary_only else [f"{method} fit"])]
     stages += ["diagnostics", "writing results" + (" and figures" if plots else "")]
 
     def run(bar: _Progress) -> tuple[list[Path], FitReport, OSError | None]:
@@ -683,7 +684,7 @@ def fit(
             ls = fit_model(
                 ds.data, structure, NoJitter(), "ls" if structure.param_names else "bcls"
             )
-            if method == "ls":
+            if ordinary_only:
                 res = ls
             else:
                 bar.stage(f"{method} fit")

@@ -44,7 +44,6 @@ ComplexArray = NDArray[np.complex128]
 _Derivatives = tuple[SampleMoments, FloatArray, FloatArray, FloatArray]
 
 
-
 #: records from this many samples free the moment plans before the likelihood's search
 FREE_PLANS_FROM = 100_000
 

@@ -47,6 +47,7 @@ from tqdm import tqdm
 from .. import finite_diff
 from .._threads import single_thread
 from ..estimation.bounds import crb
+from ..estimation.estimators import as_estimator
 from ..estimation.fit import fit
 from ..estimation.result import FitResult
 from ..inputs import Input
@@ -206,8 +207,9 @@ def _fit_one(
     t0 = time.perf_counter()
     prefix, criterion = split_method(method)  # "bj-gaussian": gaussian with the noise model
     try:
-        if method == "ls":
-            res = fit(data, model, jitter, method)
+        est = as_estimator(criterion)
+        if est.ignores_jitter:  # ls: no jitter, no shared stage
+            res = fit(data, model, jitter, est)
         elif shared is None:
             res = fit(data, model, jitter, criterion, noise=noise)
         else:
@@ -215,14 +217,15 @@ def _fit_one(
             pre = _bcls_stage(
                 data, model, jitter, shared, "bcls-jbj" if prefix == "jbj-" else "bcls"
             )
-            t0 = time.perf_counter() if method != "bcls" else t0
-            # A failed BCLS search cannot seed the others: they search on their own.
+            own = not prefix and est == pre.estimator  # the method is the shared stage itself
+            t0 = t0 if own else time.perf_counter()
+            # A failed BCLS search cannot seed the others (nor can it seed an estimator with
+            # another first stage): they search on their own.
+            seeds = pre.success and est.first_stage() == pre.estimator
             res = (
                 pre
-                if method == "bcls"
-                else fit(
-                    data, model, jitter, criterion, start=pre if pre.success else None, noise=noise
-                )
+                if own
+                else fit(data, model, jitter, est, start=pre if seeds else None, noise=noise)
             )
         stderr = res.stderr
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
