@@ -198,6 +198,7 @@ def test_bad_workers_and_scheduler(tmp_path: Path) -> None:
     assert os.path.isdir(d)
 
 
+@pytest.mark.slow  # a benchmark smoke run in a subprocess (tests/README.md)
 def test_the_batch_benchmark_runs_at_a_tiny_size(tmp_path: Path) -> None:
     bench = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_batch.py"
     env = dict(os.environ, PYTHONPATH=SRC)
