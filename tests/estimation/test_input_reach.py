@@ -31,12 +31,8 @@ def short():
 # whose reach passes the input's end) crashes scipy's least_squares: search.py's
 # least_squares_adapter gives jac a 1-row fallback where resid's has 2 F rows (the issue-25
 # report gives the one-line fix); strict, so that the fix makes these pass and be unmarked.
-SEARCH_BUG = pytest.mark.xfail(
-    raises=ValueError, strict=True, reason="search.py: jac's fallback shape (issue 25 report)"
-)
 
 
-@SEARCH_BUG
 def test_a_family_stopped_by_the_input_end_is_at_bound_with_the_cause(short):
     res = ji.fit(short, ji.PolePairGain(), ji.GaussianFamily(), method="bcls")
     assert res.status is ji.FitStatus.AT_BOUND, res.message
@@ -72,7 +68,6 @@ def _files(short, tmp_path):
     return [*args, "--model", "polepair", "--jitter", "gaussian", "--no-plots", "-q"]
 
 
-@SEARCH_BUG
 def test_the_cli_says_so_without_the_hold(short, tmp_path):
     res = CliRunner().invoke(main, [*_files(short, tmp_path), "--out", str(tmp_path / "a")])
     if res.exception is not None and not isinstance(res.exception, SystemExit):

@@ -93,6 +93,8 @@ class SearchProblem(Protocol):
     def bounds(self) -> tuple[tuple[float, float], ...]: ...
     @property
     def estimator(self) -> Any: ...
+    @property
+    def freqs(self) -> FloatArray: ...
 
     def objective(self, x: FloatArray) -> float: ...
     def search_residuals(self, x: FloatArray) -> FloatArray: ...
@@ -202,16 +204,17 @@ def least_squares_adapter(
         out[idx] = z
         return out
 
-    n_res: list[int] = []
+    # the residual vector's length, for the sentinel and the Jacobian where the model cannot
+    # be evaluated: two per frequency (real and imaginary parts) until a residual says
+    n_res = [2 * len(problem.freqs)]
 
     def resid(z: FloatArray) -> FloatArray:
         with np.errstate(all="ignore"):
             try:
                 r = problem.search_residuals(embed(z))
             except ValueError:
-                return np.full(n_res[0] if n_res else 2 * len(getattr(problem, "freqs", [])), _BAD)
-        if not n_res:
-            n_res.append(r.size)
+                return np.full(n_res[0], _BAD)
+        n_res[0] = r.size
         return r if np.all(np.isfinite(r)) else np.full(r.size, _BAD)
 
     jac: str | Callable[[FloatArray], FloatArray] = "2-point"
@@ -221,7 +224,7 @@ def least_squares_adapter(
             try:
                 J = problem.jacobian(embed(z))
             except ValueError:  # only where resid failed too; such a step is never taken
-                return np.zeros((n_res[0] if n_res else 1, idx.size))
+                return np.zeros((n_res[0], idx.size))
             # (every parameter free: the array itself, whose memory layout the solver's
             # products follow, so that the arithmetic does not depend on the adapter)
             return J if idx.size == x0.size else J[:, idx]
