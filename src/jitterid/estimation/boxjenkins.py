@@ -423,6 +423,7 @@ class BoxJenkinsRoute:
         cov = np.full((x.size, x.size), np.nan)
         cov_error: str | None = None
         held, white_limit = _white_limit(problem, x)
+        staged.extra["cov_requested"] = cov_type != "none"  # an all-NaN one is then a failure
         if cov_type == "sandwich":
             try:
                 cov = bj_covariance(problem, x, held)
@@ -458,6 +459,7 @@ class BoxJenkinsRoute:
             starts=partial(_other_starts, problem, staged.extra["others"]),
             cov_error=cov_error,
             exempt=staged.extra.get("exempt", ()),
+            cov_requested=staged.extra.get("cov_requested"),
         )
 
     # ------------------------------------------------------------------ 4. units
