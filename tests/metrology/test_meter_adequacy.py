@@ -214,3 +214,15 @@ def test_the_command_line_says_it_too(tmp_path):
     res = CliRunner().invoke(main, ["jitter", str(path), "--law", "gaussian"])
     assert res.exit_code != 0, res.output
     assert "LACK_OF_FIT" in res.output
+
+
+def test_a_tiny_record_is_measured_and_a_zero_record_refused():
+    """The constant-record threshold is relative to the record's size (issue 25, item 9): a
+    tone of 1e-14 (a pA sensor in amperes) is a record, an all-zero one is not."""
+    t = np.arange(400) * 1e-3
+    rng = np.random.default_rng(0)
+    y = 1e-14 * np.sin(2 * np.pi * 123 * t + 0.3) + 1e-17 * rng.standard_normal(400)
+    m = ji.measure_jitter(y, 1e-3, laws=["gaussian"], method="gaussian")
+    assert m.frequency == pytest.approx(123.0, rel=1e-3)
+    with pytest.raises(ValueError, match="constant"):
+        ji.measure_jitter(np.zeros(400), 1e-3)

@@ -26,7 +26,14 @@ maximum-likelihood value given the residuals (:func:`noise_variance_ml`) is used
   kernel up to KERNEL_MAX_FREQUENCIES frequencies, the first-order form beyond);
 - ``"robust"``: w_k = (y_k - m_k)^2 (White's HC0), honest when the jitter law or the noise
   level is misspecified (default for ``ls``, whose model has no jitter); for ``ml`` the
-  Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores;
+  Huber-White form H^{-1} (4 sum_k g_k g_k^T) H^{-1} with g_k the per-sample scores.
+  Under a misspecified jitter law the robust errors hold for the system's parameters but not
+  for the law's own: the robust standard error of the law's scale can be well below its
+  spread (0.7 of it for ``gaussian``, triangular jitter fitted with ``UniformFamily``, N =
+  200), because the pseudo-true law changes with the input realization, which no per-record
+  sandwich sees, and the meat at the fitted scale is smaller than at the pseudo-true one
+  (its bread is right). Read it as a lower bound; a parametric bootstrap is the honest
+  alternative;
 - ``"oim"`` (default for ``ml``): the inverse observed information, Cov = 2 H^{-1} for
   V = -2 ln L (``ml``) or V = -2 ln L_G + const (``gaussian``, the Gaussian pseudo-likelihood);
 - ``"none"``: not computed (NaN), for Monte Carlo loops that do not need it.

@@ -178,10 +178,19 @@ def _end(problem: SearchProblem, x: FloatArray, status: FitStatus, msg: str, n: 
 
 
 def _free(problem: SearchProblem, x0: FloatArray, free: NDArray[np.bool_] | None) -> Any:
+    """(lo, hi, x0 clipped, indices searched, embed): ``embed(z)`` is x0 with the searched
+    entries set to z."""
     lo, hi = np.array(problem.bounds, dtype=float).reshape(-1, 2).T
     x0 = np.clip(np.asarray(x0, float), lo, hi)
     mask = lo < hi if free is None else free & (lo < hi)
-    return lo, hi, x0, np.flatnonzero(mask)
+    idx = np.flatnonzero(mask)
+
+    def embed(z: FloatArray) -> FloatArray:
+        out = x0.copy()
+        out[idx] = z
+        return out
+
+    return lo, hi, x0, idx, embed
 
 
 @register_search("least_squares")
@@ -195,14 +204,9 @@ def least_squares_adapter(
     """Trust-region least squares (``scipy.optimize.least_squares``, ``x_scale="jac"``) on
     the problem's residuals over the free parameters, with its analytic Jacobian where it has
     one (else 2-point differences)."""
-    lo, hi, x0, idx = _free(problem, x0, free)
+    lo, hi, x0, idx, embed = _free(problem, x0, free)
     if idx.size == 0:
         return _end(problem, x0, FitStatus.CONVERGED, "no free parameters", 1)
-
-    def embed(z: FloatArray) -> FloatArray:
-        out = x0.copy()
-        out[idx] = z
-        return out
 
     # the residual vector's length, for the sentinel and the Jacobian where the model cannot
     # be evaluated: two per frequency (real and imaginary parts) until a residual says
@@ -258,15 +262,10 @@ def newton_adapter(
     """:func:`newton_search` on the problem's (V, dV/dx, expected Hessian) over the free
     parameters, in the coordinates and with the tolerances of its
     :meth:`~SearchProblem.search_options`."""
-    lo, hi, x0, idx = _free(problem, x0, free)
+    lo, hi, x0, idx, embed = _free(problem, x0, free)
     if idx.size == 0:
         return _end(problem, x0, FitStatus.CONVERGED, "no free parameters", 1)
     opts = problem.search_options(tol)
-
-    def embed(z: FloatArray) -> FloatArray:
-        out = x0.copy()
-        out[idx] = z
-        return out
 
     names = np.array(problem.names)[idx]
     cz = Coordinates(names, lo[idx], hi[idx], x0[idx], enabled=opts.coordinates)
