@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from scipy.linalg import cho_factor
 
 from .._memory import trim
+from .._state import CachesAreNotState, cache_field
 from ..data import SampledData
 from ..jitter.laws import JitterFamily, JitterLaw, NoJitter
 from ..moments.modal import SegmentPlan, clear_plans
@@ -102,7 +103,7 @@ def adjoint_dtft(z: ComplexArray, T: float, f: FloatArray, N: int) -> ComplexArr
 
 
 @dataclass(eq=False)
-class Problem:
+class Problem(CachesAreNotState):
     """Everything a criterion needs, with the moments of the last parameter vector cached."""
 
     data: SampledData
@@ -118,14 +119,14 @@ class Problem:
     layout: ParamLayout = field(init=False)
     Y: ComplexArray = field(init=False)
     likelihood: ExactLikelihood | None = field(init=False, default=None)
-    _cache: dict[bytes, SampleMoments] = field(init=False, default_factory=dict)
+    _cache: dict[bytes, SampleMoments] = cache_field(default_factory=dict)  # noqa: RUF009
     # last derivatives, frequency-difference grid (see :mod:`jitterid.estimation.jacobians`)
-    _dcache: tuple[bytes, _Derivatives] | None = field(init=False, default=None)
-    _grid: tuple[FloatArray, NDArray[np.intp]] | None = field(init=False, default=None)
-    _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = field(init=False, default=None)
+    _dcache: tuple[bytes, _Derivatives] | None = cache_field()
+    _grid: tuple[FloatArray, NDArray[np.intp]] | None = cache_field()
+    _split: tuple[bytes, tuple[JitterLaw, Signal, float]] | None = cache_field()
     # the moments' last node plan with its key (jacobians._plan)
-    plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = field(init=False, default=None)
-    _frozen: tuple[FloatArray, bool] | None = field(init=False, default=None)
+    plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = cache_field()
+    _frozen: tuple[FloatArray, bool] | None = cache_field()
 
     def __post_init__(self) -> None:
         self.estimator = as_estimator(self.estimator)
