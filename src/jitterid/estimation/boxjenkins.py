@@ -53,13 +53,9 @@ from .result import FitResult
 from .route import Staged
 from .search import Outcome, run_search
 
-__all__ = ["BJ_METHODS", "BoxJenkinsRoute", "fitted_noise"]
+__all__ = ["BoxJenkinsRoute", "fitted_noise"]
 
 FloatArray = NDArray[np.float64]
-
-#: The registered estimators with a coloured-noise form at import (the route asks the
-#: registry at each call, so an estimator registered later is accepted too).
-BJ_METHODS = coloured_method_names()
 
 _FAST = 100.0  # GLS stage: systems with a pole beyond _FAST times the Nyquist rate are refused
 # The noise and GLS stages only give the joint search its start: converged loosely (the joint
