@@ -43,6 +43,10 @@ class ParamLayout:
         Whether the white-noise standard deviation is the last parameter.
     bounds : tuple of (float, float)
         Closed bounds of every parameter, in vector order.
+    kinks : tuple of tuple of float
+        Per parameter, the interior values where the criteria are not differentiable in it
+        (a jitter family's :attr:`~jitterid.JitterFamily.kinks`: n of the family (26) at
+        the integers); empty (the default) where there are none.
 
     Examples
     --------
@@ -61,6 +65,7 @@ class ParamLayout:
     noise: tuple[str, ...] = ()
     noise_std: bool = False
     bounds: Bounds = ()
+    kinks: tuple[tuple[float, ...], ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("jitter", "system", "noise"):  # tuples (e.g. after a JSON round trip)
@@ -73,6 +78,14 @@ class ParamLayout:
             )
         if len(set(self.names)) != len(self.names):
             raise ValueError(f"parameter names must be unique; got {self.names}")
+        kinks = tuple(tuple(map(float, k)) for k in self.kinks)
+        if not any(kinks):
+            kinks = ()
+        elif len(kinks) != len(self.names):
+            raise ValueError(
+                f"kinks must hold one tuple per parameter {self.names}; got {len(kinks)}"
+            )
+        object.__setattr__(self, "kinks", kinks)
 
     @classmethod
     def build(
@@ -88,7 +101,8 @@ class ParamLayout:
 
         ``jitter``, ``structure`` and ``noise`` contribute their ``param_names`` and
         ``bounds`` when they have them (a jitter family, a model structure, a noise-model
-        structure); a known law, a known system or ``None`` contribute nothing.
+        structure), the jitter family its ``kinks``; a known law, a known system or ``None``
+        contribute nothing.
 
         Parameters
         ----------
@@ -112,7 +126,9 @@ class ParamLayout:
         (jn, jb), (sn, sb), (nn, nb) = part(jitter), part(structure), part(noise)
         noise_bound = NOISE_STD_BOUNDS if noise_floor is None else (float(noise_floor), np.inf)
         bounds = jb + sb + nb + ((noise_bound,) if noise_std else ())
-        return cls(jn, sn, nn, bool(noise_std), bounds)
+        jk = tuple(getattr(jitter, "kinks", ()) or ()) if jn else ()
+        rest = (() for _ in range(len(bounds) - len(jk)))
+        return cls(jn, sn, nn, bool(noise_std), bounds, jk + tuple(rest) if jk else ())
 
     # ------------------------------------------------------------------ structure
     @property
@@ -174,6 +190,10 @@ class ParamLayout:
         out = np.array(x, dtype=float)
         out[self.slice(block)] = np.asarray(values, dtype=float)
         return out
+
+    def kinked(self) -> dict[int, tuple[float, ...]]:
+        """``{index: kinks}`` of the parameters that have kinks (see ``kinks``)."""
+        return {i: k for i, k in enumerate(self.kinks) if k}
 
     def lower_upper(self) -> tuple[FloatArray, FloatArray]:
         """Lower and upper bounds as two arrays."""

@@ -111,22 +111,42 @@ def test_a_local_optimum_under_jitter_ten_samples_wide_is_reported():
     again = ji.fit(d, ji.PolePairGain(), law, "bcls", start=ji.PolePairGain().starts(T)[2])
     assert again.cost < res.cost - 100
     assert again.success, again.message
-    # the criteria that start from that bcls fit are flagged too (they stayed near it)
+    # the criteria that start from that bcls fit are flagged too: they stayed near it, or
+    # (gaussian, since its search cuts a step at the first bound it reaches) ran on to the
+    # stability bound pr = -pr_min, which is reported as such
     for method in ("gaussian", "ml"):
-        assert ji.fit(d, ji.PolePairGain(), law, method).status is ji.FitStatus.LOCAL_OPTIMUM
+        status = ji.fit(d, ji.PolePairGain(), law, method).status
+        assert status in (ji.FitStatus.LOCAL_OPTIMUM, ji.FitStatus.AT_BOUND), status
 
 
-def test_an_unidentified_jitter_shape_is_reported(data):
-    # was: SumOfUniformsFamily CONVERGED with n = 0.0003 +- 3231, a = 0.08 +- 133
+def test_an_unidentified_jitter_shape_is_held_and_said(data):
+    # was: SumOfUniformsFamily CONVERGED with n = 0.0003 +- 3231, a = 0.08 +- 133; then
+    # (issue 15) UNIDENTIFIABLE for the whole fit. Issue 24: the shape n is not identified
+    # (the criterion is flat along the family at a fixed jitter std) but the std and the
+    # system are: CONVERGED, n held fixed for the error bars and said so, the std's interval
+    # stated and honest
     rng = np.random.default_rng(7)
     u = ji.telegraph_input(205.0, rng)
     ji.simulate(G, u, ji.Uniform(0.5), T, N, 0.01, rng)  # the stream of the reported case
     ji.simulate(G, u, ji.SumOfUniforms(3.0, 0.3), T, N, 0.01, rng)
-    d = ji.simulate(G, u, ji.SumOfUniforms(3.0, 0.1), T, N, 0.01, rng)
+    truth = ji.SumOfUniforms(3.0, 0.1)
+    d = ji.simulate(G, u, truth, T, N, 0.01, rng)
     res = ji.fit(d, ji.PolePairGain(), ji.SumOfUniformsFamily(), "bcls")
-    assert res.status is ji.FitStatus.UNIDENTIFIABLE, res.message
-    assert "not identified" in res.message
-    assert "admissible range" in res.message
+    assert res.status is ji.FitStatus.CONVERGED, res.message
+    # n is held fixed for the error bars: not identified (flat along the family at a fixed
+    # std) or at a kink of the family, whichever the search ended at; the message says which
+    assert "held fixed for the error bars" in res.message
+    assert ("n not identified by the data" in res.message) or ("at a kink" in res.message)
+    assert np.isnan(res.stderr["n"])
+    assert ("not identified" in res.stderr_notes["n"]) or ("kink" in res.stderr_notes["n"])
+    # (a small jitter, 0.029 T, is weakly told by bcls: the message states how weakly)
+    se = res.jitter_std_stderr
+    assert np.isfinite(se)
+    assert se > 0
+    assert f"identified to {100 * se / res.jitter_std:.2g} %" in res.message
+    assert abs(res.jitter_std - truth.std) < 3.5 * se
+    for name in ("k0", "pr", "pi"):
+        assert np.isfinite(res.stderr[name])
 
 
 def test_a_parameter_on_its_bound_is_reported():

@@ -100,9 +100,20 @@ def test_a_shape_parameter_is_cut_at_zero_and_a_bound_is_explained():
     x[i] = 1e-7
     near = dataclasses.replace(res, x=x, cov=cov)
     assert "next to its bound 0" in near.stderr_notes["n"]
+    # at a kink of the family (n = 3): held fixed there, and said (issue 24)
     x[i] = 3.0
-    singular = dataclasses.replace(res, x=x, cov=cov)
-    assert "singular" in singular.stderr_notes["n"]
+    kinked = dataclasses.replace(res, x=x, cov=cov)
+    assert "at a kink of the jitter family" in kinked.stderr_notes["n"]
+    # between kinks, the others with error bars: the shape the data do not tell
+    x[i] = 3.5
+    flat = dataclasses.replace(res, x=x, cov=cov)
+    assert "not identified by the data" in flat.stderr_notes["n"]
+    # a system parameter without one: a singular information
+    j = res.names.index("k0")
+    var_k = np.full(len(res.names), 1e-4)
+    var_k[j] = np.nan
+    singular = dataclasses.replace(res, x=x, cov=np.diag(var_k))
+    assert "singular" in singular.stderr_notes["k0"]
     none = dataclasses.replace(res, cov=np.full_like(cov, np.nan), cov_type="none")
     assert set(none.stderr_notes.values()) == {"not computed (cov_type='none')"}
     assert "not computed" not in none.summary()  # one word for all: "covariance: none"

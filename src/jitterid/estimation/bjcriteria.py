@@ -41,6 +41,7 @@ G Sigma_y G^T is an FFT Toeplitz product. Every difference quotient goes through
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -143,9 +144,7 @@ class BJProblem:
             if self.pinned.size != len(nn):
                 raise ValueError(f"pinned must hold {len(nn)} values {nn}; got {self.pinned.size}")
             pinned = tuple((float(v), float(v)) for v in self.pinned)
-            lay = ParamLayout(
-                lay.jitter, lay.system, lay.noise, lay.noise_std, lay.bounds[:k] + pinned
-            )
+            lay = dataclasses.replace(lay, bounds=lay.bounds[:k] + pinned)
         self.layout = lay
         self.names = lay.names
         self.bounds = lay.bounds
@@ -170,6 +169,20 @@ class BJProblem:
 
     def release(self) -> None:
         """Nothing to drop between stages: the caches are per point and small."""
+
+    def restrict(self, bounds: tuple[tuple[float, float], ...] | None) -> None:
+        """Search within ``bounds`` (a smooth piece of a kinked jitter parameter,
+        :func:`jitterid.estimation.search.piecewise`), or the layout's own with None; the
+        moments' problem is restricted with it (its derivatives at a piece's end are
+        one-sided into the piece).
+
+        Parameters
+        ----------
+        bounds : tuple of (float, float) or None
+            One closed interval per parameter, inside the layout's; None lifts it.
+        """
+        self.bounds = self.layout.bounds if bounds is None else tuple(bounds)
+        self._oe.restrict(None if bounds is None else self.bounds[: len(self._oe.names)])
 
     @property
     def n_jitter(self) -> int:

@@ -376,7 +376,80 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
         out = check(ctx)
         if out is not None:
             return out[0], f"{out[1]} (search: {message})"
+    held = _held_jitter(ctx)
+    if held:
+        return status, f"{message}; {held}"
     return status, message
+
+
+def _kinked(ctx: PostContext) -> NDArray[np.bool_]:
+    """Jitter-family parameters within the covariance's reach of a kink of the family
+    (:func:`jitterid.estimation.covariance.at_kink`: held fixed there)."""
+    out = np.zeros(ctx.x.size, dtype=bool)
+    if isinstance(ctx.jitter, JitterFamily):
+        for i, k in enumerate(ctx.jitter.kinks):
+            reach = 2e-4 * max(abs(float(ctx.x[i])), 1e-2)
+            out[i] = bool(k) and bool(np.any(np.abs(np.asarray(k) - ctx.x[i]) <= reach))
+    return out
+
+
+def _flat_shapes(ctx: PostContext) -> NDArray[np.bool_]:
+    """Shape parameters of a jitter family (not its scale) without an error bar while
+    others have one: the covariance held them fixed as not identified by the data
+    (:func:`jitterid.estimation.covariance.unidentified_shapes`)."""
+    out = np.zeros(ctx.x.size, dtype=bool)
+    fam = ctx.jitter
+    if not isinstance(fam, JitterFamily) or len(fam.param_names) < 2:
+        return out
+    fin = np.isfinite(np.diag(np.asarray(ctx.cov, float)))
+    for i in range(len(fam.param_names)):
+        out[i] = i != fam.scale_index and not fin[i] and bool(fin[np.arange(fin.size) != i].any())
+    return out
+
+
+def _held_jitter(ctx: PostContext) -> str:
+    """What a converged fit says of jitter-family parameters held fixed for the error bars:
+    at a kink, or a shape the data do not identify (flat along the family at a fixed std),
+    with the jitter std's relative standard error (delta method, the others free)."""
+    fam = ctx.jitter
+    if not isinstance(fam, JitterFamily):
+        return ""
+    nj = len(fam.param_names)
+    kink, flat = _kinked(ctx)[:nj], _flat_shapes(ctx)[:nj] & ~_kinked(ctx)[:nj]
+    parts = []
+    for i in np.flatnonzero(kink):
+        parts.append(
+            f"{ctx.names[i]} = {ctx.x[i]:g} is at a kink of the family (no second derivative): "
+            "held fixed for the error bars"
+        )
+    if flat.any():
+        which = ", ".join(ctx.names[i] for i in np.flatnonzero(flat))
+        parts.append(
+            f"{which} not identified by the data (the criterion is flat along the family at "
+            "a fixed jitter std): held fixed for the error bars"
+        )
+    if not parts:
+        return ""
+    theta = ctx.x[:nj]
+    C = np.asarray(ctx.cov, float)[:nj, :nj]
+    fin = np.isfinite(np.diag(C))
+    std = float(fam.law(theta.tolist()).std)
+    if fin.any() and std > 0:
+        g = np.array(
+            [
+                (
+                    fam.law(np.where(np.arange(nj) == i, theta * (1 + 1e-6), theta).tolist()).std
+                    - std
+                )
+                / (1e-6 * theta[i])
+                if fin[i] and theta[i] != 0
+                else 0.0
+                for i in range(nj)
+            ]
+        )[fin]
+        se = float(np.sqrt(max(float(g @ C[np.ix_(fin, fin)] @ g), 0.0)))
+        parts.append(f"the jitter std is identified to {100 * se / std:.2g} % (1 standard error)")
+    return "; ".join(parts)
 
 
 def _input_end(ctx: PostContext, margin: float) -> str | None:
@@ -540,6 +613,14 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     k = ctx.jitter.scale_index if isinstance(ctx.jitter, JitterFamily) else None
     if k is not None and ctx.x[k] <= SCALE_COLLAPSE * ctx.data.T:
         on[k] = True  # no jitter (checked by _at_bound): its scale has no finite variance
+    on |= _kinked(ctx) | _flat_shapes(ctx)  # held fixed by the covariance (_held_jitter)
+    # a jitter-family parameter next to its bound, within the covariance's difference reach
+    # (x +- 2h inside, h = 1e-4 max(|x|, 1e-2)): held fixed by the covariance too (a = 0.4999
+    # of a_max = 0.5: the law's natural limit, not a failure)
+    nj = _n_jitter(ctx.jitter) if isinstance(ctx.jitter, JitterFamily) else 0
+    reach = 2e-4 * np.maximum(np.abs(ctx.x[:nj]), 1e-2)
+    lo_b, hi_b = np.array(ctx.bounds, float).reshape(-1, 2)[:nj].T
+    on[:nj] |= (ctx.x[:nj] - reach < lo_b) | (ctx.x[:nj] + reach > hi_b)
     on[list(ctx.exempt)] = True
     free = ~on
     c = cov[np.ix_(free, free)]

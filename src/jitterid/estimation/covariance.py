@@ -50,6 +50,7 @@ from scipy import optimize, signal
 from threadpoolctl import threadpool_limits
 
 from .. import finite_diff
+from ..jitter.laws import JitterFamily
 from ..moments.sample import covariance_from_variances
 
 if TYPE_CHECKING:
@@ -64,6 +65,42 @@ _SCALE_STEP = 0.05  # steps at most this fraction of a parameter's natural scale
 #: frequencies up to which the frequency-domain criteria's score covariance is exact
 #: (_frequency_score_covariance, O(P F^3)); beyond, the first-order form G W G^T
 KERNEL_MAX_FREQUENCIES = 2048
+
+
+def at_kink(x: FloatArray, kinks: tuple[tuple[float, ...], ...]) -> NDArray[np.bool_]:
+    """Which parameters lie within the covariance's difference reach (2 h, h = 1e-4
+    max(|x_i|, 1e-2)) of a kink of the criterion (:attr:`jitterid.params.ParamLayout.kinks`):
+    no second derivative there (the one-sided ones differ), so such a parameter is held
+    fixed, as one on its bound, and the others' errors are conditional on it."""
+    out = np.zeros(x.size, dtype=bool)
+    for i, k in enumerate(kinks):
+        if k:
+            reach = 2 * finite_diff.step(x, i, _REL_STEP)
+            out[i] = bool(np.any(np.abs(np.asarray(k) - x[i]) <= reach))
+    return out
+
+
+def unidentified_shapes(problem: Problem, x: FloatArray, cov: FloatArray) -> NDArray[np.bool_]:
+    """The jitter family's shape parameters (all but its scale, in a family of two or more)
+    that the data do not identify: a standard error beyond the parameter's admissible range,
+    or none where the others have one (the information is singular in it alone). The
+    paper's Table 1: the criteria tell the jitter's std well and the shape n at that std
+    hardly at all (BCLS: n's error bar 1e3-1e5 on [0, 20])."""
+    out = np.zeros(x.size, dtype=bool)
+    fam = problem.jitter
+    nj = problem.n_jitter
+    if not isinstance(fam, JitterFamily) or nj < 2:
+        return out
+    se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
+    lo, hi = np.array(problem.layout.bounds, dtype=float).reshape(-1, 2).T
+    rest = np.isfinite(se)
+    for i in range(nj):
+        if i == fam.scale_index:
+            continue
+        wide = np.isfinite(se[i]) and se[i] > hi[i] - lo[i]
+        missing = not np.isfinite(se[i]) and np.any(rest[np.arange(x.size) != i])
+        out[i] = wide or missing
+    return out
 
 
 def _steps(
@@ -145,12 +182,30 @@ def covariance(
 def _covariance(
     problem: Problem, x: FloatArray, cov_type: str, noise_std: float | None
 ) -> FloatArray:
+    """The covariance with the parameters at a bound or a kink held fixed and, where the
+    data do not identify a jitter family's shape (:func:`unidentified_shapes`), with that
+    held fixed too (the others', the jitter std's included, conditional on it)."""
+    cov = _held_covariance(problem, x, cov_type, noise_std, np.zeros(x.size, dtype=bool))
+    flat = unidentified_shapes(problem, x, cov)
+    if flat.any() and not np.all(np.isnan(cov)):
+        cov = _held_covariance(problem, x, cov_type, noise_std, flat)
+    return cov
+
+
+def _held_covariance(
+    problem: Problem,
+    x: FloatArray,
+    cov_type: str,
+    noise_std: float | None,
+    hold: NDArray[np.bool_],
+) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
     if p == 0 or cov_type == "none":
         return cov
     info = _search_information(problem, x)
     h, free = _steps(x, problem.bounds, _natural_scale(info))
+    free &= ~hold & ~at_kink(x, problem.layout.kinks)
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov

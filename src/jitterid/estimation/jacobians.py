@@ -99,6 +99,7 @@ ComplexArray = NDArray[np.complex128]
 
 _FD_REL = float(np.sqrt(np.finfo(float).eps))  # scipy's 2-point step: sqrt(eps) max(1, |x|)
 _CD_REL = 1e-6  # central differences (models that declare no gradient)
+_SHAPE_REL = 1e-5  # central differences in a jitter shape parameter (_differenced)
 
 
 # ---------------------------------------------------------------------------- moments
@@ -227,17 +228,22 @@ def _law_derivative(
 
 
 def _differenced(
-    problem: Problem, x: FloatArray, i: int, *, variance: bool
+    problem: Problem, x: FloatArray, i: int, *, variance: bool, shape: bool = False
 ) -> tuple[FloatArray, FloatArray | None]:
     """(dm, dVar) in parameter ``i`` by central differences of the moments
-    (:mod:`jitterid.finite_diff`): the declared route where no closed form is given."""
+    (:mod:`jitterid.finite_diff`): the declared route where no closed form is given. A
+    jitter ``shape`` parameter (n of the family (26): of order one, its moments quadratures
+    over a law whose knots move with it) takes the step ``_SHAPE_REL * max(|x_i|, 1)``: at
+    1e-6 |x_i| (n near 0: a step of 1e-8) the quadrature's rounding made the derivative's
+    sign random near a stationary point."""
     n = problem.data.N
 
     def stacked(v: FloatArray) -> FloatArray:
         mv = moments(problem, v)
         return np.concatenate([mv.mean, mv.var]) if variance else mv.mean
 
-    g = finite_diff.derivative(stacked, x, i, problem.bounds[i], rel=_CD_REL)
+    rel, floor = (_SHAPE_REL, 1.0) if shape else (_CD_REL, 1e-2)
+    g = finite_diff.derivative(stacked, x, i, problem.bounds[i], rel=rel, floor=floor)
     return g[:n], (g[n:] if variance else None)
 
 
@@ -333,14 +339,14 @@ def moment_derivatives(
         dm[i], dvi = _law_derivative(problem, x, law, sig, i, mom.mean, need_var)
         if dvi is not None:
             dv[i] = dvi
-    for i in (
-        shape if grad is None else ()
-    ):  # other jitter parameters move the nodes: a one-sided difference
-        xi, h = finite_diff.forward(x, i, problem.bounds[i], _FD_REL, floor=1.0)
-        mi = moments(problem, xi)
-        dm[i] = (mi.mean - mom.mean) / h
-        if need_var:
-            dv[i] = (mi.var - mom.var) / h
+    for i in shape if grad is None else ():
+        # other jitter parameters move the nodes: differences of the moments, central (or
+        # second-order one-sided at a bound, e.g. a piece's end: finite_diff), O(h^2). A
+        # one-sided O(h) difference at sqrt(eps) was dominated by the quadrature's rounding,
+        # and the search, stationary in the others, could not tell which way the shape went.
+        dm[i], dvi = _differenced(problem, x, i, variance=need_var, shape=True)
+        if dvi is not None:
+            dv[i] = dvi
     if not need_var:
         out = (mom, np.empty(0), dm, np.empty((P, 0)))
         problem.remember(key, out)

@@ -103,7 +103,7 @@ from ..systems.model import Model, Signal
 from ..systems.structures import ModelStructure, as_structure
 from ..systems.tf import TransferFunction
 from .resources import check_likelihood, check_mode_rate, kept_nodes
-from .search import evaluator, newton_search
+from .search import LIKELIHOOD_FLOOR, evaluator, newton_search
 
 __all__ = [
     "DEFAULT_ORDER",
@@ -146,6 +146,7 @@ _ORDER_TABLE = np.array(
     [[5, 4, 4, 3, 3], [6, 5, 5, 4, 3], [8, 7, 6, 5, 3], [10, 8, 7, 6, 4], [11, 9, 8, 7, 5]]
 )
 _SCORE_STEP = 1e-7  # relative forward step of the differenced scores (finite_diff.forward)
+_SAME_NODES = 1e4  # a shape's knots may move by 1 / _SAME_NODES of a piece (_same_nodes)
 _FISHER_STEP = 1e-4  # relative central step of (L3) (finite_diff.central_pair)
 _DENSE = 96  # nodes of a sample up to which (L3)'s y-grid sums every node (_log_mixture)
 _BAND = 10.0  # ... beyond, the nodes this many noise std's farther than the nearest
@@ -835,6 +836,7 @@ class ExactLikelihood(CachesAreNotState):
     _spares: list[
         tuple[tuple[Signal, float] | None, _Held | None, dict[tuple[float, ...], _Rule]]
     ] = cache_field(default_factory=list)  # noqa: RUF009
+    _box: tuple[tuple[float, float], ...] | None = cache_field()  # restrict
 
     def __post_init__(self) -> None:
         self.structure = as_structure(self.structure)
@@ -865,7 +867,20 @@ class ExactLikelihood(CachesAreNotState):
 
     @property
     def bounds(self) -> tuple[tuple[float, float], ...]:
-        return self.layout.bounds
+        """The bounds searched: the layout's, or the piece set by :meth:`restrict`."""
+        return self.layout.bounds if self._box is None else self._box
+
+    def restrict(self, bounds: tuple[tuple[float, float], ...] | None) -> None:
+        """Search within ``bounds`` (a smooth piece of a kinked parameter), or the layout's
+        own with None; the remembered scores (one-sided at a piece's end) are dropped.
+
+        Parameters
+        ----------
+        bounds : tuple of (float, float) or None
+            One closed interval per parameter, inside the layout's; None lifts it.
+        """
+        self._box = None if bounds is None else tuple(bounds)
+        self._memo = None
 
     @property
     def model(self) -> Model:
@@ -1443,9 +1458,10 @@ class ExactLikelihood(CachesAreNotState):
         # The shape (n) by differences of ln p with the weights alone moved: the pdf of the
         # shifted law at the same nodes (the derivative of the integral: the rule's panels
         # end at the law's knots, which move by O(h), where the pdf is continuous).
-        shapes = [
-            (i, self.split(fwd[i][0])[0], fwd[i][1]) for i in self._weight_params() if i in fwd
-        ]
+        weights_only = tuple(
+            i for i in self._weight_params() if i in fwd and _same_nodes(law, fwd[i][1])
+        )
+        shapes = [(i, self.split(fwd[i][0])[0], fwd[i][1]) for i in weights_only if i in fwd]
         for nd in nodes:
             if analytic and (dmodal is not None or not ns):
                 s, D, ds = nd.signal.gradient(sig, dmodal, dX, slope=True)  # type: ignore[misc]
@@ -1522,7 +1538,7 @@ class ExactLikelihood(CachesAreNotState):
                     C[gn, -1] += cross
                     C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
-        moving = [i for i in range(nj) if i in fwd and i not in self._weight_params()]
+        moving = [i for i in range(nj) if i in fwd and i not in weights_only]
         for i in moving:  # parameters that may move the support: new nodes
             xi, h = fwd[i]
             G[:, i] = (self.logpdf(xi, y) - logp) / h
@@ -1539,12 +1555,10 @@ class ExactLikelihood(CachesAreNotState):
         the system, noise and jitter-scale parameters: within ~1% of the exact Hessian at the
         optimum on the paper's experiments; BHHH for the jitter shape).
 
-        The likelihood need not be differentiable in the jitter shape parameters (the
-        non-integer extension of :class:`SumOfUniforms` has a kink at every integer n): those
-        are passed to the search as not smooth, so that after a rejected step it tries a
-        Newton step in the other parameters alone, and a point where those are stationary
-        and a step in the shape predicted to gain little loses instead is reported as
-        converged, with a message saying so.
+        The search stays inside :attr:`bounds`: a family with kinks (the non-integer
+        extension of :class:`SumOfUniforms` has one at every integer n) is searched one
+        smooth piece at a time (:func:`jitterid.estimation.search.piecewise`, through
+        :meth:`restrict`).
 
         Parameters
         ----------
@@ -1575,21 +1589,15 @@ class ExactLikelihood(CachesAreNotState):
                 M = Gc.T @ Gc
             return v, -G.sum(axis=0), M
 
-        smooth = None
-        nj = self.n_jitter
-        if nj:
-            sig = self.split(x0)[1]
-            modal = sig.modal_segments is not None
-            scale = self._scale_index(_has_slope(sig, modal))
-            smooth = np.arange(x0.size) >= nj
-            if scale is not None:
-                smooth[scale] = True
-            if self._pdf_gradient(x0):  # a regular family (closed-form dp/dtheta)
-                smooth[:nj] = True
-            if smooth.all():
-                smooth = None
         x, ok, msg, n = newton_search(
-            evaluator(negloglik), x0, lo, hi, max_evaluations, tol=tol, smooth=smooth
+            evaluator(negloglik),
+            x0,
+            lo,
+            hi,
+            max_evaluations,
+            tol=tol,
+            floor=LIKELIHOOD_FLOOR,
+            names=self.names,
         )
         loglik = -values[x.tobytes()] if x.tobytes() in values else self.loglik(x, y)
         return x, loglik, ok, msg, n
@@ -1646,6 +1654,22 @@ class ExactLikelihood(CachesAreNotState):
                 g = (L[1::2] - L[2::2]) / steps[:, None]
                 info += (g * (np.exp(L[0]) * dy)) @ g.T
         return 0.5 * (info + info.T)
+
+
+def _same_nodes(law: JitterLaw, h: float) -> bool:
+    """Whether a shape step ``h`` of ``law`` may be differenced at the same nodes: the knots
+    move by about ``h`` times the support's width, which the nodes do not see; that is an
+    O(h) error of the pdf only where the density is continuous and its pieces are far wider
+    than the move (``_SAME_NODES`` times). A density with jumps (the uniform, n = 0 of the
+    family (26)) or a piece as narrow as the move (n a hair above an integer: the extra
+    uniform's width c) is differenced with new nodes: with the same ones the score at n = 0
+    was -100 where the likelihood rises at +0.9 per unit n."""
+    if law.pdf_degree == 0:
+        return False
+    knots = law.breakpoints()
+    width = float(knots[-1] - knots[0])
+    gap = float(np.min(np.diff(knots))) if knots.size > 1 else width
+    return gap >= _SAME_NODES * abs(h) * width
 
 
 def _log_mixture(grid: FloatArray, s: FloatArray, logw: FloatArray, sigma: float) -> FloatArray:

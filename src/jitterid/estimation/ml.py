@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from ..jitter.laws import JitterFamily
 from .problem import Problem, free_moment_plans
-from .search import Outcome, register_search
+from .search import Outcome, SearchProblem, piecewise, register_search
 from .status import FitStatus
 
 __all__ = ["likelihood_adapter", "run_ml"]
@@ -138,6 +138,21 @@ def _search(
     return x, -2 * loglik, ok, msg, nfev
 
 
+def _local(
+    problem: Problem, x0: FloatArray, max_nfev: int
+) -> tuple[FloatArray, float, bool, str, int]:
+    """:func:`_search` from x0, one smooth piece at a time where the family has kinks
+    (:func:`jitterid.estimation.search.piecewise`)."""
+
+    def one(p: SearchProblem, x: FloatArray, budget: int) -> Outcome:
+        assert p is problem
+        xs, cost, ok, msg, n = _search(problem, x, budget)
+        return Outcome(xs, cost, FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED, msg, n)
+
+    out = piecewise(problem, x0, one, max_nfev)
+    return out.x, out.cost, out.status is FitStatus.CONVERGED, out.message, out.nfev
+
+
 def run_ml(
     problem: Problem, x0: FloatArray, max_nfev: int
 ) -> tuple[FloatArray, float, FitStatus, str, int]:
@@ -152,7 +167,7 @@ def run_ml(
     assert lik is not None
     free_moment_plans(problem.data.N)  # not used by the likelihood
     starts, nfev = _ml_start(problem, x0)
-    x, cost, ok, msg, n = _search(problem, starts[0][1], max_nfev - nfev)
+    x, cost, ok, msg, n = _local(problem, starts[0][1], max_nfev - nfev)
     nfev += n
     tried, widened = {0}, False
     while isinstance(problem.jitter, JitterFamily) and nfev < max_nfev:
@@ -168,7 +183,7 @@ def run_ml(
         else:
             break
         tried.add(i)
-        out = _search(problem, starts[i][1], max_nfev - nfev)
+        out = _local(problem, starts[i][1], max_nfev - nfev)
         nfev += out[4]
         if out[1] < cost - tol:
             x, cost, ok = out[0], out[1], out[2]
@@ -181,7 +196,7 @@ def run_ml(
     return x, cost, status, msg, nfev
 
 
-@register_search("likelihood")
+@register_search("likelihood", own_pieces=True)
 def likelihood_adapter(
     problem: Problem,
     x0: FloatArray,

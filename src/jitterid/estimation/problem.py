@@ -36,7 +36,7 @@ from . import jacobians as _jacobians
 from .estimators import Estimator, as_estimator
 from .likelihood import ExactLikelihood
 from .resources import check_mode_rate
-from .search import SearchOptions
+from .search import LIKELIHOOD_FLOOR, SearchOptions
 
 __all__ = ["Problem", "default_frequencies", "free_moment_plans"]
 
@@ -127,6 +127,8 @@ class Problem(CachesAreNotState):
     # the moments' last node plan with its key (jacobians._plan)
     plan_memo: tuple[tuple[bytes, float], SegmentPlan] | None = cache_field()
     _frozen: tuple[FloatArray, bool] | None = cache_field()
+    # the piece of a kinked parameter being searched (restrict), None: the layout's bounds
+    _box: tuple[tuple[float, float], ...] | None = cache_field()
 
     def __post_init__(self) -> None:
         self.estimator = as_estimator(self.estimator)
@@ -150,7 +152,25 @@ class Problem(CachesAreNotState):
 
     @property
     def bounds(self) -> tuple[tuple[float, float], ...]:
-        return self.layout.bounds
+        """The bounds searched: the layout's, or the piece set by :meth:`restrict`."""
+        return self.layout.bounds if self._box is None else self._box
+
+    def restrict(self, bounds: tuple[tuple[float, float], ...] | None) -> None:
+        """Search within ``bounds`` (one smooth piece of a kinked parameter,
+        :func:`jitterid.estimation.search.piecewise`), or the layout's own with None.
+
+        The one-sided derivatives at a piece's end look into the piece, so the caches of
+        the last point are dropped; the likelihood, if any, is restricted with it.
+
+        Parameters
+        ----------
+        bounds : tuple of (float, float) or None
+            One closed interval per parameter, inside the layout's; None lifts it.
+        """
+        self._box = None if bounds is None else tuple(bounds)
+        self.release()
+        if self.likelihood is not None:
+            self.likelihood.restrict(bounds)
 
     @property
     def method(self) -> str:
@@ -345,8 +365,11 @@ class Problem(CachesAreNotState):
 
     def search_options(self, tol: float | None = None) -> SearchOptions:
         """The Newton adapter's options (:class:`~jitterid.estimation.search.SearchOptions`):
-        the parameters themselves, Newton decrement 1e-8 (or ``tol``)."""
-        return SearchOptions() if tol is None else SearchOptions(tol=tol)
+        the parameters themselves, Newton decrement 1e-8 (or ``tol``), and exhausted damping
+        below :data:`~jitterid.estimation.search.LIKELIHOOD_FLOOR` taken as the criterion's
+        rounding floor (the Newton-searched criteria are in units of a log-likelihood)."""
+        base = SearchOptions(rounding_floor=LIKELIHOOD_FLOOR)
+        return base if tol is None else base._replace(tol=tol)
 
     def objective(self, x: FloatArray) -> float:
         """The criterion value V(theta) of the chosen method."""

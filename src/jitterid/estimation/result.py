@@ -280,6 +280,24 @@ class FitResult:
                     f"next to its bound {b:g}: held fixed, so no standard error (the others "
                     "are conditional on it)"
                 )
+            elif (
+                isinstance(self.jitter_model, JitterFamily)
+                and i < len(self.layout.jitter)
+                and i != self.jitter_model.scale_index
+                and len(missing) < len(self.names)
+            ):
+                kinks = self.jitter_model.kinks[i]
+                if kinks and min(abs(v - k) for k in kinks) <= step:
+                    notes[n] = (
+                        "at a kink of the jitter family (no second derivative there): held "
+                        "fixed, so no standard error (the others are conditional on it)"
+                    )
+                else:
+                    notes[n] = (
+                        "not identified by the data (the criterion is flat along the family at "
+                        "a fixed jitter std): held fixed, so no standard error (the others, "
+                        "jitter_std_stderr included, are conditional on it)"
+                    )
             else:
                 notes[n] = "the information matrix is singular: the parameter is not identified"
         return notes

@@ -1265,6 +1265,46 @@ class JitterFamily(abc.ABC):
         """
         return None
 
+    @property
+    def kinks(self) -> tuple[tuple[float, ...], ...]:
+        """Where the law is not differentiable in each parameter: one tuple per parameter (in
+        :attr:`param_names` order) of the interior values, inside :attr:`bounds`, at which
+        the law's density (hence every criterion) has a kink in it; empty (the default)
+        for a parameter the law depends on smoothly.
+
+        Every search (:func:`jitterid.estimation.search.run_search`) searches such a
+        parameter piece by piece between consecutive kinks, where the criterion is smooth,
+        and stops at a kink only where neither neighbouring piece descends (the one-sided
+        derivatives bracket zero).
+        """
+        return tuple(() for _ in self.param_names)
+
+    def at_same_std(self, params: Sequence[float], index: int, value: float) -> tuple[float, ...]:
+        """``params`` with parameter ``index`` set to ``value`` and the scale parameter (if
+        any, and not ``index`` itself) set so that the law keeps its standard deviation: a
+        move along the family at a fixed std (the direction the data hardly tell, e.g. the
+        shape n of the family (26)). Clipped into :attr:`bounds`.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        index : int
+            The parameter to set.
+        value : float
+            Its new value.
+        """
+        out = [float(v) for v in params]
+        std = float(self.law(out).std)
+        out[index] = float(value)
+        k = self.scale_index
+        if k is not None and k != index and std > 0:
+            moved = float(self.law(out).std)
+            if moved > 0:
+                lo, hi = self.bounds[k]
+                out[k] = float(min(max(out[k] * std / moved, lo), hi))
+        return tuple(out)
+
     def start_for_std(self, std: float) -> tuple[float, ...]:
         """Parameters of a law of the family with standard deviation ``std`` (a start from a
         jitter std measured otherwise): the middle default start with its scale parameter
@@ -1448,6 +1488,13 @@ class SumOfUniformsFamily(JitterFamily):
 
     def _make(self, values: tuple[float, ...]) -> JitterLaw:
         return SumOfUniforms(values[0], values[1])
+
+    @property
+    def kinks(self) -> tuple[tuple[float, ...], ...]:
+        """``n`` at every integer inside ``(0, n_max)`` (see :class:`SumOfUniforms`: its
+        non-integer extension is continuous in ``n`` with a kink at each integer); ``a``
+        nowhere."""
+        return (tuple(float(k) for k in range(1, math.ceil(self.n_max))), ())
 
     def _starts(self, T: float) -> list[tuple[float, ...]]:
         top = min(T / 2.0, _upper(self.a_max, "a_max"))
