@@ -37,21 +37,47 @@ def data() -> ji.SampledData:
     return _table2_like(60, 2)
 
 
+@pytest.fixture(scope="module")
+def default(data: ji.SampledData) -> ji.FitResult:
+    """The referee: the default route (no start)."""
+    res = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml")
+    assert res.status is FitStatus.CONVERGED
+    return res
+
+
 def _same_optimum(a: ji.FitResult, b: ji.FitResult) -> None:
     assert np.allclose(a.x, b.x, rtol=1e-6, atol=0)
     assert a.cost == pytest.approx(b.cost, rel=1e-9)
 
 
-def test_ml_from_far_start_reaches_the_default_routes_optimum(data: ji.SampledData) -> None:
-    default = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml")
+def test_ml_from_far_start_reaches_the_default_routes_optimum(
+    data: ji.SampledData, default: ji.FitResult
+) -> None:
     far = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR)
-    assert default.status is FitStatus.CONVERGED
     assert far.status is FitStatus.CONVERGED, far.message
     _same_optimum(far, default)
     # the message says that the given start failed and how the fit got out
     assert "after a restart" in far.message
     assert "OPTIMISER_FAILED" in far.message
     assert "bcls fit from that start" in far.message
+
+
+def test_budget_used_up_is_restarted(data: ji.SampledData, default: ji.FitResult) -> None:
+    # each search has its own budget: 40 evaluations do not take the likelihood's search out
+    # of the flat region (MAX_EVALUATIONS), they do take BCLS to the optimum's basin
+    far = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=40)
+    assert far.status is FitStatus.CONVERGED, far.message
+    _same_optimum(far, default)
+    assert "MAX_EVALUATIONS" in far.message
+
+
+def test_restart_that_finds_nothing_lower_keeps_the_status(data: ji.SampledData) -> None:
+    # 10 evaluations per search: the restart ends no lower, the budget's status stays
+    far = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=10)
+    assert far.status is FitStatus.MAX_EVALUATIONS
+    assert "a restart from the bcls fit from that start ended" in far.message
+    assert "fit without start" in far.message
+    assert "larger max_nfev" in far.message
 
 
 def test_good_start_is_not_restarted(data: ji.SampledData) -> None:

@@ -38,7 +38,7 @@ __all__ = ["OutputErrorRoute", "noise_from_residuals"]
 FloatArray = NDArray[np.float64]
 _BAD = 1e10  # residual returned where the model cannot be evaluated (e.g. unstable)
 #: a search from a given start that ended so is restarted (OutputErrorRoute._restart)
-_STOPPED = (FitStatus.OPTIMISER_FAILED, FitStatus.NOT_FINITE)
+_STOPPED = (FitStatus.OPTIMISER_FAILED, FitStatus.NOT_FINITE, FitStatus.MAX_EVALUATIONS)
 
 
 def _oe_start(data: SampledData, structure: Model) -> tuple[FloatArray, float]:
@@ -303,8 +303,9 @@ class OutputErrorRoute:
         self, problem: Problem, failed: Outcome, x0: FloatArray, noise: float | None
     ) -> tuple[Problem, Outcome, int]:
         """After the search from a given start ``x0`` (search units) stopped without
-        converging (``failed``): the first stage from that start, and the estimator from its
-        estimate, as the default route does from its own starts. A criterion far from its
+        converging (``failed``: a status of ``_STOPPED``; the evaluation budget is per
+        search, as on the default route): the first stage from that start, and the estimator
+        from its estimate, as the default route does from its own starts. A criterion far from its
         optimum may give the estimator's search no way out (the exact likelihood with the
         poles far beyond the Nyquist rate is flat in them) where the first stage's least
         squares still finds the way. The lower criterion is kept; where the restart does not
@@ -316,6 +317,8 @@ class OutputErrorRoute:
             "fit without start (the default starts of Section 4.5), or from a start nearer "
             "the optimum"
         )
+        if failed.status is FitStatus.MAX_EVALUATIONS:
+            fix = f"{fix}, or with a larger max_nfev"
         pre = self.make(first, None)
         if first is est or not set(pre.names) <= set(problem.names):
             return problem, failed._replace(nfev=0, message=f"{failed.message}; {fix}"), 0
@@ -342,9 +345,13 @@ class OutputErrorRoute:
             tried = (
                 f"a restart from the {first.name} fit from that start ended "
                 f"{again[1].status.name} at a criterion no lower ({again[1].cost:.6g} against "
-                f"{failed.cost:.6g})"
+                f"{failed.cost:.6g}, with y and u scaled as in the search)"
             )
-        return problem, failed._replace(message=f"{failed.message}; {tried}: {fix}"), nfev
+        return (
+            problem,
+            failed._replace(message=f"{failed.message}; {tried}: {fix}", nfev=nfev),
+            nfev,
+        )
 
     # ------------------------------------------------------------------ 2. covariance
     def covariance(self, staged: Staged, cov_type: str) -> tuple[FloatArray, str | None, str]:
