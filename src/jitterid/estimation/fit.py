@@ -76,7 +76,13 @@ def fit(
         (for every method but ``ls`` and ``bcls``) a BCLS fit. A ``bcls`` :class:`FitResult`
         of the same data, structure and jitter model skips that first stage: fitting several
         methods to one data set then costs the BCLS search once, with results identical to
-        independent calls.
+        independent calls. On the white-noise route, a search from a given vector that stops
+        without converging (``OPTIMISER_FAILED``, ``NOT_FINITE``, ``MAX_EVALUATIONS``: e.g.
+        ``ml`` from poles far beyond the Nyquist rate, where the likelihood is flat in them)
+        is restarted: the first stage (BCLS) from that vector, then the method from its
+        estimate (each search with its own ``max_nfev``); the lower criterion is kept and the
+        message says so (or, where the restart finds nothing lower, that it was tried and
+        what to do).
     freqs : array_like, optional
         Frequency set in Hz. Default (24): f_k = k/(NT), k = 0..floor(N/2)-1.
     noise_std : float, optional

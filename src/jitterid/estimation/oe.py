@@ -31,11 +31,14 @@ from .resources import check_fit as check_fit_resources
 from .result import FitResult
 from .route import Staged
 from .search import Outcome, run_search
+from .status import FitStatus
 
 __all__ = ["OutputErrorRoute", "noise_from_residuals"]
 
 FloatArray = NDArray[np.float64]
 _BAD = 1e10  # residual returned where the model cannot be evaluated (e.g. unstable)
+#: a search from a given start that ended so is restarted (OutputErrorRoute._restart)
+_STOPPED = (FitStatus.OPTIMISER_FAILED, FitStatus.NOT_FINITE, FitStatus.MAX_EVALUATIONS)
 
 
 def _oe_start(data: SampledData, structure: Model) -> tuple[FloatArray, float]:
@@ -243,8 +246,12 @@ class OutputErrorRoute:
                 raise ValueError(
                     f"start must have {len(problem.names)} values {problem.names}; got {x0.size}"
                 )
-            problem, best = run_search(problem, self.scaling.to_scaled(x0), max_nfev)
+            x0 = self.scaling.to_scaled(x0)
+            problem, best = run_search(problem, x0, max_nfev)
             nfev = best.nfev
+            if best.status in _STOPPED:
+                problem, best, n = self._restart(problem, best, x0, noise)
+                nfev += n
         else:
             pre = self.make(first, None)
             found: Outcome | None = None
@@ -283,27 +290,92 @@ class OutputErrorRoute:
             best = found
             problem = pre
             if not single:
-                x_pre = best.x
                 if plug and noise is None:
-                    noise = noise_from_residuals(pre, x_pre)
-                problem = self.make(est, noise if est.needs_noise else None)
-                if problem.estimates_noise and rms is None:
-                    rms = self.oe()[1]
-                if problem.estimates_noise:
-                    noise0 = est.noise_start(rms, lambda: noise_from_residuals(pre, x_pre))
-                    x0 = np.r_[x_pre, noise0]
-                else:
-                    x0 = x_pre
-                if not est.least_squares and not est.scores_own_starts:
-                    x0, scored = _off_zero_jitter(problem, x0, self.jstarts)
-                    nfev += scored
-                problem, best = run_search(problem, x0, max_nfev)
-                nfev += best.nfev
+                    noise = noise_from_residuals(pre, best.x)
+                problem, best, n = self._second_stage(pre, best.x, noise, rms)
+                nfev += n
         return Staged(
             problem,
             best._replace(nfev=nfev),
             noise,
             {"single": single, "start": start, "prefit": prefit},
+        )
+
+    def _second_stage(
+        self, pre: Problem, x_pre: FloatArray, noise: float | None, rms: float | None
+    ) -> tuple[Problem, Outcome, int]:
+        """The estimator searched from the first stage's estimate ``x_pre`` (Section 4.5):
+        an estimated noise std starts where :meth:`Estimator.noise_start` says, and a
+        criterion searched by Newton steps is moved off a jitter scale collapsed onto zero
+        (:func:`_off_zero_jitter`). Returns the problem, the outcome and the evaluations
+        used (the scored starts included)."""
+        est = self.estimator
+        problem = self.make(est, noise if est.needs_noise else None)
+        if problem.estimates_noise:
+            if rms is None:
+                rms = self.oe()[1]
+            noise0 = est.noise_start(rms, lambda: noise_from_residuals(pre, x_pre))
+            x0 = np.r_[x_pre, noise0]
+        else:
+            x0 = x_pre
+        nfev = 0
+        if not est.least_squares and not est.scores_own_starts:
+            x0, nfev = _off_zero_jitter(problem, x0, self.jstarts)
+        problem, best = run_search(problem, x0, self.max_nfev)
+        return problem, best, nfev + best.nfev
+
+    def _restart(
+        self, problem: Problem, failed: Outcome, x0: FloatArray, noise: float | None
+    ) -> tuple[Problem, Outcome, int]:
+        """After the search from a given start ``x0`` (search units) stopped without
+        converging (``failed``: a status of ``_STOPPED``; the evaluation budget is per
+        search, as on the default route): the first stage from that start, and the estimator
+        from its estimate, as the default route does from its own starts. A criterion far from its
+        optimum may give the estimator's search no way out (the exact likelihood with the
+        poles far beyond the Nyquist rate is flat in them) where the first stage's least
+        squares still finds the way. The lower criterion is kept; where the restart does not
+        lower it, the failure stays, its message naming the fix. Returns the problem, the
+        outcome (``nfev``: the restart's evaluations only) and those evaluations."""
+        est = self.estimator
+        first = est.first_stage()
+        fix = (
+            "fit without start (the default starts of Section 4.5), or from a start nearer "
+            "the optimum"
+        )
+        if failed.status is FitStatus.MAX_EVALUATIONS:
+            fix = f"{fix}, or with a larger max_nfev"
+        pre = self.make(first, None)
+        if first is est or not set(pre.names) <= set(problem.names):
+            return problem, failed._replace(nfev=0, message=f"{failed.message}; {fix}"), 0
+        x_first = np.array([x0[problem.names.index(name)] for name in pre.names])
+        _, found = run_search(pre, x_first, self.max_nfev)
+        nfev = found.nfev
+        again: tuple[Problem, Outcome] | None = None
+        if np.isfinite(found.cost):
+            again_problem, again_best, n = self._second_stage(pre, found.x, noise, None)
+            nfev += n
+            again = again_problem, again_best
+        why = f"the search from the given start stopped ({failed.status.name}: {failed.message})"
+        if again is not None and again[1].cost < failed.cost:
+            _release(problem)
+            msg = (
+                f"{again[1].message} (after a restart: {why}; the {first.name} fit from that "
+                f"start, {found.status.name}, started the {est.name} search)"
+            )
+            return again[0], again[1]._replace(message=msg, nfev=nfev), nfev
+        if again is None:
+            tried = f"the {first.name} fit from that start ended {found.status.name}"
+        else:
+            _release(again[0])
+            tried = (
+                f"a restart from the {first.name} fit from that start ended "
+                f"{again[1].status.name} at a criterion no lower ({again[1].cost:.6g} against "
+                f"{failed.cost:.6g}, with y and u scaled as in the search)"
+            )
+        return (
+            problem,
+            failed._replace(message=f"{failed.message}; {tried}: {fix}", nfev=nfev),
+            nfev,
         )
 
     # ------------------------------------------------------------------ 2. covariance
@@ -423,6 +495,13 @@ class OutputErrorRoute:
             "structure": structure,
             "jitter_model": self.jitter,
         }
+
+
+def _release(problem: Problem) -> None:
+    """Drop a discarded search's caches and its likelihood's rule (if any)."""
+    problem.release()
+    if problem.likelihood is not None:
+        problem.likelihood.release()
 
 
 def _screen(problem: Problem) -> Callable[[FloatArray], FloatArray] | None:
