@@ -60,3 +60,16 @@ def test_report_flags_a_difference_from_the_paper_beyond_monte_carlo_error():
     assert "BCLS std" not in flagged
     assert not re.search(r"(?<!BC)LS (mean|std)", flagged)
     assert "| LS (`ls`) | mean, paper | 5.8468 |" in text
+
+
+def test_report_header_counts_how_every_estimators_fits_ended():
+    # issue 24: a reader sees over how many fits each row is before reading it
+    exp = dataclasses.replace(tiny_experiment(), runs=10)
+    est = _fake(exp, {"ls": np.ones(5), "bcls": np.ones(4)})
+    est.append(
+        dataclasses.replace(est[-1], realization=7, success=False, status="OPTIMISER_FAILED")
+    )
+    text = markdown_report(exp, est, "jitterid test")
+    line = next(ln for ln in text.splitlines() if ln.startswith("- How the fits ended"))
+    assert "CONVERGED 5 (of 5)" in line
+    assert "CONVERGED 4, OPTIMISER_FAILED 1 (of 5)" in line

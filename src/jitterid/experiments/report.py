@@ -308,6 +308,22 @@ def _case_block(
     return [*lines, ""]
 
 
+def _status_counts(exp: Experiment, estimates: Sequence[Estimate]) -> list[str]:
+    """One line: how each estimator's fits ended over every case (status: count), so that a
+    reader sees at once over how many fits the statistics below are."""
+    per: dict[str, dict[str, int]] = {m: {} for m in exp.methods}
+    for e in estimates:
+        if e.method in per and e.realization < exp.runs:
+            per[e.method][e.status] = per[e.method].get(e.status, 0) + 1
+    parts = []
+    for m, counts in per.items():
+        if counts:
+            total = sum(counts.values())
+            ended = ", ".join(f"{k} {v}" for k, v in sorted(counts.items(), key=lambda kv: -kv[1]))
+            parts.append(f"{md_text(exp.label(m))} {ended} (of {total})")
+    return ["- How the fits ended, all cases: " + "; ".join(parts) + "."] if parts else []
+
+
 def markdown_report(
     exp: Experiment, estimates: Sequence[Estimate], command: str, wall_note: str = ""
 ) -> str:
@@ -344,6 +360,7 @@ def markdown_report(
             if exp.noise is not None
             else []
         ),
+        *_status_counts(exp, estimates),
         (
             "- Statistics over the converged fits; SEM = std/√n. ⚑ marks a difference from the "
             "paper beyond Monte Carlo error (|z| > 3 with both studies' standard errors; the paper "
