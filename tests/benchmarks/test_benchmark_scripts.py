@@ -248,3 +248,15 @@ def test_ml_benchmark_script_runs():
         timeout=300,
     ).stdout
     assert "fit(method='ml'), end to end" in out
+
+
+def test_family_benchmark_runs_on_one_record():
+    out = subprocess.run(
+        [sys.executable, str(BENCH / "bench_family.py"), "--runs", "1", "--methods", "bcls"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout
+    assert "bcls      known law" in out, out
+    assert out.count("bcls ") == 4, out
