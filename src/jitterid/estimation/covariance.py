@@ -82,10 +82,12 @@ def at_kink(x: FloatArray, kinks: tuple[tuple[float, ...], ...]) -> NDArray[np.b
 
 def unidentified_shapes(problem: Problem, x: FloatArray, cov: FloatArray) -> NDArray[np.bool_]:
     """The jitter family's shape parameters (all but its scale, in a family of two or more)
-    that the data do not identify: a standard error beyond the parameter's admissible range,
-    or none where the others have one (the information is singular in it alone). The
-    paper's Table 1: the criteria tell the jitter's std well and the shape n at that std
-    hardly at all (BCLS: n's error bar 1e3-1e5 on [0, 20])."""
+    to hold fixed where the data do not tell the family's parameters: one of them (shape or
+    scale) with a standard error beyond its admissible range, or none where the others have
+    one. The paper's Table 1: the criteria tell the jitter's std well and the shape n at
+    that std hardly at all (BCLS: n's error bar 1e3-1e5 on [0, 20]); along that direction
+    the scale moves with the shape, so a's error bar can exceed its range as well (gaussian:
+    0.7 on (0, 0.5]), which holding n fixed resolves."""
     out = np.zeros(x.size, dtype=bool)
     fam = problem.jitter
     nj = problem.n_jitter
@@ -94,12 +96,16 @@ def unidentified_shapes(problem: Problem, x: FloatArray, cov: FloatArray) -> NDA
     se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
     lo, hi = np.array(problem.layout.bounds, dtype=float).reshape(-1, 2).T
     rest = np.isfinite(se)
+    # held on purpose: on or next to a bound, at a kink (no error bar by design)
+    held = ~_steps(x, problem.layout.bounds)[1] | at_kink(x, problem.layout.kinks)
+    told = False  # a jitter parameter the data do not tell (its error bar beyond its range)
     for i in range(nj):
-        if i == fam.scale_index:
-            continue
         wide = np.isfinite(se[i]) and se[i] > hi[i] - lo[i]
-        missing = not np.isfinite(se[i]) and np.any(rest[np.arange(x.size) != i])
-        out[i] = wide or missing
+        missing = not np.isfinite(se[i]) and not held[i] and np.any(rest[np.arange(x.size) != i])
+        told = told or wide or missing
+    if told:  # along the family at a fixed std the scale moves with the shape: hold the shape
+        for i in range(nj):
+            out[i] = i != fam.scale_index
     return out
 
 
