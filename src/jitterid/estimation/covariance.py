@@ -102,7 +102,7 @@ def unidentified_shapes(problem: Problem, x: FloatArray, cov: FloatArray) -> NDA
     for i in range(nj):
         wide = np.isfinite(se[i]) and se[i] > hi[i] - lo[i]
         missing = not np.isfinite(se[i]) and not held[i] and np.any(rest[np.arange(x.size) != i])
-        told = told or wide or missing
+        told = told or bool(wide) or bool(missing)
     if told:  # along the family at a fixed std the scale moves with the shape: hold the shape
         for i in range(nj):
             out[i] = i != fam.scale_index

@@ -30,7 +30,7 @@ from .problem import Problem, default_frequencies, free_moment_plans
 from .resources import check_fit as check_fit_resources
 from .result import FitResult
 from .route import Staged
-from .search import Outcome, run_search
+from .search import Outcome, criterion_or_inf, run_search
 from .status import FitStatus
 
 __all__ = ["OutputErrorRoute", "noise_from_residuals"]
@@ -101,16 +101,7 @@ def noise_from_residuals(first: Problem, x: FloatArray) -> float:
 def _best_scored(problem: Problem, starts: Sequence[FloatArray]) -> FloatArray:
     """The start with the lowest criterion (one evaluation each; the first where none can
     be evaluated)."""
-
-    def score(x: FloatArray) -> float:
-        with np.errstate(all="ignore"):
-            try:
-                v = float(problem.objective(x))
-            except (ValueError, np.linalg.LinAlgError):
-                return np.inf
-        return v if np.isfinite(v) else np.inf
-
-    values = [score(x) for x in starts]
+    values = [criterion_or_inf(problem, x) for x in starts]
     return starts[int(np.argmin(values))] if np.isfinite(min(values)) else starts[0]
 
 

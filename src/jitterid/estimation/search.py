@@ -43,6 +43,7 @@ __all__ = [
     "Outcome",
     "SearchOptions",
     "SearchProblem",
+    "criterion_or_inf",
     "damped_step",
     "evaluator",
     "newton_search",
@@ -207,6 +208,17 @@ def _piece(v: float, cuts: FloatArray) -> tuple[float, float]:
     return float(cuts[j]), float(cuts[j + 1])
 
 
+def criterion_or_inf(problem: SearchProblem, x: FloatArray) -> float:
+    """The problem's criterion at ``x``, +inf where it cannot be evaluated (a model that
+    raises, a non-finite value): for scoring candidate points without a search."""
+    with np.errstate(all="ignore"):
+        try:
+            v = float(problem.objective(x))
+        except (ValueError, np.linalg.LinAlgError):
+            return np.inf
+    return v if np.isfinite(v) else np.inf
+
+
 def _scan(
     problem: SearchProblem, x: FloatArray, active: dict[int, FloatArray]
 ) -> tuple[FloatArray, int]:
@@ -226,12 +238,7 @@ def _scan(
     def value(cand: FloatArray) -> float:
         nonlocal n
         n += 1
-        with np.errstate(all="ignore"):
-            try:
-                v = float(problem.objective(cand))
-            except (ValueError, np.linalg.LinAlgError):
-                return np.inf
-        return v if np.isfinite(v) else np.inf
+        return criterion_or_inf(problem, cand)
 
     best_x, best = x, value(x)
     for i, cuts in active.items():
