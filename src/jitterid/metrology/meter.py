@@ -23,7 +23,7 @@ estimated (the JOE structure (2c) with a signal model, the paper's (1a)). In ord
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +53,7 @@ from .converter import ConverterFigures, converter_figures  # meterio (issue 26,
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .reading import summary_extras  # meterio (issue 26, item 5)
+from .sinelik import SineLikelihood, fit_sine_ml, sine_ml_applies  # issue 26, item 2
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 
 __all__ = [
@@ -462,25 +463,33 @@ def _fit_one(
         x0 = np.r_[x0[:-1], max(float(x0[-1]), lo_noise)]
         cands = [x0]
         cands.insert(0, xg)
-    lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
+    # a pure tone under a Gaussian, uniform or dual-Dirac law: the structured likelihood
+    # (jitterid.metrology.sinelik, O(N)); else the generic one
+    if sine_ml_applies(model, family):
+        slik = SineLikelihood(data.y, data.T, family)
+        neg_ll: Callable[[FloatArray], float] = lambda c: -slik.loglik(c)  # noqa: E731
+
+        def ml(x: FloatArray) -> FitResult:
+            return fit_sine_ml(data.y, data.T, model, family, x, noise_floor=lo_noise)
+    else:
+        lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
+        neg_ll = lambda c: -lik.loglik(c, data.y)  # noqa: E731
+
+        def ml(x: FloatArray) -> FitResult:
+            return fit(data, model, family, method="ml", start=x)
+
     scored: list[tuple[float, int, FloatArray]] = []
     for c in cands:
         try:
-            scored.append((-lik.loglik(c, data.y), len(scored), c))
+            scored.append((neg_ll(c), len(scored), c))
         except ValueError:
             continue
     best = min(scored)[2] if scored else xg
-    out = fit(data, model, family, method="ml", start=best)
+    out = ml(best)
     if other is not None:
         sine, std, noise = other
         lo = data.resolution or 0.0
-        alt = fit(
-            data,
-            model,
-            family,
-            method="ml",
-            start=np.r_[family.start_for_std(std), sine, max(noise, lo)],
-        )
+        alt = ml(np.r_[family.start_for_std(std), sine, max(noise, lo)])
         if np.isfinite(alt.cost) and (not np.isfinite(out.cost) or alt.cost < out.cost):
             out = alt
     return out

@@ -87,11 +87,14 @@ _CUTS = np.array([-1.0, -1.0 / 3.0, 0.0, 1.0 / 3.0, 1.0])  # panel edges, in win
 _DROP = 40.0  # pieces this far (in ln) below the sample's largest are dropped
 _GAUSS_CUT = 8.5  # a Gaussian's support, in std (the law's pdf is 0 beyond)
 _NEWTON = 6  # Newton steps for the mode
+_TRACE = False
+_DECREMENT = 1e-4  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
 _AGREE = 1e-9  # two rules of a piece agreeing within this (in ln) are accepted
 _FINE = 16  # equal panels of the third rule
-_CHUNK = 1 << 14  # samples per chunk
+_CHUNK = 1 << 12  # samples per chunk (its node arrays stay in cache)
 _LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(_ORDER)
+_GL_LOGW = np.log(_GL_W)
 
 
 def sine_ml_applies(model: object, family: object) -> bool:
@@ -290,9 +293,9 @@ class SineLikelihood:
 
     # ------------------------------------------------------------------ information
     def observed_information(self, x: ArrayLike, free: NDArray[np.bool_] | None = None) -> FloatArray:
-        """-d^2 ln L / dx^2 by central differences of the analytic score (steps 1e-3 of
-        each parameter's standard error from the score's outer product, kept inside the
-        bounds by shifting the pair); rows and columns of parameters not ``free`` are 0.
+        """-d^2 ln L / dx^2 by forward differences of the analytic score (steps 1e-3 of
+        each parameter's standard error from the score's outer product, backward at an
+        upper bound), symmetrised; rows and columns of parameters not ``free`` are 0.
 
         Parameters
         ----------
@@ -307,19 +310,13 @@ class SineLikelihood:
         free = np.ones(P, bool) if free is None else np.asarray(free, bool)
         lo, hi = self.bounds()
         H = np.zeros((P, P))
+        g0 = self.scores(xv)[1]
         for i in np.flatnonzero(free):
             h = 1e-3 / math.sqrt(max(opg[i, i], 1e-300))
             h = max(h, 1e-12 * max(abs(xv[i]), 1e-300))
-            up, down = xv.copy(), xv.copy()
-            up[i] += h
-            down[i] -= h
-            if up[i] > hi[i]:
-                up[i], down[i] = hi[i], hi[i] - 2 * h
-            if down[i] < lo[i]:
-                up[i], down[i] = lo[i] + 2 * h, lo[i]
-            gu = self.scores(up)[1]
-            gd = self.scores(down)[1]
-            H[i] = -(gu - gd) / (up[i] - down[i])
+            up = xv.copy()
+            up[i] = xv[i] + h if xv[i] + h <= hi[i] else xv[i] - h
+            H[i] = -(self.scores(up)[1] - g0) / (up[i] - xv[i])
         H = 0.5 * (H + H.T)
         H[~free] = 0.0
         H[:, ~free] = 0.0
@@ -437,20 +434,20 @@ def _chunk(
     # is not log-concave: near a turning point the Gaussian factor is not), the piece is
     # integrated again with the panels at those moments; where the two values differ by
     # more than _AGREE, a third time on _FINE equal panels over both windows.
-    psi, wts = _nodes(m, width, lo, hi)
-    ln = _log_integrand(psi, wts, yy, c, A, s2, cc, cs, uni, cw)
+    psi, lw = _nodes(m, width, lo, hi)
+    ln = _log_integrand(psi, lw, yy, c, A, s2, cc, cs, uni, cw)
     groups: list[tuple[NDArray[np.intp], FloatArray, FloatArray, FloatArray]] = []
     mean, std = _piece_moments(psi, ln)
     off = (np.abs(mean - m) > 0.25 * width) | (std < 0.8 * width) | (std > 1.25 * width)
     off &= np.isfinite(mean) & (std > 0)
     j = np.flatnonzero(off)
     if j.size:
-        psi2, wts2 = _nodes(mean[j], std[j], lo[j], hi[j])
-        ln2 = _log_integrand(psi2, wts2, yy[j], c, A, s2, cc[j], cs[j], uni[j], cw[j])
+        psi2, lw2 = _nodes(mean[j], std[j], lo[j], hi[j])
+        ln2 = _log_integrand(psi2, lw2, yy[j], c, A, s2, cc[j], cs[j], uni[j], cw[j])
         i1, i2 = _lse(ln[j]), _lse(ln2)
         agree = np.abs(i1 - i2) <= _AGREE
         ja, jd = j[agree], j[~agree]
-        groups.append((ja, psi2[agree], wts2[agree], ln2[agree]))
+        groups.append((ja, psi2[agree], lw2[agree], ln2[agree]))
         if jd.size:
             reach_lo = np.maximum(
                 lo[jd], np.minimum(m[jd] - _WINDOW * width[jd], mean[jd] - _WINDOW * std[jd])
@@ -458,11 +455,14 @@ def _chunk(
             reach_hi = np.minimum(
                 hi[jd], np.maximum(m[jd] + _WINDOW * width[jd], mean[jd] + _WINDOW * std[jd])
             )
-            psi3, wts3 = _even_nodes(reach_lo, reach_hi)
-            ln3 = _log_integrand(psi3, wts3, yy[jd], c, A, s2, cc[jd], cs[jd], uni[jd], cw[jd])
-            groups.append((jd, psi3, wts3, ln3))
+            psi3, lw3 = _even_nodes(reach_lo, reach_hi)
+            ln3 = _log_integrand(psi3, lw3, yy[jd], c, A, s2, cc[jd], cs[jd], uni[jd], cw[jd])
+            groups.append((jd, psi3, lw3, ln3))
     keep1 = np.flatnonzero(~off)
-    groups.insert(0, (keep1, psi[keep1], wts[keep1], ln[keep1]))
+    if keep1.size == idx.size:
+        groups.insert(0, (keep1, psi, lw, ln))
+    else:
+        groups.insert(0, (keep1, psi[keep1], lw[keep1], ln[keep1]))
     top = np.full(n, -np.inf)
     for g_j, _, _, g_ln in groups:
         if g_j.size:
@@ -512,23 +512,29 @@ def _score_group(
     posterior weights ``post`` at their nodes ``psi``."""
     n = S.shape[0]
     s2 = sigma * sigma
-    sn, co = np.sin(psi), np.cos(psi)
-    e = yy[:, None] - c - A * sn
-    D = e * A * co / s2
-    tau = (psi - th[:, None]) / w  # the node's jitter (s)
-    kT = (k[gidx] * T)[:, None]
-
-    def acc(col: int, vals: FloatArray) -> None:
-        S[:, col] += np.bincount(gidx, weights=(post * vals).sum(axis=1), minlength=n)
-
-    acc(0, D * w * (tau - cen[:, None]) / scale[:, None])
+    sn = np.sin(psi)
+    e = A * sn
+    e = (yy[:, None] - c) - e
+    pe = post * e
+    pd = pe * np.cos(psi)
+    pd *= A / s2  # post x D
+    tau = psi - th[:, None]
+    tau /= w  # the node's jitter (s)
+    sum_pd = pd.sum(axis=1)
+    pd_tau = np.einsum("ij,ij->i", pd, tau)
+    sum_p = post.sum(axis=1)
+    cols = [w * (pd_tau - cen * sum_pd) / scale]
     if nj == 2:
-        acc(1, D * w * 0.5 * sgn[:, None])
-    acc(nj, e * sn / s2)
-    acc(nj + 1, D)
-    acc(nj + 2, D * 2 * math.pi * (kT + tau))
-    acc(nj + 3, e / s2)
-    acc(nj + 4, e * e / (s2 * sigma) - 1.0 / sigma)
+        cols.append(w * 0.5 * sgn * sum_pd)
+    cols += [
+        np.einsum("ij,ij->i", pe, sn) / s2,
+        sum_pd,
+        2 * math.pi * (pd_tau + k[gidx] * T * sum_pd),
+        pe.sum(axis=1) / s2,
+        np.einsum("ij,ij->i", pe, e) / (s2 * sigma) - sum_p / sigma,
+    ]
+    for col, v in enumerate(cols):
+        S[:, col] += np.bincount(gidx, weights=v, minlength=n)
 
 
 def _lse(ln: FloatArray) -> FloatArray:
@@ -540,31 +546,35 @@ def _lse(ln: FloatArray) -> FloatArray:
 
 
 def _even_nodes(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Gauss-Legendre nodes of _FINE equal panels over [lo, hi], shape (pieces, _FINE _ORDER)."""
+    """Gauss-Legendre nodes and ln weights of _FINE equal panels over [lo, hi]."""
     edges = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, _FINE + 1)[None, :]
-    half = 0.5 * (edges[:, 1:] - edges[:, :-1])
-    mid = 0.5 * (edges[:, 1:] + edges[:, :-1])
-    psi = (mid[:, :, None] + half[:, :, None] * _GL_X[None, None, :]).reshape(lo.size, -1)
-    wts = (half[:, :, None] * _GL_W[None, None, :]).reshape(lo.size, -1)
-    return psi, wts
+    return _panel_nodes(edges)
+
 
 def _nodes(
     m: FloatArray, width: FloatArray, lo: FloatArray, hi: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Gauss-Legendre nodes and weights of the four panels m + K width [-1, -1/3, 0, 1/3, 1]
-    cut to [lo, hi], shape (pieces, 4 _ORDER)."""
+    """Gauss-Legendre nodes and ln weights of the four panels m + K width [-1, -1/3, 0,
+    1/3, 1] cut to [lo, hi], shape (pieces, 4 _ORDER) (-inf on empty panels)."""
     edges = m[:, None] + _WINDOW * width[:, None] * _CUTS[None, :]
     edges = np.clip(edges, lo[:, None], hi[:, None])
+    return _panel_nodes(edges)
+
+
+def _panel_nodes(edges: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Nodes and ln weights of Gauss-Legendre panels between consecutive ``edges``."""
     half = 0.5 * (edges[:, 1:] - edges[:, :-1])
     mid = 0.5 * (edges[:, 1:] + edges[:, :-1])
-    psi = (mid[:, :, None] + half[:, :, None] * _GL_X[None, None, :]).reshape(m.size, -1)
-    wts = (half[:, :, None] * _GL_W[None, None, :]).reshape(m.size, -1)
-    return psi, wts
+    psi = (mid[:, :, None] + half[:, :, None] * _GL_X[None, None, :]).reshape(edges.shape[0], -1)
+    with np.errstate(divide="ignore"):
+        lh = np.log(half)
+    lw = (lh[:, :, None] + _GL_LOGW[None, None, :]).reshape(edges.shape[0], -1)
+    return psi, lw
 
 
 def _log_integrand(
     psi: FloatArray,
-    wts: FloatArray,
+    lw: FloatArray,
     yy: FloatArray,
     c: float,
     A: float,
@@ -576,14 +586,19 @@ def _log_integrand(
 ) -> FloatArray:
     """ln(weight x integrand of (S1) without its 1/(sqrt(2 pi) sigma)) at the nodes; -inf
     at the nodes of empty panels."""
-    e = yy[:, None] - c - A * np.sin(psi)
-    ok = wts > 0
-    ln = (
-        -0.5 * e * e / s2
-        + _log_prior(psi - cc[:, None], cs[:, None], uni[:, None], cw[:, None])
-        + np.log(np.where(ok, wts, 1.0))
-    )
-    return np.where(ok, ln, -np.inf)
+    e = A * np.sin(psi)
+    np.subtract(yy[:, None] - c, e, out=e)
+    ln = e * e
+    ln *= -0.5 / s2
+    q = np.where(uni, 0.0, 0.5 / cs**2)
+    const = np.log(cw) + np.where(uni, -np.log(2 * cs), -np.log(cs) - _LN_SQRT_2PI)
+    u = psi - cc[:, None]
+    u *= u
+    u *= q[:, None]
+    ln -= u
+    ln += lw
+    ln += const[:, None]
+    return ln
 
 
 def _piece_moments(psi: FloatArray, ln: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -653,7 +668,24 @@ def fit_sine_ml(
     if x[lik.nj] < 0:
         x[lik.nj] = -x[lik.nj]
         x[lik.nj + 1] += math.pi
-    ll, g, opg = lik.scores(x)
+    # the search runs in v: ln of the scales (the jitter's first parameter, the noise std:
+    # ln L is far closer to quadratic in them), the others as they are
+    logs = np.zeros(x.size, bool)
+    logs[0] = logs[-1] = True
+    vlo = np.where(logs, np.log(np.maximum(lo, 1e-300)), lo)
+    vhi = np.where(logs, np.log(np.where(np.isfinite(hi), hi, 1e300)), hi)
+
+    def to_x(v: FloatArray) -> FloatArray:
+        return np.where(logs, np.exp(np.where(logs, v, 0.0)), v)
+
+    def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray]:
+        ll_, g_, opg_ = lik.scores(xx)
+        jac = np.where(logs, xx, 1.0)
+        return ll_, g_ * jac, opg_ * np.outer(jac, jac)
+
+    v = np.where(logs, np.log(np.maximum(x, 1e-300)), x)
+    x = to_x(v)
+    ll, g, opg = evaluate(x)
     nfev = 1
     lam = 1e-3
     status, why = FitStatus.MAX_EVALUATIONS, f"the {max_iter} steps ran out"
@@ -661,11 +693,12 @@ def fit_sine_ml(
         status, why = FitStatus.NOT_FINITE, "the likelihood is not finite at the start"
         max_iter = 0
     for _ in range(max_iter):
-        on_lo = (x <= lo) & (g < 0)
-        on_hi = (x >= hi) & (g > 0)
-        free = ~(on_lo | on_hi)
-        d = np.zeros_like(x)
-        H = opg[np.ix_(free, free)]
+        free = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
+        d = np.zeros_like(v)
+        # the scores' covariance (the outer product less the mean's: far from the optimum
+        # the mean score dominates the outer product and BHHH would crawl)
+        cen = opg - np.outer(g, g) / lik.N
+        H = cen[np.ix_(free, free)]
         diag = np.maximum(np.diag(H), 1e-300)
         gain = math.inf
         accepted = False
@@ -675,15 +708,16 @@ def fit_sine_ml(
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
-            xn = np.clip(x + d, lo, hi)
+            vn = np.clip(v + d, vlo, vhi)
+            xn = to_x(vn)
             if xn[lik.nj + 2] <= 0:  # frequency stays positive
                 lam *= 10
                 continue
-            lln, gn, opgn = lik.scores(xn)
+            lln, gn, opgn = evaluate(xn)
             nfev += 1
             if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
                 gain = lln - ll
-                x, ll, g, opg = xn, lln, gn, opgn
+                v, x, ll, g, opg = vn, xn, lln, gn, opgn
                 lam = max(lam / 10.0, 1e-9)
                 accepted = True
                 break
@@ -692,14 +726,20 @@ def fit_sine_ml(
             status, why = FitStatus.CONVERGED, "no step raises the likelihood further"
             break
         # the Newton decrement on the outer product: the predicted further gain
-        fr = ~(((x <= lo) & (g < 0)) | ((x >= hi) & (g > 0)))
+        fr = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
         try:
             dec = float(g[fr] @ np.linalg.solve(opg[np.ix_(fr, fr)], g[fr]))
         except np.linalg.LinAlgError:
             dec = math.inf
-        if dec < 1e-8 and gain < 1e-6:
-            status, why = FitStatus.CONVERGED, "the predicted gain in ln L is below 1e-8"
+        if _TRACE:
+            print("it", ll, gain, dec, lam, nfev)
+        if dec < _DECREMENT and gain < 10 * _DECREMENT:
+            status, why = FitStatus.CONVERGED, (
+                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 1 % of the "
+                "standard errors)"
+            )
             break
+    x = np.clip(x, lo, hi)
     at_bound = (x <= lo * (1 + 1e-12) + 1e-300) | (x >= hi)
     at_bound[lik.nj] = False  # the amplitude's floor is not a bound of the model
     free = ~at_bound
@@ -708,7 +748,7 @@ def fit_sine_ml(
     note = ""
     if status is not FitStatus.NOT_FINITE:
         H = lik.observed_information(x, free)
-        nfev += 2 * int(free.sum())
+        nfev += 2 + int(free.sum())
         Hf = H[np.ix_(free, free)]
         try:
             np.linalg.cholesky(Hf)
