@@ -51,7 +51,9 @@ score).
 
 Noise-free records (sigma -> 0). (S1) holds for every sigma > 0 and the rule scales with
 sigma (the window shrinks with the Gaussian factor), so a noise std of 1e-9 of the
-amplitude costs no more than one of 1e-2. At sigma = 0 the density is
+amplitude costs no more than one of 1e-2. (Below about 1e-9 A double precision limits ln p:
+the samples and the phases carry ~1e-16 relative rounding, i.e. 1e-16 A / sigma of a
+noise std.) At sigma = 0 the density is
 p(y) = sum_b p_u(psi_b - theta) / (A sqrt(1 - z^2)) (tests: the rule tends to it): a
 likelihood with a moving support (|z| <= 1) and unbounded at the turning points, not a
 regular one, so the noise std is searched down to a floor only, ``noise_floor``: the
@@ -420,6 +422,9 @@ def _chunk(
     d2 = (-(A * co) ** 2 - e * A * sn) / s2 - prec_p
     curv = np.where(d2 < 0, -d2, 1.0 / p_lin**2)
     width = 1.0 / np.sqrt(curv + d1 * d1)
+    # the window's reach: where l falls by K^2 / 2 below the mode on its quadratic model
+    # (K widths at an interior mode; at an edge where l falls linearly, K^2 / (2 |l'|))
+    reach = _WINDOW**2 / (np.abs(d1) + np.sqrt(d1 * d1 + _WINDOW**2 * curv))
     # the log prior (phase density) and log integrand at the mode: the piece's Laplace mass
     lp_m = _log_prior(m - cc, cs, uni, cw)
     mass = -0.5 * e * e / s2 + lp_m + np.log(width)
@@ -427,14 +432,15 @@ def _chunk(
     np.maximum.at(best, idx, mass)
     keep = mass >= best[idx] - _DROP
     if not np.all(keep):
-        idx, ci, lo, hi, m, width = idx[keep], ci[keep], lo[keep], hi[keep], m[keep], width[keep]
+        idx, ci, lo, hi, m = idx[keep], ci[keep], lo[keep], hi[keep], m[keep]
+        width, reach = width[keep], reach[keep]
         yy, th, cw, cc, cs, uni = yy[keep], th[keep], cw[keep], cc[keep], cs[keep], uni[keep]
     # ---- the nodes: four panels of the Laplace window cut to the piece. Where the nodes'
     # own posterior mean and std disagree with the Laplace centre and width (a piece that
     # is not log-concave: near a turning point the Gaussian factor is not), the piece is
     # integrated again with the panels at those moments; where the two values differ by
     # more than _AGREE, a third time on _FINE equal panels over both windows.
-    psi, lw = _nodes(m, width, lo, hi)
+    psi, lw = _nodes(m, reach, lo, hi)
     ln = _log_integrand(psi, lw, yy, c, A, s2, cc, cs, uni, cw)
     groups: list[tuple[NDArray[np.intp], FloatArray, FloatArray, FloatArray]] = []
     mean, std = _piece_moments(psi, ln)
@@ -442,7 +448,7 @@ def _chunk(
     off &= np.isfinite(mean) & (std > 0)
     j = np.flatnonzero(off)
     if j.size:
-        psi2, lw2 = _nodes(mean[j], std[j], lo[j], hi[j])
+        psi2, lw2 = _nodes(mean[j], _WINDOW * std[j], lo[j], hi[j])
         ln2 = _log_integrand(psi2, lw2, yy[j], c, A, s2, cc[j], cs[j], uni[j], cw[j])
         i1, i2 = _lse(ln[j]), _lse(ln2)
         agree = np.abs(i1 - i2) <= _AGREE
@@ -450,10 +456,10 @@ def _chunk(
         groups.append((ja, psi2[agree], lw2[agree], ln2[agree]))
         if jd.size:
             reach_lo = np.maximum(
-                lo[jd], np.minimum(m[jd] - _WINDOW * width[jd], mean[jd] - _WINDOW * std[jd])
+                lo[jd], np.minimum(m[jd] - reach[jd], mean[jd] - _WINDOW * std[jd])
             )
             reach_hi = np.minimum(
-                hi[jd], np.maximum(m[jd] + _WINDOW * width[jd], mean[jd] + _WINDOW * std[jd])
+                hi[jd], np.maximum(m[jd] + reach[jd], mean[jd] + _WINDOW * std[jd])
             )
             psi3, lw3 = _even_nodes(reach_lo, reach_hi)
             ln3 = _log_integrand(psi3, lw3, yy[jd], c, A, s2, cc[jd], cs[jd], uni[jd], cw[jd])
@@ -552,11 +558,11 @@ def _even_nodes(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]
 
 
 def _nodes(
-    m: FloatArray, width: FloatArray, lo: FloatArray, hi: FloatArray
+    m: FloatArray, reach: FloatArray, lo: FloatArray, hi: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Gauss-Legendre nodes and ln weights of the four panels m + K width [-1, -1/3, 0,
+    """Gauss-Legendre nodes and ln weights of the four panels m + reach [-1, -1/3, 0,
     1/3, 1] cut to [lo, hi], shape (pieces, 4 _ORDER) (-inf on empty panels)."""
-    edges = m[:, None] + _WINDOW * width[:, None] * _CUTS[None, :]
+    edges = m[:, None] + reach[:, None] * _CUTS[None, :]
     edges = np.clip(edges, lo[:, None], hi[:, None])
     return _panel_nodes(edges)
 
