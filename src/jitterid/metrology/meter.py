@@ -53,8 +53,8 @@ from .converter import ConverterFigures, converter_figures  # meterio (issue 26,
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .reading import summary_extras  # meterio (issue 26, item 5)
-from .sinelik import SineLikelihood, fit_sine_ml, sine_ml_applies  # issue 26, item 2
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
+from .sinelik import SineLikelihood, fit_sine_ml, sine_ml_applies  # issue 26, item 2
 
 __all__ = [
     "ALIAS_FITS",
@@ -466,14 +466,16 @@ def _fit_one(
     # a pure tone under a Gaussian, uniform or dual-Dirac law: the structured likelihood
     # (jitterid.metrology.sinelik, O(N)); else the generic one
     if sine_ml_applies(model, family):
+        assert isinstance(model, SineWave)
+        tone = model
         slik = SineLikelihood(data.y, data.T, family)
-        neg_ll: Callable[[FloatArray], float] = lambda c: -slik.loglik(c)  # noqa: E731
+        neg_ll: Callable[[FloatArray], float] = lambda c: -slik.loglik(c)
 
         def ml(x: FloatArray) -> FitResult:
-            return fit_sine_ml(data.y, data.T, model, family, x, noise_floor=lo_noise)
+            return fit_sine_ml(data.y, data.T, tone, family, x, noise_floor=lo_noise)
     else:
         lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
-        neg_ll = lambda c: -lik.loglik(c, data.y)  # noqa: E731
+        neg_ll = lambda c: -lik.loglik(c, data.y)
 
         def ml(x: FloatArray) -> FitResult:
             return fit(data, model, family, method="ml", start=x)

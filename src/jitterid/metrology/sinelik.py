@@ -66,6 +66,7 @@ no standard error; the meter then says the noise is below what the record resolv
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,7 +90,6 @@ _CUTS = np.array([-1.0, -1.0 / 3.0, 0.0, 1.0 / 3.0, 1.0])  # panel edges, in win
 _DROP = 40.0  # pieces this far (in ln) below the sample's largest are dropped
 _GAUSS_CUT = 8.5  # a Gaussian's support, in std (the law's pdf is 0 beyond)
 _NEWTON = 6  # Newton steps for the mode
-_TRACE = False
 _DECREMENT = 1e-4  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
 _AGREE = 1e-9  # two rules of a piece agreeing within this (in ln) are accepted
 _FINE = 16  # equal panels of the third rule
@@ -220,7 +220,8 @@ class SineLikelihood:
             raise ValueError(f"x must hold {len(self.names)} values {self.names}; got {xv.shape}")
         jp = xv[: self.nj]
         A, phi, f, c, sigma = (float(v) for v in xv[self.nj :])
-        self.family.law(jp)  # validates the jitter parameters (bounds), naming the bad one
+        # the jitter parameters validated (bounds), naming the bad one
+        self.family.law(tuple(float(v) for v in jp))
         if not sigma > 0:
             raise ValueError(
                 f"noise_std must be > 0; got {sigma!r} (a noise-free record is searched down "
@@ -280,7 +281,7 @@ class SineLikelihood:
         out = [ch.score for ch in self._chunks(x, score=True)]
         return np.concatenate([s for s in out if s is not None])
 
-    def _chunks(self, x: ArrayLike, *, score: bool):  # type: ignore[no-untyped-def]
+    def _chunks(self, x: ArrayLike, *, score: bool) -> Iterator[_Chunk]:
         jp, A, phi, f, c, sigma = self._split(x)
         flip = A < 0
         if flip:  # A sin(psi) = |A| sin(psi + pi)
@@ -294,7 +295,9 @@ class SineLikelihood:
             yield ch
 
     # ------------------------------------------------------------------ information
-    def observed_information(self, x: ArrayLike, free: NDArray[np.bool_] | None = None) -> FloatArray:
+    def observed_information(
+        self, x: ArrayLike, free: NDArray[np.bool_] | None = None
+    ) -> FloatArray:
         """-d^2 ln L / dx^2 by forward differences of the analytic score (steps 1e-3 of
         each parameter's standard error from the score's outer product, backward at an
         upper bound), symmetrised; rows and columns of parameters not ``free`` are 0.
@@ -310,7 +313,7 @@ class SineLikelihood:
         P = xv.size
         _, _, opg = self.scores(xv)
         free = np.ones(P, bool) if free is None else np.asarray(free, bool)
-        lo, hi = self.bounds()
+        hi = self.bounds()[1]
         H = np.zeros((P, P))
         g0 = self.scores(xv)[1]
         for i in np.flatnonzero(free):
@@ -324,7 +327,9 @@ class SineLikelihood:
         H[:, ~free] = 0.0
         return H
 
-    def bounds(self, noise_floor: float = 0.0, band_hz: tuple[float, float] | None = None) -> tuple[FloatArray, FloatArray]:
+    def bounds(
+        self, noise_floor: float = 0.0, band_hz: tuple[float, float] | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """(lower, upper) bounds of x: the family's, the amplitude > 0, the band, the noise
         std above ``noise_floor`` (a tiny positive value when 0).
 
@@ -367,14 +372,14 @@ def _chunk(
     z = (y - c) / A
     # ---- the pieces: (sample, component, branch) with the support cut to the branch
     idx_l, comp_l, lo_l, hi_l, b_l = [], [], [], [], []
-    for ci, comp in enumerate(comps):
+    for cix, comp in enumerate(comps):
         centre = theta + w * comp.centre_s
         half = w * comp.scale_s * (1.0 if comp.uniform else _GAUSS_CUT)
         slo, shi = centre - half, centre + half
         b0 = np.floor((slo + 0.5 * math.pi) / math.pi)
-        slots = int(math.ceil(2 * half / math.pi)) + 1
-        for j in range(slots):
-            b = b0 + j
+        slots = math.ceil(2 * half / math.pi) + 1
+        for slot in range(slots):
+            b = b0 + slot
             beta = b * math.pi - 0.5 * math.pi
             lo = np.maximum(slo, beta)
             hi = np.minimum(shi, beta + math.pi)
@@ -382,7 +387,7 @@ def _chunk(
             if ok.size == 0:
                 continue
             idx_l.append(ok)
-            comp_l.append(np.full(ok.size, ci))
+            comp_l.append(np.full(ok.size, cix))
             lo_l.append(lo[ok])
             hi_l.append(hi[ok])
             b_l.append(b[ok])
@@ -412,14 +417,14 @@ def _chunk(
         sn, co = np.sin(m), np.cos(m)
         e = yy - c - A * sn
         d1 = e * A * co / s2 - prec_p * (m - cc)
-        d2 = (-(A * co) ** 2 - e * A * sn) / s2 - prec_p
+        d2 = (-((A * co) ** 2) - e * A * sn) / s2 - prec_p
         step = np.where(d2 < 0, -d1 / np.where(d2 < 0, d2, -1.0), np.sign(d1) * p_lin)
         step = np.clip(step, -(hi - lo), hi - lo)
         m = np.clip(m + step, lo, hi)
     sn, co = np.sin(m), np.cos(m)
     e = yy - c - A * sn
     d1 = e * A * co / s2 - prec_p * (m - cc)
-    d2 = (-(A * co) ** 2 - e * A * sn) / s2 - prec_p
+    d2 = (-((A * co) ** 2) - e * A * sn) / s2 - prec_p
     curv = np.where(d2 < 0, -d2, 1.0 / p_lin**2)
     width = 1.0 / np.sqrt(curv + d1 * d1)
     # the window's reach: where l falls by K^2 / 2 below the mode on its quadratic model
@@ -491,8 +496,24 @@ def _chunk(
     sgn_all = np.array([cp.sign for cp in comps])[ci]
     for (g_j, g_psi, _, _), ex in zip(groups, exs, strict=True):
         if g_j.size:
-            _score_group(S, ex / tot[idx[g_j]][:, None], g_psi, idx[g_j], yy[g_j], th[g_j],
-                         k, T, w, A, c, sigma, cen_all[g_j], scale_all[g_j], sgn_all[g_j], nj)
+            _score_group(
+                S,
+                ex / tot[idx[g_j]][:, None],
+                g_psi,
+                idx[g_j],
+                yy[g_j],
+                th[g_j],
+                k,
+                T,
+                w,
+                A,
+                c,
+                sigma,
+                cen_all[g_j],
+                scale_all[g_j],
+                sgn_all[g_j],
+                nj,
+            )
     return _Chunk(logp, S)
 
 
@@ -737,12 +758,11 @@ def fit_sine_ml(
             dec = float(g[fr] @ np.linalg.solve(opg[np.ix_(fr, fr)], g[fr]))
         except np.linalg.LinAlgError:
             dec = math.inf
-        if _TRACE:
-            print("it", ll, gain, dec, lam, nfev)
         if dec < _DECREMENT and gain < 10 * _DECREMENT:
-            status, why = FitStatus.CONVERGED, (
-                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 1 % of the "
-                "standard errors)"
+            status = FitStatus.CONVERGED
+            why = (
+                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 1 % of "
+                "the standard errors)"
             )
             break
     x = np.clip(x, lo, hi)
@@ -776,7 +796,7 @@ def fit_sine_ml(
         message=f"structured sine likelihood (jitterid.metrology.sinelik): {why}{note}",
         nfev=nfev,
         system=None,
-        jitter_law=family.law(jp),
+        jitter_law=family.law(tuple(float(v) for v in jp)),
         noise_std=float(x[-1]),
         freqs=np.zeros(0),
         cov=cov,
