@@ -172,6 +172,27 @@ def test_score_is_the_gradient(name):
         assert abs(num - g[i]) <= 1e-4 * max(abs(g[i]), 1.0) + 1e-6 * np.abs(g).max()
 
 
+@pytest.mark.parametrize("name", list(CASES))
+def test_observed_information_is_the_score_s_jacobian(name):
+    """Louis' identity at the nodes against central differences of the analytic score."""
+    fam, law, jp = CASES[name]
+    rng = np.random.default_rng(24)
+    y = _record(law, 400, 1e-2, rng)
+    x = np.r_[np.asarray(jp) * 0.9, A * 0.99, PHI + 0.01, F * 1.0001, C, 1.1e-2]
+    lik = SineLikelihood(y, T, fam)
+    H = lik.observed_information(x)
+    num = np.zeros_like(H)
+    for i in range(x.size):
+        h = 1e-5 * abs(x[i])
+        up, dn = x.copy(), x.copy()
+        up[i] += h
+        dn[i] -= h
+        num[i] = -(lik.scores(up)[1] - lik.scores(dn)[1]) / (2 * h)
+    num = 0.5 * (num + num.T)
+    d = np.sqrt(np.abs(np.diag(num)))
+    assert np.max(np.abs(H - num) / np.outer(d, d)) < 2e-3
+
+
 def test_negative_amplitude_is_the_shifted_phase():
     fam, law, jp = CASES["gaussian"]
     y = _record(law, 100, 1e-2, np.random.default_rng(18))

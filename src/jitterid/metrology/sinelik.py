@@ -146,10 +146,12 @@ def _components(family: JitterFamily, jp: FloatArray) -> list[_Component]:
 
 @dataclass(frozen=True)
 class _Chunk:
-    """One chunk's pieces: per-sample ln p, and (with the score) the per-sample score."""
+    """One chunk's pieces: per-sample ln p, (with the score) the per-sample score, and
+    (with the information) sum_nodes pi_j (d2 ln f_j + g_j g_j^T) over the chunk."""
 
     logp: FloatArray
     score: FloatArray | None
+    second: FloatArray | None = None
 
 
 class SineLikelihood:
@@ -281,7 +283,7 @@ class SineLikelihood:
         out = [ch.score for ch in self._chunks(x, score=True)]
         return np.concatenate([s for s in out if s is not None])
 
-    def _chunks(self, x: ArrayLike, *, score: bool) -> Iterator[_Chunk]:
+    def _chunks(self, x: ArrayLike, *, score: bool, info: bool = False) -> Iterator[_Chunk]:
         jp, A, phi, f, c, sigma = self._split(x)
         flip = A < 0
         if flip:  # A sin(psi) = |A| sin(psi + pi)
@@ -289,43 +291,41 @@ class SineLikelihood:
         comps = _components(self.family, jp)
         for k0 in range(0, self.N, _CHUNK):
             k = np.arange(k0, min(k0 + _CHUNK, self.N), dtype=float)
-            ch = _chunk(self.y[k0 : k0 + k.size], k, self.T, comps, A, phi, f, c, sigma, score)
+            ch = _chunk(
+                self.y[k0 : k0 + k.size], k, self.T, comps, A, phi, f, c, sigma, score, info
+            )
             if flip and ch.score is not None:
                 ch.score[:, self.nj] *= -1.0
+            if flip and ch.second is not None:
+                ch.second[self.nj, :] *= -1.0
+                ch.second[:, self.nj] *= -1.0
             yield ch
 
     # ------------------------------------------------------------------ information
-    def observed_information(
-        self, x: ArrayLike, free: NDArray[np.bool_] | None = None
-    ) -> FloatArray:
-        """-d^2 ln L / dx^2 by forward differences of the analytic score (steps 1e-3 of
-        each parameter's standard error from the score's outer product, backward at an
-        upper bound), symmetrised; rows and columns of parameters not ``free`` are 0.
+    def observed_information(self, x: ArrayLike) -> FloatArray:
+        """-d^2 ln L / dx^2, analytic (Louis' identity at the same nodes): with g_j and
+        d2_j the gradient and Hessian in x of ln f_j, the node's log-integrand at a fixed
+        standard jitter variable,
+
+            -d^2 ln p_k = -E_k[d2] - (E_k[g g^T] - E_k[g] E_k[g]^T),
+
+        so the record's is sum_k s_k s_k^T - sum_j pi_j (d2_j + g_j g_j^T) (s_k the
+        per-sample score).
 
         Parameters
         ----------
         x : array_like
             The parameters, in :attr:`names` order.
-        free : array of bool, optional
-            Which parameters to difference (default all).
         """
-        xv = np.asarray(x, dtype=float)
-        P = xv.size
-        _, _, opg = self.scores(xv)
-        free = np.ones(P, bool) if free is None else np.asarray(free, bool)
-        hi = self.bounds()[1]
-        H = np.zeros((P, P))
-        g0 = self.scores(xv)[1]
-        for i in np.flatnonzero(free):
-            h = 1e-3 / math.sqrt(max(opg[i, i], 1e-300))
-            h = max(h, 1e-12 * max(abs(xv[i]), 1e-300))
-            up = xv.copy()
-            up[i] = xv[i] + h if xv[i] + h <= hi[i] else xv[i] - h
-            H[i] = -(self.scores(up)[1] - g0) / (up[i] - xv[i])
-        H = 0.5 * (H + H.T)
-        H[~free] = 0.0
-        H[:, ~free] = 0.0
-        return H
+        P = len(self.names)
+        opg, second = np.zeros((P, P)), np.zeros((P, P))
+        for ch in self._chunks(x, score=True, info=True):
+            assert ch.score is not None
+            assert ch.second is not None
+            opg += ch.score.T @ ch.score
+            second += ch.second
+        H = opg - second
+        return 0.5 * (H + H.T)
 
     def bounds(
         self, noise_floor: float = 0.0, band_hz: tuple[float, float] | None = None
@@ -362,6 +362,7 @@ def _chunk(
     c: float,
     sigma: float,
     score: bool,
+    info: bool = False,
 ) -> _Chunk:
     """ln p and the per-sample score of one chunk of samples (module doc)."""
     n = y.size
@@ -447,18 +448,24 @@ def _chunk(
     # more than _AGREE, a third time on _FINE equal panels over both windows.
     psi, lw = _nodes(m, reach, lo, hi)
     ln = _log_integrand(psi, lw, yy, c, A, s2, cc, cs, uni, cw)
-    groups: list[tuple[NDArray[np.intp], FloatArray, FloatArray, FloatArray]] = []
-    mean, std = _piece_moments(psi, ln)
+    del lw
+    rmax, pn, psum = _piece_terms(ln)
+    del ln
+    # groups: (pieces, nodes, ln of each piece's largest node, exp(ln - that), its sum)
+    groups: list[tuple[NDArray[np.intp], FloatArray, FloatArray, FloatArray, FloatArray]] = []
+    mean, std = _piece_moments(psi, pn, psum)
     off = (np.abs(mean - m) > 0.25 * width) | (std < 0.8 * width) | (std > 1.25 * width)
     off &= np.isfinite(mean) & (std > 0)
     j = np.flatnonzero(off)
     if j.size:
         psi2, lw2 = _nodes(mean[j], _WINDOW * std[j], lo[j], hi[j])
         ln2 = _log_integrand(psi2, lw2, yy[j], c, A, s2, cc[j], cs[j], uni[j], cw[j])
-        i1, i2 = _lse(ln[j]), _lse(ln2)
+        r2, p2, s2sum = _piece_terms(ln2)
+        i1 = rmax[j] + np.log(psum[j])
+        i2 = r2 + np.log(s2sum)
         agree = np.abs(i1 - i2) <= _AGREE
         ja, jd = j[agree], j[~agree]
-        groups.append((ja, psi2[agree], lw2[agree], ln2[agree]))
+        groups.append((ja, psi2[agree], r2[agree], p2[agree], s2sum[agree]))
         if jd.size:
             reach_lo = np.maximum(
                 lo[jd], np.minimum(m[jd] - reach[jd], mean[jd] - _WINDOW * std[jd])
@@ -468,22 +475,23 @@ def _chunk(
             )
             psi3, lw3 = _even_nodes(reach_lo, reach_hi)
             ln3 = _log_integrand(psi3, lw3, yy[jd], c, A, s2, cc[jd], cs[jd], uni[jd], cw[jd])
-            groups.append((jd, psi3, lw3, ln3))
+            groups.append((jd, psi3, *_piece_terms(ln3)))
     keep1 = np.flatnonzero(~off)
     if keep1.size == idx.size:
-        groups.insert(0, (keep1, psi, lw, ln))
+        groups.insert(0, (keep1, psi, rmax, pn, psum))
     else:
-        groups.insert(0, (keep1, psi[keep1], lw[keep1], ln[keep1]))
+        groups.insert(0, (keep1, psi[keep1], rmax[keep1], pn[keep1], psum[keep1]))
     top = np.full(n, -np.inf)
-    for g_j, _, _, g_ln in groups:
-        if g_j.size:
-            np.maximum.at(top, idx[g_j], g_ln.max(axis=1))
+    with np.errstate(divide="ignore"):
+        for g_j, _, g_r, _, g_s in groups:
+            if g_j.size:
+                np.maximum.at(top, idx[g_j], g_r + np.log(g_s))
     tot = np.zeros(n)
-    exs = []
-    for g_j, _, _, g_ln in groups:
-        ex = np.exp(g_ln - top[idx[g_j]][:, None])
-        exs.append(ex)
-        tot += np.bincount(idx[g_j], weights=ex.sum(axis=1), minlength=n)
+    scales = []
+    for g_j, _, g_r, _, g_s in groups:
+        sc = np.exp(g_r - top[idx[g_j]])  # exp(ln - top) = p x this, per piece
+        scales.append(sc)
+        tot += np.bincount(idx[g_j], weights=sc * g_s, minlength=n)
     with np.errstate(divide="ignore"):
         logp = top + np.log(tot) - math.log(sigma) - _LN_SQRT_2PI
     logp = np.where(np.isfinite(logp), logp, -np.inf)
@@ -494,27 +502,16 @@ def _chunk(
     cen_all = np.array([cp.centre_s for cp in comps])[ci]
     scale_all = np.array([cp.scale_s for cp in comps])[ci]
     sgn_all = np.array([cp.sign for cp in comps])[ci]
-    for (g_j, g_psi, _, _), ex in zip(groups, exs, strict=True):
+    second = np.zeros((nj + 5, nj + 5)) if info else None
+    for (g_j, g_psi, _, g_p, _), sc in zip(groups, scales, strict=True):
         if g_j.size:
-            _score_group(
-                S,
-                ex / tot[idx[g_j]][:, None],
-                g_psi,
-                idx[g_j],
-                yy[g_j],
-                th[g_j],
-                k,
-                T,
-                w,
-                A,
-                c,
-                sigma,
-                cen_all[g_j],
-                scale_all[g_j],
-                sgn_all[g_j],
-                nj,
-            )
-    return _Chunk(logp, S)
+            post = g_p * (sc / tot[idx[g_j]])[:, None]
+            args = (post, g_psi, idx[g_j], yy[g_j], th[g_j], k, T, w, A, c, sigma)
+            parts = (cen_all[g_j], scale_all[g_j], sgn_all[g_j], nj)
+            _score_group(S, *args, *parts)
+            if second is not None:
+                second += _second_group(*args, *parts)
+    return _Chunk(logp, S, second)
 
 
 def _score_group(
@@ -541,14 +538,13 @@ def _score_group(
     s2 = sigma * sigma
     sn = np.sin(psi)
     e = A * sn
-    e = (yy[:, None] - c) - e
+    np.subtract(yy[:, None] - c, e, out=e)
     pe = post * e
-    pd = pe * np.cos(psi)
+    pd = np.cos(psi)
+    pd *= pe
     pd *= A / s2  # post x D
-    tau = psi - th[:, None]
-    tau /= w  # the node's jitter (s)
     sum_pd = pd.sum(axis=1)
-    pd_tau = np.einsum("ij,ij->i", pd, tau)
+    pd_tau = (np.einsum("ij,ij->i", pd, psi) - th * sum_pd) / w  # E[D tau]
     sum_p = post.sum(axis=1)
     cols = [w * (pd_tau - cen * sum_pd) / scale]
     if nj == 2:
@@ -564,12 +560,75 @@ def _score_group(
         S[:, col] += np.bincount(gidx, weights=v, minlength=n)
 
 
-def _lse(ln: FloatArray) -> FloatArray:
-    """ln sum exp along the last axis (-inf rows stay -inf)."""
-    top = ln.max(axis=1)
-    safe = np.where(np.isfinite(top), top, 0.0)
-    with np.errstate(divide="ignore"):
-        return safe + np.log(np.exp(ln - safe[:, None]).sum(axis=1))
+def _second_group(
+    post: FloatArray,
+    psi: FloatArray,
+    gidx: NDArray[np.intp],
+    yy: FloatArray,
+    th: FloatArray,
+    k: FloatArray,
+    T: float,
+    w: float,
+    A: float,
+    c: float,
+    sigma: float,
+    cen: FloatArray,
+    scale: FloatArray,
+    sgn: FloatArray,
+    nj: int,
+) -> FloatArray:
+    """sum_j pi_j (d2 ln f_j + g_j g_j^T) over one group's nodes, with ln f = -e^2 /
+    (2 sigma^2) - ln sigma + (the law's, free of x at a fixed standard variable),
+    e = y - c - A sin psi, psi = theta_k + w (mu + r xi): d psi / d(scale) = w xi, d psi /
+    d dj = w s / 2, d psi / d phi = 1, d psi / d f = 2 pi (kT + tau), d2 psi / d f d(scale)
+    = 2 pi xi, d2 psi / d f d dj = pi s."""
+    P = nj + 5
+    iA, iphi, ifr, ic, isg = nj, nj + 1, nj + 2, nj + 3, nj + 4
+    s2 = sigma * sigma
+    M = psi.size
+    sn, co = np.sin(psi).ravel(), np.cos(psi).ravel()
+    pw = post.ravel()
+    e = (yy[:, None] - c - A * np.sin(psi)).ravel()
+    tau = ((psi - th[:, None]) / w).ravel()
+    xi = ((psi - th[:, None]) / w - cen[:, None]) / scale[:, None]
+    xi = xi.ravel()
+    kT = np.repeat(k[gidx] * T, psi.shape[1])
+    sg = np.repeat(sgn, psi.shape[1])
+    dpsi = np.zeros((P, M))  # d psi / dx
+    dpsi[0] = w * xi
+    if nj == 2:
+        dpsi[1] = 0.5 * w * sg
+    dpsi[iphi] = 1.0
+    dpsi[ifr] = 2 * math.pi * (kT + tau)
+    de = -A * co * dpsi  # d e / dx (phase parameters)
+    de[iA] = -sn
+    de[ic] = -1.0
+    de[isg] = 0.0
+    g = -e * de / s2
+    g[isg] = e * e / (s2 * sigma) - 1.0 / sigma
+    out = (g * pw) @ g.T
+    # d2 ln f = -(de de^T + e d2e) / sigma^2 (x, x' not sigma)
+    d2 = -((de * pw) @ de.T)
+    pe = pw * e
+    d2 -= (dpsi * (pe * A * sn)) @ dpsi.T  # e d2e: A sin psi dpsi dpsi^T ...
+    cross = -(dpsi * (pe * co)).sum(axis=1)  # ... d2e / dA dpsi = -cos psi dpsi
+    d2[iA, :] -= cross
+    d2[:, iA] -= cross
+    # ... and -A cos psi d2psi: d2psi / df d(scale) = 2 pi xi, d2psi / df ddj = pi s
+    fs = -A * float(np.sum(pe * co * 2 * math.pi * xi))
+    d2[ifr, 0] -= fs
+    d2[0, ifr] -= fs
+    if nj == 2:
+        fd = -A * float(np.sum(pe * co * math.pi * sg))
+        d2[ifr, 1] -= fd
+        d2[1, ifr] -= fd
+    d2 /= s2
+    # the noise std's row: d2/dsigma^2 = -3 e^2 / sigma^4 + 1 / sigma^2, d2/dsigma dx =
+    # 2 e de / sigma^3
+    d2[isg, :] = 2 * ((de * pe).sum(axis=1)) / (s2 * sigma)
+    d2[:, isg] = d2[isg, :]
+    d2[isg, isg] = float(np.sum(pw * (-3 * e * e / (s2 * s2) + 1 / s2)))
+    return out + d2
 
 
 def _even_nodes(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -628,14 +687,23 @@ def _log_integrand(
     return ln
 
 
-def _piece_moments(psi: FloatArray, ln: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The posterior mean and std of psi within each piece, from its nodes."""
-    top = ln.max(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore"):
-        p = np.exp(ln - top)
-        tot = p.sum(axis=1)
-        mean = (p * psi).sum(axis=1) / tot
-        var = (p * (psi - mean[:, None]) ** 2).sum(axis=1) / tot
+def _piece_terms(ln: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(the largest ln of each piece, exp(ln - it) at its nodes, their sum)."""
+    top = ln.max(axis=1)
+    safe = np.where(np.isfinite(top), top, 0.0)
+    p = np.exp(ln - safe[:, None])
+    return top, p, p.sum(axis=1)
+
+
+def _piece_moments(
+    psi: FloatArray, p: FloatArray, psum: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The posterior mean and std of psi within each piece, from its nodes' exp(ln - max)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.einsum("ij,ij->i", p, psi) / psum
+        d = psi - mean[:, None]
+        d *= d
+        var = np.einsum("ij,ij->i", p, d) / psum
     return mean, np.sqrt(np.maximum(var, 0.0))
 
 
@@ -773,8 +841,8 @@ def fit_sine_ml(
     cov = np.full((P, P), math.nan)
     note = ""
     if status is not FitStatus.NOT_FINITE:
-        H = lik.observed_information(x, free)
-        nfev += 2 + int(free.sum())
+        H = lik.observed_information(x)
+        nfev += 1
         Hf = H[np.ix_(free, free)]
         try:
             np.linalg.cholesky(Hf)
