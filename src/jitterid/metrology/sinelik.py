@@ -90,7 +90,7 @@ _CUTS = np.array([-1.0, -1.0 / 3.0, 0.0, 1.0 / 3.0, 1.0])  # panel edges, in win
 _DROP = 40.0  # pieces this far (in ln) below the sample's largest are dropped
 _GAUSS_CUT = 8.5  # a Gaussian's support, in std (the law's pdf is 0 beyond)
 _NEWTON = 6  # Newton steps for the mode
-_DECREMENT = 1e-4  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
+_DECREMENT = 1e-3  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
 _AGREE = 1e-9  # two rules of a piece agreeing within this (in ln) are accepted
 _FINE = 16  # equal panels of the third rule
 _CHUNK = 1 << 12  # samples per chunk (its node arrays stay in cache)
@@ -272,6 +272,35 @@ class SineLikelihood:
             opg += ch.score.T @ ch.score
         return ll, g, opg
 
+    def scores_information(
+        self, x: ArrayLike, stride: int = 1
+    ) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+        """(ln L, its gradient, the outer product of the per-sample scores, the observed
+        information :meth:`observed_information`) at x, in one pass.
+
+        Parameters
+        ----------
+        x : array_like
+            The parameters, in :attr:`names` order.
+        stride : int
+            The information's node sums over every stride-th chunk of samples only, scaled
+            to the record (an estimate for the search's Newton steps; 1: exact).
+        """
+        P = len(self.names)
+        ll, g = 0.0, np.zeros(P)
+        opg, second = np.zeros((P, P)), np.zeros((P, P))
+        n_info = 0
+        for ch in self._chunks(x, score=True, info=max(int(stride), 1)):
+            assert ch.score is not None
+            ll += float(np.sum(ch.logp))
+            g += ch.score.sum(axis=0)
+            opg += ch.score.T @ ch.score
+            if ch.second is not None:
+                second += ch.second
+                n_info += ch.logp.size
+        H = opg - second * (self.N / max(n_info, 1))
+        return ll, g, opg, 0.5 * (H + H.T)
+
     def per_sample_scores(self, x: ArrayLike) -> FloatArray:
         """d ln p(y_k | x) / dx for every sample, shape (N, len(x)).
 
@@ -283,16 +312,19 @@ class SineLikelihood:
         out = [ch.score for ch in self._chunks(x, score=True)]
         return np.concatenate([s for s in out if s is not None])
 
-    def _chunks(self, x: ArrayLike, *, score: bool, info: bool = False) -> Iterator[_Chunk]:
+    def _chunks(self, x: ArrayLike, *, score: bool, info: int = 0) -> Iterator[_Chunk]:
+        """The chunks' terms; ``info``: the information's node sums in every info-th chunk
+        (0: none)."""
         jp, A, phi, f, c, sigma = self._split(x)
         flip = A < 0
         if flip:  # A sin(psi) = |A| sin(psi + pi)
             A, phi = -A, phi + math.pi
         comps = _components(self.family, jp)
-        for k0 in range(0, self.N, _CHUNK):
+        for i, k0 in enumerate(range(0, self.N, _CHUNK)):
             k = np.arange(k0, min(k0 + _CHUNK, self.N), dtype=float)
+            with_info = info > 0 and i % info == 0
             ch = _chunk(
-                self.y[k0 : k0 + k.size], k, self.T, comps, A, phi, f, c, sigma, score, info
+                self.y[k0 : k0 + k.size], k, self.T, comps, A, phi, f, c, sigma, score, with_info
             )
             if flip and ch.score is not None:
                 ch.score[:, self.nj] *= -1.0
@@ -317,15 +349,7 @@ class SineLikelihood:
         x : array_like
             The parameters, in :attr:`names` order.
         """
-        P = len(self.names)
-        opg, second = np.zeros((P, P)), np.zeros((P, P))
-        for ch in self._chunks(x, score=True, info=True):
-            assert ch.score is not None
-            assert ch.second is not None
-            opg += ch.score.T @ ch.score
-            second += ch.second
-        H = opg - second
-        return 0.5 * (H + H.T)
+        return self.scores_information(x)[3]
 
     def bounds(
         self, noise_floor: float = 0.0, band_hz: tuple[float, float] | None = None
@@ -431,6 +455,7 @@ def _chunk(
     # the window's reach: where l falls by K^2 / 2 below the mode on its quadratic model
     # (K widths at an interior mode; at an edge where l falls linearly, K^2 / (2 |l'|))
     reach = _WINDOW**2 / (np.abs(d1) + np.sqrt(d1 * d1 + _WINDOW**2 * curv))
+    reach = np.maximum(reach, 1e-14 * (1.0 + np.abs(m)))  # a window the phase resolves
     # the log prior (phase density) and log integrand at the mode: the piece's Laplace mass
     lp_m = _log_prior(m - cc, cs, uni, cw)
     mass = -0.5 * e * e / s2 + lp_m + np.log(width)
@@ -461,9 +486,10 @@ def _chunk(
         psi2, lw2 = _nodes(mean[j], _WINDOW * std[j], lo[j], hi[j])
         ln2 = _log_integrand(psi2, lw2, yy[j], c, A, s2, cc[j], cs[j], uni[j], cw[j])
         r2, p2, s2sum = _piece_terms(ln2)
-        i1 = rmax[j] + np.log(psum[j])
-        i2 = r2 + np.log(s2sum)
-        agree = np.abs(i1 - i2) <= _AGREE
+        with np.errstate(divide="ignore", invalid="ignore"):
+            i1 = rmax[j] + np.log(psum[j])
+            i2 = r2 + np.log(s2sum)
+            agree = np.abs(i1 - i2) <= _AGREE
         ja, jd = j[agree], j[~agree]
         groups.append((ja, psi2[agree], r2[agree], p2[agree], s2sum[agree]))
         if jd.size:
@@ -489,7 +515,8 @@ def _chunk(
     tot = np.zeros(n)
     scales = []
     for g_j, _, g_r, _, g_s in groups:
-        sc = np.exp(g_r - top[idx[g_j]])  # exp(ln - top) = p x this, per piece
+        with np.errstate(invalid="ignore"):
+            sc = np.exp(np.where(np.isfinite(g_r), g_r - top[idx[g_j]], -np.inf))
         scales.append(sc)
         tot += np.bincount(idx[g_j], weights=sc * g_s, minlength=n)
     with np.errstate(divide="ignore"):
@@ -715,6 +742,19 @@ def _log_prior(u: FloatArray, cs: FloatArray, uni: FloatArray, cw: FloatArray) -
 
 
 # ---------------------------------------------------------------------- the search
+def _positive(H: FloatArray, opg: FloatArray) -> FloatArray:
+    """H with its eigenvalues replaced by their absolute values (floored at 1e-4 of the
+    largest), on the scale of its diagonal (or of the scores' outer product where that is
+    0): a Newton matrix that is definite and keeps H's curvature where H has one."""
+    d = np.abs(np.diag(H))
+    d = np.where(d > 0, d, np.maximum(np.diag(opg), 1e-300))
+    r = 1.0 / np.sqrt(d)
+    lam, vec = np.linalg.eigh(H * np.outer(r, r))
+    top = float(np.max(np.abs(lam))) if lam.size else 1.0
+    lam = np.maximum(np.abs(lam), 1e-4 * top)
+    return (vec * lam) @ vec.T / np.outer(r, r)
+
+
 def fit_sine_ml(
     y: ArrayLike,
     T: float,
@@ -773,16 +813,22 @@ def fit_sine_ml(
     def to_x(v: FloatArray) -> FloatArray:
         return np.where(logs, np.exp(np.where(logs, v, 0.0)), v)
 
-    def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray]:
-        ll_, g_, opg_ = lik.scores(xx)
+    # the Newton steps' information from about 2^15 samples (the gradient from all)
+    stride = max(1, (lik.N + (1 << 15) - 1) // (1 << 15))
+
+    def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+        ll_, g_, opg_, info_ = lik.scores_information(xx, stride)
         jac = np.where(logs, xx, 1.0)
-        return ll_, g_ * jac, opg_ * np.outer(jac, jac)
+        # in v: the chain rule (d2 ln L / dv^2 gains g x on the diagonal of a ln scale)
+        info_v = info_ * np.outer(jac, jac) - np.diag(np.where(logs, g_ * xx, 0.0))
+        return ll_, g_ * jac, opg_ * np.outer(jac, jac), info_v
 
     v = np.where(logs, np.log(np.maximum(x, 1e-300)), x)
     x = to_x(v)
-    ll, g, opg = evaluate(x)
+    ll, g, opg, info = evaluate(x)
     nfev = 1
-    lam = 1e-3
+    lam = 1e-4
+    stalled = 0
     status, why = FitStatus.MAX_EVALUATIONS, f"the {max_iter} steps ran out"
     if not math.isfinite(ll):
         status, why = FitStatus.NOT_FINITE, "the likelihood is not finite at the start"
@@ -790,10 +836,9 @@ def fit_sine_ml(
     for _ in range(max_iter):
         free = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
         d = np.zeros_like(v)
-        # the scores' covariance (the outer product less the mean's: far from the optimum
-        # the mean score dominates the outer product and BHHH would crawl)
-        cen = opg - np.outer(g, g) / lik.N
-        H = cen[np.ix_(free, free)]
+        # Newton on the observed information, its negative curvatures turned positive
+        # where it is not definite (far from the optimum, or a law far from the record's)
+        H = _positive(info[np.ix_(free, free)], opg[np.ix_(free, free)])
         diag = np.maximum(np.diag(H), 1e-300)
         gain = math.inf
         accepted = False
@@ -808,11 +853,11 @@ def fit_sine_ml(
             if xn[lik.nj + 2] <= 0:  # frequency stays positive
                 lam *= 10
                 continue
-            lln, gn, opgn = evaluate(xn)
+            lln, gn, opgn, infon = evaluate(xn)
             nfev += 1
             if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
                 gain = lln - ll
-                v, x, ll, g, opg = vn, xn, lln, gn, opgn
+                v, x, ll, g, opg, info = vn, xn, lln, gn, opgn, infon
                 lam = max(lam / 10.0, 1e-9)
                 accepted = True
                 break
@@ -820,17 +865,26 @@ def fit_sine_ml(
         if not accepted:
             status, why = FitStatus.CONVERGED, "no step raises the likelihood further"
             break
-        # the Newton decrement on the outer product: the predicted further gain
+        # the Newton decrement (twice the predicted further gain)
         fr = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
         try:
-            dec = float(g[fr] @ np.linalg.solve(opg[np.ix_(fr, fr)], g[fr]))
+            Hm = _positive(info[np.ix_(fr, fr)], opg[np.ix_(fr, fr)])
+            dec = float(g[fr] @ np.linalg.solve(Hm, g[fr]))
         except np.linalg.LinAlgError:
             dec = math.inf
+        stalled = stalled + 1 if gain < 0.1 * _DECREMENT else 0
         if dec < _DECREMENT and gain < 10 * _DECREMENT:
             status = FitStatus.CONVERGED
             why = (
-                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 1 % of "
+                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 3 % of "
                 "the standard errors)"
+            )
+            break
+        if stalled >= 3:
+            status = FitStatus.CONVERGED
+            why = (
+                f"ln L rose by less than {0.1 * _DECREMENT:g} in each of 3 steps (a direction "
+                "in which the likelihood is flat, e.g. a dual Dirac's dj near 0)"
             )
             break
     x = np.clip(x, lo, hi)
@@ -842,7 +896,6 @@ def fit_sine_ml(
     note = ""
     if status is not FitStatus.NOT_FINITE:
         H = lik.observed_information(x)
-        nfev += 1
         Hf = H[np.ix_(free, free)]
         try:
             np.linalg.cholesky(Hf)
