@@ -65,6 +65,7 @@ def _one(log2n: int, laws: list[str], jitter_s: float, noise: float, seed: int) 
         "jitter_fs": m.jitter_std * 1e15,
         "interval_fs": [lo * 1e15, hi * 1e15],
         "true_fs": jitter_s * 1e15,
+        "realised_fs": float(np.std(tau)) * 1e15,
         "route": m.fit.message.split(":")[0],
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
@@ -98,7 +99,8 @@ def main() -> None:
             f"measure_jitter(ml) {r['ml_cpu_s']:.1f} CPU-s ({r['evaluations']} evaluations "
             f"in the chosen fit), peak RSS {r['peak_rss_mb']:.0f} MB; {r['status']} "
             f"{r['family']} {r['jitter_fs']:.3f} fs [{r['interval_fs'][0]:.3f}, "
-            f"{r['interval_fs'][1]:.3f}] (true {r['true_fs']:.3g}); route: {r['route']}"
+            f"{r['interval_fs'][1]:.3f}] (law {r['true_fs']:.3g}, draws {r['realised_fs']:.3f}); "
+            f"route: {r['route']}"
         )
     print(f"# load average after: {os.getloadavg()}")
 

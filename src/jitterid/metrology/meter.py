@@ -480,6 +480,9 @@ def _fit_one(
 
         def ml(x: FloatArray) -> FitResult:
             return fit_sine_ml(data.y, data.T, tone, family, x, noise_floor=lo_noise)
+
+        if lo_noise > 0:  # a noise-free record: its noise std starts on the floor
+            cands.append(np.r_[cands[0][:-1], lo_noise])
     else:
         lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
         neg_ll = lambda c: -lik.loglik(c, data.y)

@@ -276,7 +276,7 @@ class SineLikelihood:
             assert ch.score is not None
             ll += float(np.sum(ch.logp))
             g += ch.score.sum(axis=0)
-            opg += ch.score.T @ ch.score
+            opg += _outer_sum(ch.score)
         return ll, g, opg
 
     def scores_information(
@@ -301,7 +301,7 @@ class SineLikelihood:
             assert ch.score is not None
             ll += float(np.sum(ch.logp))
             g += ch.score.sum(axis=0)
-            opg += ch.score.T @ ch.score
+            opg += _outer_sum(ch.score)
             if ch.second is not None:
                 second += ch.second
                 n_info += ch.logp.size
@@ -594,6 +594,16 @@ def _score_group(
         S[:, col] += np.bincount(gidx, weights=v, minlength=n)
 
 
+def _outer_sum(S: FloatArray) -> FloatArray:
+    """S^T S (BLAS's matmul can raise spurious floating-point flags on tall, thin arrays:
+    the flags are ignored and the sum checked instead)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = S.T @ S
+    if not np.all(np.isfinite(out)):  # pragma: no cover - a real overflow
+        out = np.einsum("ki,kj->ij", S, S)
+    return np.asarray(out)
+
+
 def _second_group(
     post: FloatArray,
     psi: FloatArray,
@@ -638,24 +648,30 @@ def _second_group(
     de[iA] = -sn
     de[ic] = -1.0
     de[isg] = 0.0
+    live = pw > 0  # nodes of empty panels carry no weight (and may be far off)
+    pw = np.where(live, pw, 0.0)
+    e = np.where(live, e, 0.0)
     g = -e * de / s2
     g[isg] = e * e / (s2 * sigma) - 1.0 / sigma
-    out = (g * pw) @ g.T
-    # d2 ln f = -(de de^T + e d2e) / sigma^2 (x, x' not sigma)
-    d2 = -((de * pw) @ de.T)
-    pe = pw * e
-    d2 -= (dpsi * (pe * A * sn)) @ dpsi.T  # e d2e: A sin psi dpsi dpsi^T ...
-    cross = -(dpsi * (pe * co)).sum(axis=1)  # ... d2e / dA dpsi = -cos psi dpsi
-    d2[iA, :] -= cross
-    d2[:, iA] -= cross
-    # ... and -A cos psi d2psi: d2psi / df d(scale) = 2 pi xi, d2psi / df ddj = pi s
-    fs = -A * float(np.sum(pe * co * 2 * math.pi * xi))
-    d2[ifr, 0] -= fs
-    d2[0, ifr] -= fs
-    if nj == 2:
-        fd = -A * float(np.sum(pe * co * math.pi * sg))
-        d2[ifr, 1] -= fd
-        d2[1, ifr] -= fd
+    # (BLAS's matmul may raise spurious floating-point flags on these shapes: the sums
+    # are checked for finiteness by the caller instead)
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = (g * pw) @ g.T
+        # d2 ln f = -(de de^T + e d2e) / sigma^2 (x, x' not sigma)
+        d2 = -((de * pw) @ de.T)
+        pe = pw * e
+        d2 -= (dpsi * (pe * A * sn)) @ dpsi.T  # e d2e: A sin psi dpsi dpsi^T ...
+        cross = -(dpsi * (pe * co)).sum(axis=1)  # ... d2e / dA dpsi = -cos psi dpsi
+        d2[iA, :] -= cross
+        d2[:, iA] -= cross
+        # ... and -A cos psi d2psi: d2psi / df d(scale) = 2 pi xi, d2psi / df ddj = pi s
+        fs = -A * float(np.sum(pe * co * 2 * math.pi * xi))
+        d2[ifr, 0] -= fs
+        d2[0, ifr] -= fs
+        if nj == 2:
+            fd = -A * float(np.sum(pe * co * math.pi * sg))
+            d2[ifr, 1] -= fd
+            d2[1, ifr] -= fd
     d2 /= s2
     # the noise std's row: d2/dsigma^2 = -3 e^2 / sigma^4 + 1 / sigma^2, d2/dsigma dx =
     # 2 e de / sigma^3
@@ -824,7 +840,12 @@ def fit_sine_ml(
     stride = max(1, (lik.N + (1 << 15) - 1) // (1 << 15))
 
     def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray, FloatArray]:
-        ll_, g_, opg_, info_ = lik.scores_information(xx, stride)
+        # a trial point far off (a long step) may overflow: it is then rejected as
+        # non-finite, its floating-point warnings are not the caller's
+        with np.errstate(all="ignore"):
+            ll_, g_, opg_, info_ = lik.scores_information(xx, stride)
+        if not (np.all(np.isfinite(g_)) and np.all(np.isfinite(opg_))):
+            ll_ = -math.inf
         jac = np.where(logs, xx, 1.0)
         # in v: the chain rule (d2 ln L / dv^2 gains g x on the diagonal of a ln scale)
         info_v = info_ * np.outer(jac, jac) - np.diag(np.where(logs, g_ * xx, 0.0))
@@ -845,7 +866,10 @@ def fit_sine_ml(
         d = np.zeros_like(v)
         # Newton on the observed information, its negative curvatures turned positive
         # where it is not definite (far from the optimum, or a law far from the record's)
-        H = _positive(info[np.ix_(free, free)], opg[np.ix_(free, free)])
+        if np.all(np.isfinite(info)):
+            H = _positive(info[np.ix_(free, free)], opg[np.ix_(free, free)])
+        else:  # BHHH on the scores' covariance
+            H = (opg - np.outer(g, g) / lik.N)[np.ix_(free, free)]
         diag = np.maximum(np.diag(H), 1e-300)
         gain = math.inf
         accepted = False
@@ -855,6 +879,7 @@ def fit_sine_ml(
             except np.linalg.LinAlgError:
                 lam *= 10
                 continue
+            d = np.where(logs, np.clip(d, -3.0, 3.0), d)  # a scale moves e^3 at most
             vn = np.clip(v + d, vlo, vhi)
             xn = to_x(vn)
             if xn[lik.nj + 2] <= 0:  # frequency stays positive
@@ -877,7 +902,7 @@ def fit_sine_ml(
         try:
             Hm = _positive(info[np.ix_(fr, fr)], opg[np.ix_(fr, fr)])
             dec = float(g[fr] @ np.linalg.solve(Hm, g[fr]))
-        except np.linalg.LinAlgError:
+        except (np.linalg.LinAlgError, ValueError):
             dec = math.inf
         stalled = stalled + 1 if gain < 0.1 * _DECREMENT else 0
         if dec < _DECREMENT and gain < 10 * _DECREMENT:
