@@ -169,7 +169,7 @@ def test_sampled_fisher_information_agrees_with_the_integral_over_y():
 def test_a_noise_hidden_by_the_jitter_is_a_boundary_solution_not_a_failure():
     """Noise 1e-7 beside a jittered spread of 0.05: the likelihood's noise std runs to 0 (the
     noise-free jittered sine explains the samples as well). A float record has no physical
-    floor: the search stops at its numeric one (1e-4 of the jitter's spread with the
+    floor: the search stops at its numeric one (1e-3 of the jitter's spread with the
     structured likelihood, jitterid.metrology.sinelik), which does not move the jitter std,
     so the status is CONVERGED and the message says the noise is below what the record
     resolves (it used to be AT_BOUND at 1e-4 of the rms, a floor that erased femtosecond

@@ -693,7 +693,7 @@ def measure_jitter(
         units of y. Default: the record's own quantisation step over sqrt(12) where its
         values lie on a grid (:func:`jitterid.metrology.adequacy.quantisation_step`), and
         none for a float record (a simulator's record can be noise-free; the moment route
-        needs no floor, and the likelihood's search stops at 1e-4 of the jitter's own
+        needs no floor, and the likelihood's search stops at 1e-3 of the jitter's own
         spread with the structured likelihood of a pure tone, 3 % with the generic one:
         the status stays CONVERGED and the message says the noise is below what the record
         resolves). AT_BOUND only where a bound

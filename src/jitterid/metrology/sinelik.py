@@ -44,10 +44,14 @@ with its scale, so this is exact, boundary terms included)::
     d ln p / d c     = E[e] / sigma^2  d ln p / d sigma = E[e^2] / sigma^3 - 1 / sigma
     d ln p / d scale = E[D w (tau - mu) / scale]        d ln p / d dj = E[D w s / 2]
 
-(s = +-1 the dual Dirac's component). The maximum is found by Levenberg-Marquardt steps on
-the outer product of the per-sample scores (BHHH), a few passes over the record; the
-covariance is the inverse observed information (central differences of the analytic
-score).
+(s = +-1 the dual Dirac's component). The observed information follows from the same
+nodes by Louis' identity, -d^2 ln p_k = -E_k[d2 ln f] - Var_k[d ln f] (f the node's
+integrand at a fixed standard jitter variable; test: against central differences of the
+score). The maximum is found by damped Newton steps on the observed information (its
+negative curvatures made positive where it is not definite; on records longer than 2^15
+samples the information of every n-th chunk, scaled, for the steps), in ln of the scales,
+inside the bounds: a few passes over the record. The covariance is the inverse observed
+information of the whole record.
 
 Noise-free records (sigma -> 0). (S1) holds for every sigma > 0 and the rule scales with
 sigma (the window shrinks with the Gaussian factor), so a noise std of 1e-9 of the
@@ -58,7 +62,7 @@ p(y) = sum_b p_u(psi_b - theta) / (A sqrt(1 - z^2)) (tests: the rule tends to it
 likelihood with a moving support (|z| <= 1) and unbounded at the turning points, not a
 regular one, so the noise std is searched down to a floor only, ``noise_floor``: the
 physical one (a quantised record's LSB / sqrt 12) or, on a float record, the meter's
-numeric floor, ``NUMERIC_FLOOR`` = 1e-4 of the jitter's own spread of the samples. (A floor
+numeric floor, ``NUMERIC_FLOOR`` = 1e-3 of the jitter's own spread of the samples. (A floor
 above a noise-free record's zero noise biases the jitter std low by about a quarter of the
 floor's ratio to that spread: near the tone's peaks the jitter moves the samples by less
 than the floor, and the model reads them as less jitter; measured -0.5 % at the generic
@@ -87,8 +91,12 @@ FloatArray = NDArray[np.float64]
 
 #: The noise floor of a float record (no physical one), relative to the jitter's own spread
 #: of the samples A sqrt((w sigma)^2 / 2): a floor c biases the jitter std low by about
-#: c / 4 on a noise-free record (see the module doc), so 1e-4 moves it by ~3e-5.
-NUMERIC_FLOOR = 1e-4
+#: c / 4 to c / 6 on a noise-free record (see the module doc): 1e-3 moves it by ~2e-4
+#: (measured: -0.03 standard errors at N = 2^14, about -0.25 at 2^20). Lower floors
+#: are closer still but slow the search (the likelihood of a noise-free tone is not
+#: regular: its peaks' samples make it rough in the amplitude and offset on the scale
+#: of the floor).
+NUMERIC_FLOOR = 1e-3
 #: The stated accuracy of each ln p(y_k) (absolute), see the module doc.
 TOLERANCE = 1e-6
 _ORDER = 10  # Gauss-Legendre nodes per panel
@@ -788,9 +796,9 @@ def fit_sine_ml(
     noise_floor: float = 0.0,
     max_iter: int = 100,
 ) -> FitResult:
-    """Maximise :class:`SineLikelihood` from a start: Levenberg-Marquardt steps on the
-    outer product of the per-sample scores (BHHH), inside the bounds; the covariance is
-    the inverse observed information.
+    """Maximise :class:`SineLikelihood` from a start: damped Newton steps on the observed
+    information (module doc), in ln of the jitter scale and the noise std, inside the
+    bounds; the covariance is the inverse observed information.
 
     Parameters
     ----------
