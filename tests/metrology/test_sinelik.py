@@ -259,6 +259,7 @@ def test_meter_ml_on_a_noise_free_float_record():
     assert lo <= sj <= hi
 
 
+@pytest.mark.slow  # 7 CPU-s; test_meter_ml_on_a_noise_free_float_record is the fast version
 def test_meter_ml_on_noise_free_records_is_not_biased_by_its_floor():
     """A noise-free record shows each sample's jitter, so the ML std is the realised std of
     the draws (well inside its standard error, which is that of the law's std); the noise
