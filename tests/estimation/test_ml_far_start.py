@@ -142,3 +142,13 @@ def test_table2_realization_0_from_far_start() -> None:
     far = ji.fit(d, ji.PolePairGain(), law, "ml", start=FAR)
     assert far.status is FitStatus.CONVERGED, far.message
     _same_optimum(far, default)
+
+
+def test_a_restart_that_ends_lower_but_unconverged_names_the_fix(data: ji.SampledData) -> None:
+    # 10 evaluations per search: the restart's ml search ends lower than the search from the
+    # given start but its budget is used up too; the lower one is kept and the fix is said
+    far = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=10)
+    assert far.status is FitStatus.MAX_EVALUATIONS
+    assert "after a restart" in far.message
+    assert "fit without start" in far.message
+    assert "larger max_nfev" in far.message

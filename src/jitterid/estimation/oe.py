@@ -353,6 +353,8 @@ class OutputErrorRoute:
                 f"{again[1].message} (after a restart: {why}; the {first.name} fit from that "
                 f"start, {found.status.name}, started the {est.name} search)"
             )
+            if again[1].status in _STOPPED:  # lower, and still not converged: say the fix
+                msg = f"{msg}; {fix}"
             return again[0], again[1]._replace(message=msg, nfev=nfev), nfev
         if again is None:
             tried = f"the {first.name} fit from that start ended {found.status.name}"
