@@ -28,6 +28,8 @@ Bounds = tuple[tuple[float, float], ...]
 
 BLOCKS = ("jitter", "system", "noise", "noise_std")
 NOISE_STD_BOUNDS = (1e-12, np.inf)
+#: relative distance from a kink that counts as at it (ParamLayout.at_kink)
+KINK_REACH = 2e-4
 
 
 @dataclass(frozen=True)
@@ -189,6 +191,25 @@ class ParamLayout:
         """
         out = np.array(x, dtype=float)
         out[self.slice(block)] = np.asarray(values, dtype=float)
+        return out
+
+    def at_kink(self, x: Any, reach: float = KINK_REACH) -> NDArray[np.bool_]:
+        """Which parameters of ``x`` lie within ``reach * max(|x_i|, 0.01)`` of one of their
+        kinks (the covariance's difference reach, 2 x its step 1e-4 max(|x_i|, 0.01)): no
+        second derivative there, so the covariance holds them fixed, as on a bound.
+
+        Parameters
+        ----------
+        x : array_like
+            A vector in layout order.
+        reach : float, optional
+            The relative distance that counts as at the kink.
+        """
+        v = np.asarray(x, float).reshape(-1)
+        out = np.zeros(v.size, dtype=bool)
+        for i, k in enumerate(self.kinks):
+            if k:
+                out[i] = bool(np.any(np.abs(np.asarray(k) - v[i]) <= reach * max(abs(v[i]), 1e-2)))
         return out
 
     def kinked(self) -> dict[int, tuple[float, ...]]:

@@ -10,7 +10,6 @@ import pytest
 from helpers import table2_data
 
 import jitterid as ji
-from jitterid.estimation.result import _jitter_std_gradient
 
 NOISE = 0.01
 TRUTH = {"a": 0.5, "k0": 6.25, "pr": -1.5, "pi": 2.0, "noise_std": NOISE}
@@ -143,9 +142,7 @@ def test_the_std_gradient_through_each_family_is_the_closed_form(family, theta, 
     """std = a / sqrt(3 (n + 1)) for (26), a / sqrt(3) for U(-a, a), sigma for N(0, sigma^2);
     at n = 0 (on its bound) the difference is one-sided."""
     args = (theta[0], theta[1]) if len(theta) == 2 else (0.0, theta[0])
-    np.testing.assert_allclose(
-        _jitter_std_gradient(family, np.array(theta)), grad(*args), rtol=1e-5
-    )
+    np.testing.assert_allclose(family.std_gradient(np.array(theta)), grad(*args), rtol=1e-5)
 
 
 def test_jitter_std_stderr_is_the_delta_method(gaussian_fit):

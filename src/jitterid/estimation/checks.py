@@ -383,13 +383,12 @@ def post_checks(ctx: PostContext, status: FitStatus, message: str) -> tuple[FitS
 
 
 def _kinked(ctx: PostContext) -> NDArray[np.bool_]:
-    """Jitter-family parameters within the covariance's reach of a kink of the family
-    (:func:`jitterid.estimation.covariance.at_kink`: held fixed there)."""
+    """Jitter-family parameters at a kink of the family (:meth:`ParamLayout.at_kink`, the
+    covariance's rule: held fixed there)."""
     out = np.zeros(ctx.x.size, dtype=bool)
     if isinstance(ctx.jitter, JitterFamily):
-        for i, k in enumerate(ctx.jitter.kinks):
-            reach = 2e-4 * max(abs(float(ctx.x[i])), 1e-2)
-            out[i] = bool(k) and bool(np.any(np.abs(np.asarray(k) - ctx.x[i]) <= reach))
+        nj = len(ctx.jitter.param_names)
+        out[:nj] = ParamLayout.build(ctx.jitter).at_kink(ctx.x[:nj])
     return out
 
 
@@ -435,18 +434,7 @@ def _held_jitter(ctx: PostContext) -> str:
     fin = np.isfinite(np.diag(C))
     std = float(fam.law(theta.tolist()).std)
     if fin.any() and std > 0:
-        g = np.array(
-            [
-                (
-                    fam.law(np.where(np.arange(nj) == i, theta * (1 + 1e-6), theta).tolist()).std
-                    - std
-                )
-                / (1e-6 * theta[i])
-                if fin[i] and theta[i] != 0
-                else 0.0
-                for i in range(nj)
-            ]
-        )[fin]
+        g = fam.std_gradient(theta)[fin]
         se = float(np.sqrt(max(float(g @ C[np.ix_(fin, fin)] @ g), 0.0)))
         parts.append(f"the jitter std is identified to {100 * se / std:.2g} % (1 standard error)")
     return "; ".join(parts)

@@ -67,19 +67,6 @@ _SCALE_STEP = 0.05  # steps at most this fraction of a parameter's natural scale
 KERNEL_MAX_FREQUENCIES = 2048
 
 
-def at_kink(x: FloatArray, kinks: tuple[tuple[float, ...], ...]) -> NDArray[np.bool_]:
-    """Which parameters lie within the covariance's difference reach (2 h, h = 1e-4
-    max(|x_i|, 1e-2)) of a kink of the criterion (:attr:`jitterid.params.ParamLayout.kinks`):
-    no second derivative there (the one-sided ones differ), so such a parameter is held
-    fixed, as one on its bound, and the others' errors are conditional on it."""
-    out = np.zeros(x.size, dtype=bool)
-    for i, k in enumerate(kinks):
-        if k:
-            reach = 2 * finite_diff.step(x, i, _REL_STEP)
-            out[i] = bool(np.any(np.abs(np.asarray(k) - x[i]) <= reach))
-    return out
-
-
 def unidentified_shapes(problem: Problem, x: FloatArray, cov: FloatArray) -> NDArray[np.bool_]:
     """The jitter family's shape parameters (all but its scale, in a family of two or more)
     to hold fixed where the data do not tell the family's parameters: one of them (shape or
@@ -97,7 +84,7 @@ def unidentified_shapes(problem: Problem, x: FloatArray, cov: FloatArray) -> NDA
     lo, hi = np.array(problem.layout.bounds, dtype=float).reshape(-1, 2).T
     rest = np.isfinite(se)
     # held on purpose: on or next to a bound, at a kink (no error bar by design)
-    held = ~_steps(x, problem.layout.bounds)[1] | at_kink(x, problem.layout.kinks)
+    held = ~_steps(x, problem.layout.bounds)[1] | problem.layout.at_kink(x)
     told = False  # a jitter parameter the data do not tell (its error bar beyond its range)
     for i in range(nj):
         wide = np.isfinite(se[i]) and se[i] > hi[i] - lo[i]
@@ -211,7 +198,7 @@ def _held_covariance(
         return cov
     info = _search_information(problem, x)
     h, free = _steps(x, problem.bounds, _natural_scale(info))
-    free &= ~hold & ~at_kink(x, problem.layout.kinks)
+    free &= ~hold & ~problem.layout.at_kink(x)
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov

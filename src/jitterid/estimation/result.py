@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from .. import _serial, finite_diff
+from .. import _serial
 from .._checks import count, nesting_depth
 from ..data import SampledData
 from ..inputs import Input
@@ -39,26 +39,6 @@ FloatArray = NDArray[np.float64]
 
 COV_TYPES = ("sandwich", "robust", "oim", "none")
 DISCRETE_METHODS = ("zoh", "foh", "bilinear", "euler", "backward_diff", "impulse")
-
-
-def _jitter_std_gradient(family: JitterFamily, theta: FloatArray) -> FloatArray:
-    """d std / d theta of ``family.law(theta).std`` by the one finite-difference rule
-    (:mod:`jitterid.finite_diff`; second-order one-sided at a bound); the laws'
-    std is closed-form, so a relative step of 1e-6 is accurate."""
-    theta = np.asarray(theta, float)
-
-    def std(t: FloatArray) -> FloatArray:
-        return np.asarray(family.law(t.tolist()).std, dtype=np.float64)
-
-    # steps relative to the law's own std where a parameter is near 0 (dj = 0), not to the
-    # rule's absolute floor 1e-2: a jitter of 50 ps is not a jitter of 0.01 s
-    floor = max(float(std(theta)), 1e-300)
-    return np.array(
-        [
-            float(finite_diff.derivative(std, theta, i, b, rel=1e-6, floor=floor))
-            for i, b in enumerate(family.bounds)
-        ]
-    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -242,7 +222,7 @@ class FitResult:
         free = np.isfinite(np.diag(C))
         if not free.any():
             return float("nan")
-        g = _jitter_std_gradient(self.jitter_model, theta)[free]
+        g = self.jitter_model.std_gradient(theta)[free]
         var = float(g @ C[np.ix_(free, free)] @ g)
         return float(np.sqrt(max(var, 0.0)))
 
@@ -286,8 +266,7 @@ class FitResult:
                 and i != self.jitter_model.scale_index
                 and len(missing) < len(self.names)
             ):
-                kinks = self.jitter_model.kinks[i]
-                if kinks and min(abs(v - k) for k in kinks) <= step:
+                if self.layout.at_kink(self.x)[i]:
                     notes[n] = (
                         "at a kink of the jitter family (no second derivative there): held "
                         "fixed, so no standard error (the others are conditional on it)"
