@@ -198,6 +198,30 @@ def test_scores_match_differences_of_the_log_likelihood(jitter, x, noise):
     np.testing.assert_allclose(dy, fd, rtol=1e-5, atol=1e-3)
 
 
+@pytest.mark.parametrize(("n", "piece"), [(1.0, (0.0, 1.0)), (1.0, (1.0, 2.0)), (2.0, (1.0, 2.0))])
+def test_shape_score_at_a_kink_is_one_sided_into_the_piece(n, piece):
+    """At an integer n of the family (26), restricted to one smooth piece (the piece walk),
+    the n-score is the one-sided derivative of ln p into that piece: the referee is the
+    second-order one-sided difference of ln p. Below an integer the law has a piece of width
+    ~ sqrt(1 - n) about the centre that the integer's nodes do not see: the score at the same
+    nodes was -97 where ln L falls at 0.44 per unit n (issue 24)."""
+    data = table_data(2, LAWS["sum of uniforms"], n=60)
+    lik = ji.ExactLikelihood(ji.PolePairGain(), ji.SumOfUniformsFamily(), data.u, T, 60, NOISE)
+    x = np.r_[n, 0.3, TRUTH]
+    box = list(lik.bounds)
+    box[0] = piece
+    lik.restrict(tuple(box))
+    logp, G = lik.scores(x, data.y)
+    side = 1.0 if piece[0] == n else -1.0
+    h = 1e-4 * side
+    one, two = x.copy(), x.copy()
+    one[0] += h
+    two[0] += 2 * h
+    fd = (-3 * logp + 4 * lik.logpdf(one, data.y) - lik.logpdf(two, data.y)) / (2 * h)
+    np.testing.assert_allclose(G[:, 0], fd, rtol=1e-2, atol=1e-2 * np.max(np.abs(fd)))
+    assert abs(G[:, 0].sum() - fd.sum()) <= 1e-2 * np.sum(np.abs(fd))
+
+
 def test_observed_information_is_close_to_the_hessian_at_the_optimum():
     """The Gauss-Newton information that drives maximise() against the finite-difference
     Hessian of ln L at the ML estimate (it drops only a zero-mean term)."""

@@ -98,11 +98,18 @@ def noise_from_residuals(first: Problem, x: FloatArray) -> float:
     return float(np.sqrt(max(power - signal_var, 1e-12 * power) / first.data.N))
 
 
-def _best_scored(problem: Problem, starts: Sequence[FloatArray]) -> FloatArray:
-    """The start with the lowest criterion (one evaluation each; the first where none can
-    be evaluated)."""
+def _best_scored(problem: Problem, starts: Sequence[FloatArray]) -> list[FloatArray]:
+    """Of the starts at each value of the jitter family's scale, the one with the lowest
+    criterion (one evaluation each; the first of the group where none can be evaluated):
+    the first stage's starts where it only starts another estimator's search (Table 1,
+    BCLS from the best-scored start per scale against all six: within 1e-9 in 22 of 24
+    fits, 0.04 % higher in the others)."""
+    scale = getattr(problem.jitter, "scale_index", None)
     values = [criterion_or_inf(problem, x) for x in starts]
-    return starts[int(np.argmin(values))] if np.isfinite(min(values)) else starts[0]
+    groups: dict[float, list[int]] = {}
+    for k, x in enumerate(starts):
+        groups.setdefault(float(x[scale]) if scale is not None else 0.0, []).append(k)
+    return [starts[min(ks, key=lambda k: (values[k], k))] for ks in groups.values()]
 
 
 def _off_zero_jitter(
@@ -264,13 +271,14 @@ class OutputErrorRoute:
             else:
                 theta_sys, rms = self.oe()
                 starts = [np.r_[np.asarray(js, float), theta_sys] for js in self.jstarts]
-                if len(starts) > 1 and pre.layout.kinked():
-                    # A family with kinks is searched piece by piece from a descent over
-                    # its kinks at the start's std (search.piecewise): the starts that
-                    # differ in the kinked shape end where the best-scored one does
-                    # (Table 1, 6 starts: the same point, six times the cost), so the
-                    # search starts from the best-scored one only
-                    starts = [_best_scored(pre, starts)]
+                if len(starts) > 1 and pre.layout.kinked() and not single:
+                    # A family with kinks is searched piece by piece, the shape scanned
+                    # over its kinks from where each search stops (search.piecewise): as
+                    # the start of another estimator's search, the starts that differ only
+                    # in the kinked shape end near where the best-scored one does, so one
+                    # start per scale is searched (_best_scored); as the estimate itself
+                    # (bcls), every start is, the criterion being multimodal in the shape
+                    starts = _best_scored(pre, starts)
                     nfev += len(self.jstarts)
                 for x_start in starts:
                     _, out = run_search(pre, x_start, max_nfev)

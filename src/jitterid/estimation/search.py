@@ -195,8 +195,9 @@ def run_search(
 
 #: relative decrease of the criterion that counts as descent into a neighbouring piece
 PIECE_GAIN = 1e-10
-#: a search that stops within this fraction of its piece's width from an end is at the end
-SNAP = 1e-7
+#: a search that stops within this fraction of its piece's width from an end, no lower than
+#: the end itself, is at the end
+SNAP = 1e-3
 
 
 def _piece(v: float, cuts: FloatArray) -> tuple[float, float]:
@@ -220,55 +221,47 @@ def criterion_or_inf(problem: SearchProblem, x: FloatArray) -> float:
 
 
 def _scan(
-    problem: SearchProblem, x: FloatArray, active: dict[int, FloatArray]
-) -> tuple[FloatArray, int]:
-    """The start of the piece walk, and the criterion evaluations it cost: the lowest point
-    of a descent over the kinks of a jitter family's kinked parameter from ``x`` at the
-    same jitter std (:meth:`jitterid.JitterFamily.at_same_std`; the other parameters as
-    they are): the kinks either side of x, then on in the direction that descends while
-    the criterion keeps falling. The family's shape is all but flat at a fixed std
-    (Table 1: BCLS stops anywhere in n), so a walk one piece at a time from x crossed up to
-    nine pieces, each a search."""
+    problem: SearchProblem, x: FloatArray, v0: float, i: int, cuts: FloatArray
+) -> tuple[FloatArray, float, int]:
+    """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i`` from
+    ``x`` (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily
+    .at_same_std`; the other parameters as they are): the kinks either side of x_i, then
+    on in the direction that descends while the criterion keeps falling. Returns the lowest
+    point, its criterion and the evaluations used (x itself where no kink is lower).
+
+    One evaluation a kink: the family's shape is all but flat at a fixed std (Table 1: BCLS
+    stops anywhere in n; ML walked n from 20 to 11 one piece, one search, at a time)."""
     jitter = getattr(problem, "jitter", None)
-    if not isinstance(jitter, JitterFamily):
-        return x, 0
-    nj = len(jitter.param_names)
-    n = 0
+    nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
+    if i >= nj:
+        return x, v0, 0
+    assert isinstance(jitter, JitterFamily)
+    theta, rest = x[:nj].tolist(), x[nj:]
 
-    def value(cand: FloatArray) -> float:
-        nonlocal n
+    def at(c: float) -> FloatArray:
+        return np.r_[jitter.at_same_std(theta, i, c), rest]
+
+    # the kinks either side of x_i, strictly (x_i on a kink: its neighbours)
+    below = int(np.searchsorted(cuts, x[i], side="left")) - 1  # cuts[below] < x_i
+    above = int(np.searchsorted(cuts, x[i], side="right"))  # cuts[above] > x_i
+    tried = {
+        j: criterion_or_inf(problem, at(float(cuts[j])))
+        for j in (below, above)
+        if 0 <= j < cuts.size
+    }
+    n = len(tried)
+    if not tried or min(tried.values()) >= v0:
+        return x, v0, n
+    j = min(tried, key=lambda k: tried[k])
+    step = -1 if j == below else 1
+    v = tried[j]
+    while 0 <= j + step < cuts.size:
+        w = criterion_or_inf(problem, at(float(cuts[j + step])))
         n += 1
-        return criterion_or_inf(problem, cand)
-
-    best_x, best = x, value(x)
-    for i, cuts in active.items():
-        if i >= nj:
-            continue
-        theta, rest = best_x[:nj].tolist(), best_x[nj:]
-
-        def at(
-            c: float, theta: list[float] = theta, i: int = i, rest: FloatArray = rest
-        ) -> FloatArray:
-            return np.r_[jitter.at_same_std(theta, i, c), rest]
-
-        below = int(np.searchsorted(cuts, best_x[i], side="right")) - 1  # cuts[below] <= x_i
-        above = below + 1
-        tried: dict[int, float] = {}
-        for j in (below, above):
-            if 0 <= j < cuts.size and cuts[j] != best_x[i]:
-                tried[j] = value(at(float(cuts[j])))
-        if not tried or min(tried.values()) >= best:
-            continue
-        j = min(tried, key=lambda k: tried[k])
-        step = -1 if j == below else 1
-        v = tried[j]
-        while 0 <= j + step < cuts.size:
-            w = value(at(float(cuts[j + step])))
-            if not w < v:
-                break
-            j, v = j + step, w
-        best_x, best = at(float(cuts[j])), v
-    return best_x, n
+        if not w < v:
+            break
+        j, v = j + step, w
+    return at(float(cuts[j])), v, n
 
 
 def piecewise(
@@ -286,14 +279,16 @@ def piecewise(
     searched one piece [k_j, k_j+1] at a time: ``search(problem, x, budget)`` runs with the
     problem restricted to the piece (:meth:`SearchProblem.restrict`), where the criterion
     is smooth up to the piece's ends and its derivatives there are one-sided into the
-    piece. A search that ends on an end shared with a neighbouring piece is continued in
-    that piece from where it stopped (a warm start: a few evaluations where there is
-    nothing to gain). The neighbour's end replaces the stop when it lowers the criterion by
-    more than ``PIECE_GAIN`` (relative), and the walk goes on from there; otherwise (its
-    search found no lower point, whether it converged or ran out of descent) the stop is a
-    kink where the criterion rises into both pieces (the one-sided derivatives bracket zero,
-    the other parameters stationary): CONVERGED, with a message naming the kink. Without
-    kinked free parameters this is ``search`` itself.
+    piece. From where a piece's search stops, the kinks beyond are scanned at the same
+    jitter std (:func:`_scan`, one evaluation each). Where one is lower, the piece beyond
+    it is searched from it. Where none is and the stop is on an end shared with a
+    neighbouring piece, that piece is searched from the stop (a warm start: a few
+    evaluations where there is nothing to gain). A search that lowers the criterion by more
+    than ``PIECE_GAIN`` (relative) replaces the stop, and the walk goes on from there.
+    Otherwise a stop inside its piece is a stationary point of a smooth piece, and a stop on
+    an end is a kink where the criterion rises into both pieces (the one-sided derivatives
+    bracket zero, the other parameters stationary): CONVERGED, with a message naming the
+    kink. Without kinked free parameters this is ``search`` itself.
     """
     layout = problem.layout
     kinked = layout.kinked()
@@ -307,7 +302,7 @@ def piecewise(
     if not active:
         return search(problem, x0, max_nfev)
     full = tuple(map(tuple, np.c_[lo, hi].tolist()))
-    x, scanned = _scan(problem, np.clip(np.asarray(x0, float), lo, hi), active)
+    x = np.clip(np.asarray(x0, float), lo, hi)
     pieces = {i: _piece(float(x[i]), cuts) for i, cuts in active.items()}
 
     def run(ps: dict[int, tuple[float, float]], start: FloatArray, budget: int) -> Outcome:
@@ -320,33 +315,59 @@ def piecewise(
         finally:
             problem.restrict(None)
 
-    out = run(pieces, x, max_nfev - scanned)
-    nfev, walked = out.nfev + scanned, 0
+    def lower(v: float, than: float) -> bool:
+        return v < than - PIECE_GAIN * max(1.0, abs(than))
+
+    out = run(pieces, x, max_nfev)
+    nfev, walked = out.nfev, 0
     kinks: list[tuple[int, float]] = []
     while out.status is FitStatus.CONVERGED and nfev < max_nfev:
         kinks = []
         moved = None
         for i, cuts in active.items():
             a, b = pieces[i]
-            for end, side in ((a, -1), (b, +1)):
-                # (a trust-region search keeps strictly inside its bounds: at the end to
-                # within SNAP of the piece is at the end)
-                if abs(out.x[i] - end) > SNAP * (b - a) or end in (lo[i], hi[i]):
-                    continue
-                out = out._replace(x=np.where(np.arange(x.size) == i, end, out.x))
-                j = int(np.searchsorted(cuts, end))
-                other = dict(pieces)
-                other[i] = (float(cuts[j - 1]), end) if side < 0 else (end, float(cuts[j + 1]))
-                trial = run(other, out.x, max_nfev - nfev)
-                nfev += trial.nfev
-                if trial.cost < out.cost - PIECE_GAIN * max(1.0, abs(out.cost)):
-                    moved = (other, trial)
-                    break
+            # (a search stops strictly inside its piece, near the end where it runs into
+            # it: the end itself, where it is no higher)
+            end = next(
+                (
+                    e
+                    for e in (a, b)
+                    if e not in (lo[i], hi[i]) and abs(out.x[i] - e) <= SNAP * (b - a)
+                ),
+                None,
+            )
+            if end is not None:
+                at_end = np.where(np.arange(x.size) == i, end, out.x)
+                v_end = criterion_or_inf(problem, at_end)
+                nfev += 1
+                if lower(out.cost, v_end):  # (the end is higher: the stop is inside)
+                    end = None
+                else:
+                    out = out._replace(x=at_end, cost=min(v_end, out.cost))
+            ahead, v, n = _scan(problem, out.x, out.cost, i, cuts)
+            nfev += n
+            if lower(v, out.cost):  # a kink beyond is lower: the piece beyond it
+                k = float(ahead[i])
+                j = int(np.searchsorted(cuts, k))
+                side = 1 if k > out.x[i] else -1
+                beyond = j + side if 0 <= j + side < cuts.size else j - side
+                piece = (min(k, float(cuts[beyond])), max(k, float(cuts[beyond])))
+            elif end is not None:  # the neighbouring piece, from the end
+                ahead, j = out.x, int(np.searchsorted(cuts, end))
+                piece = (float(cuts[j - 1]), end) if end == a else (end, float(cuts[j + 1]))
+            else:
+                continue
+            other = dict(pieces)
+            other[i] = piece
+            trial = run(other, ahead, max_nfev - nfev)
+            nfev += trial.nfev
+            if lower(trial.cost, out.cost):
+                moved = (other, trial)
+                break
+            if end is not None:
                 # (a search into that piece that stops without a lower point, converged or
                 # not (no step of its descent lowered the criterion), found no descent)
                 kinks.append((i, end))
-            if moved is not None:
-                break
         if moved is None:
             break
         pieces, out = moved

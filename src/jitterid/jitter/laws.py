@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.polynomial.legendre import leggauss
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import BSpline
+from scipy.interpolate import BSpline, PPoly
 
 from jitterid import _checks, finite_diff
 
@@ -637,12 +637,21 @@ class Gaussian(JitterLaw):
 
 
 @lru_cache(maxsize=64)
-def _cardinal_bspline(m: int) -> tuple[BSpline, BSpline]:
+def _cardinal_bspline(m: int) -> tuple[PPoly, PPoly]:
     """The cardinal B-spline of degree m - 1 on knots 0..m and its antiderivative: the same
     for every law with m equal uniforms, so built once per m (a search over (n, a) makes a
-    law at every step)."""
-    spline = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
-    return spline, spline.antiderivative()
+    law at every step). As piecewise polynomials, from the B-spline's derivatives at each
+    piece's left end (within 3e-15 of the B-spline form for m <= 51, a test checks):
+    evaluated about 3x faster (the quadratures evaluate the density at every node)."""
+    d = m - 1
+    if d == 0:
+        pdf = PPoly(np.ones((1, 1)), np.array([0.0, 1.0]), extrapolate=False)
+    else:
+        spline = BSpline.basis_element(np.arange(m + 1.0), extrapolate=False)
+        left = np.arange(float(m))
+        c = np.array([spline(left, nu=d - k) / math.factorial(d - k) for k in range(m)])
+        pdf = PPoly(c, np.arange(m + 1.0), extrapolate=False)
+    return pdf, pdf.antiderivative()
 
 
 @lru_cache(maxsize=64)
@@ -716,8 +725,8 @@ class SumOfUniforms(JitterLaw):
     _m: int = field(init=False, repr=False, compare=False)
     _b: float = field(init=False, repr=False, compare=False)
     _c: float = field(init=False, repr=False, compare=False)
-    _spline: BSpline = field(init=False, repr=False, compare=False)
-    _spline_cdf: BSpline = field(init=False, repr=False, compare=False)
+    _spline: PPoly = field(init=False, repr=False, compare=False)
+    _spline_cdf: PPoly = field(init=False, repr=False, compare=False)
     _knots: NDArray[np.float64] | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
