@@ -84,7 +84,9 @@ only m_k and w_k, cannot beat:
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import weakref
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
@@ -498,6 +500,38 @@ class _Nodes:
     logrule: FloatArray | None = None  # ln of the weights without the pdf (shape families)
 
 
+#: the Chebyshev pieces of a law's density (:func:`_chebyshev_pieces`), kept while the law
+#: lives: a likelihood evaluation asks for the density of one law some ten times
+_PIECES: weakref.WeakKeyDictionary[JitterLaw, tuple[FloatArray, FloatArray]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _chebyshev_pieces(law: JitterLaw, deg: int) -> tuple[FloatArray, FloatArray]:
+    """(breakpoints on tau <= 0, Chebyshev coefficients of each interval's interpolant of
+    degree ``deg`` at first-kind points of ``law.pdf``) for :func:`_density`."""
+    try:
+        return _PIECES[law]
+    except (KeyError, TypeError):
+        pass
+    bp = np.asarray(law.breakpoints(), dtype=float)
+    bp = bp[bp <= 0.0]
+    if bp[-1] < 0.0:
+        bp = np.r_[bp, 0.0]
+    left, right = bp[:-1], bp[1:]
+    cheb = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # first-kind points
+    pts = 0.5 * (left + right)[:, None] + 0.5 * (right - left)[:, None] * cheb[None, :]
+    vals = law.pdf(pts)
+    # Chebyshev coefficients of each interval's interpolant (discrete cosine transform)
+    k = np.arange(deg + 1)
+    T = np.cos(np.outer(k, np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1)))
+    coef = vals @ T.T * (2.0 / (deg + 1))
+    coef[:, 0] *= 0.5
+    with contextlib.suppress(TypeError):  # (a law that cannot be weakly referenced: not kept)
+        _PIECES[law] = (bp, coef)
+    return bp, coef
+
+
 def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
     """law.pdf(tau); for a law that declares :attr:`~jitterid.jitter.laws.JitterLaw.pdf_degree`
     (:class:`SumOfUniforms`) from its exact piecewise-polynomial form.
@@ -512,21 +546,10 @@ def _density(law: JitterLaw, tau: FloatArray) -> FloatArray:
     deg = law.pdf_degree if isinstance(law, JitterLaw) else None  # None for a stand-in law
     if deg is None:
         return np.asarray(law.pdf(tau), dtype=float)
-    bp = np.asarray(law.breakpoints(), dtype=float)
-    bp = bp[bp <= 0.0]
-    if bp[-1] < 0.0:
-        bp = np.r_[bp, 0.0]
+    bp, coef = _chebyshev_pieces(law, deg)
     x = -np.abs(np.asarray(tau, dtype=float))
     inside = x >= law.support[0]
     left, right = bp[:-1], bp[1:]
-    cheb = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # first-kind points
-    pts = 0.5 * (left + right)[:, None] + 0.5 * (right - left)[:, None] * cheb[None, :]
-    vals = law.pdf(pts)
-    # Chebyshev coefficients of each interval's interpolant (discrete cosine transform)
-    k = np.arange(deg + 1)
-    T = np.cos(np.outer(k, np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1)))
-    coef = vals @ T.T * (2.0 / (deg + 1))
-    coef[:, 0] *= 0.5
     i = np.clip(np.searchsorted(bp, x, side="right") - 1, 0, left.size - 1)
     u = np.clip((2.0 * x - (left[i] + right[i])) / (right[i] - left[i]), -1.0, 1.0)
     b1, b2 = np.zeros_like(u), np.zeros_like(u)
