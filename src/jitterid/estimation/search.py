@@ -193,6 +193,10 @@ def run_search(
     return problem, out._replace(nfev=nfev)
 
 
+#: the kinks' scan (_scan) looks at the kinks and at these fractions of each piece: denser
+#: near the kinks, where the modes of ln L in n that a kink hides sit (Table 3, records 0
+#: and 19: ln L falls from the kink n = 1 into (0, 1) and peaks again at n = 0.85 and 0.7)
+SCAN_FRACTIONS = (0.1, 0.25, 0.5, 0.75, 0.9)
 #: relative decrease of the criterion that counts as descent into a neighbouring piece
 PIECE_GAIN = 1e-10
 #: a search that stops within this fraction of its piece's width from an end, no lower than
@@ -223,31 +227,39 @@ def criterion_or_inf(problem: SearchProblem, x: FloatArray) -> float:
 def _scan(
     problem: SearchProblem, x: FloatArray, v0: float, i: int, cuts: FloatArray
 ) -> tuple[FloatArray, float, int]:
-    """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i`` from
-    ``x`` (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily
-    .at_same_std`; the other parameters as they are): the kinks either side of x_i, then
-    on in the direction that descends while the criterion keeps falling. Returns the lowest
-    point, its criterion and the evaluations used (x itself where no kink is lower).
+    """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i``, and
+    the points at ``SCAN_FRACTIONS`` of each piece between them, from ``x``
+    (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily.at_same_std`;
+    the other parameters as they are): the grid points either side of x_i, then on in the
+    direction that descends while the criterion keeps falling. Returns the lowest point,
+    its criterion and the evaluations used (x itself where no grid point is lower).
 
-    One evaluation a kink: the family's shape is all but flat at a fixed std (Table 1: BCLS
-    stops anywhere in n; ML walked n from 20 to 11 one piece, one search, at a time)."""
+    One evaluation a point: the family's shape is all but flat at a fixed std (Table 1:
+    BCLS stops anywhere in n; ML walked n from 20 to 11 one piece, one search, at a time).
+    The points inside find a mode inside a piece that its ends do not show (Table 3,
+    record 19: ln L has a local maximum in n at the kink n = 1 and its largest value at
+    n = 0.7; at the same std, 0.8 is above 1 and 0.5 below; record 0: the mode is at
+    0.85, 0.9 above 1 and 0.75 below)."""
     jitter = getattr(problem, "jitter", None)
     nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
     if i >= nj:
         return x, v0, 0
     assert isinstance(jitter, JitterFamily)
     theta, rest = x[:nj].tolist(), x[nj:]
+    frac = np.asarray(SCAN_FRACTIONS)
+    inner = cuts[:-1, None] + np.diff(cuts)[:, None] * frac[None, :]
+    grid = np.sort(np.r_[cuts, inner.ravel()])
 
     def at(c: float) -> FloatArray:
         return np.r_[jitter.at_same_std(theta, i, c), rest]
 
-    # the kinks either side of x_i, strictly (x_i on a kink: its neighbours)
-    below = int(np.searchsorted(cuts, x[i], side="left")) - 1  # cuts[below] < x_i
-    above = int(np.searchsorted(cuts, x[i], side="right"))  # cuts[above] > x_i
+    # the grid points either side of x_i, strictly (x_i on one: its neighbours)
+    below = int(np.searchsorted(grid, x[i], side="left")) - 1  # grid[below] < x_i
+    above = int(np.searchsorted(grid, x[i], side="right"))  # grid[above] > x_i
     tried = {
-        j: criterion_or_inf(problem, at(float(cuts[j])))
+        j: criterion_or_inf(problem, at(float(grid[j])))
         for j in (below, above)
-        if 0 <= j < cuts.size
+        if 0 <= j < grid.size
     }
     n = len(tried)
     if not tried or min(tried.values()) >= v0:
@@ -255,13 +267,13 @@ def _scan(
     j = min(tried, key=lambda k: tried[k])
     step = -1 if j == below else 1
     v = tried[j]
-    while 0 <= j + step < cuts.size:
-        w = criterion_or_inf(problem, at(float(cuts[j + step])))
+    while 0 <= j + step < grid.size:
+        w = criterion_or_inf(problem, at(float(grid[j + step])))
         n += 1
         if not w < v:
             break
         j, v = j + step, w
-    return at(float(cuts[j])), v, n
+    return at(float(grid[j])), v, n
 
 
 def piecewise(
@@ -279,10 +291,11 @@ def piecewise(
     searched one piece [k_j, k_j+1] at a time: ``search(problem, x, budget)`` runs with the
     problem restricted to the piece (:meth:`SearchProblem.restrict`), where the criterion
     is smooth up to the piece's ends and its derivatives there are one-sided into the
-    piece. From where a piece's search stops, the kinks beyond are scanned at the same
-    jitter std (:func:`_scan`, one evaluation each). Where one is lower, the piece beyond
-    it is searched from it. Where none is and the stop is on an end shared with a
-    neighbouring piece, that piece is searched from the stop (a warm start: a few
+    piece. From where a piece's search stops, the kinks and points inside the pieces beyond
+    are scanned at the same jitter std (:func:`_scan`, one evaluation each). Where one is
+    lower, its piece (the piece beyond, for a kink) is searched from it. Where none is and
+    the stop is on an end shared with a neighbouring piece, that piece is searched from the
+    stop (a warm start: a few
     evaluations where there is nothing to gain). A search that lowers the criterion by more
     than ``PIECE_GAIN`` (relative) replaces the stop, and the walk goes on from there.
     Otherwise a stop inside its piece is a stationary point of a smooth piece, and a stop on
@@ -346,12 +359,15 @@ def piecewise(
                     out = out._replace(x=at_end, cost=min(v_end, out.cost))
             ahead, v, n = _scan(problem, out.x, out.cost, i, cuts)
             nfev += n
-            if lower(v, out.cost):  # a kink beyond is lower: the piece beyond it
+            if lower(v, out.cost):  # a point beyond is lower: its piece, or beyond a kink
                 k = float(ahead[i])
                 j = int(np.searchsorted(cuts, k))
-                side = 1 if k > out.x[i] else -1
-                beyond = j + side if 0 <= j + side < cuts.size else j - side
-                piece = (min(k, float(cuts[beyond])), max(k, float(cuts[beyond])))
+                if j == cuts.size or cuts[j] != k:  # a point inside a piece
+                    piece = (float(cuts[j - 1]), float(cuts[j]))
+                else:
+                    side = 1 if k > out.x[i] else -1
+                    beyond = j + side if 0 <= j + side < cuts.size else j - side
+                    piece = (min(k, float(cuts[beyond])), max(k, float(cuts[beyond])))
             elif end is not None:  # the neighbouring piece, from the end
                 ahead, j = out.x, int(np.searchsorted(cuts, end))
                 piece = (float(cuts[j - 1]), end) if end == a else (end, float(cuts[j + 1]))
