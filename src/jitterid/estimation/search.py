@@ -193,9 +193,10 @@ def run_search(
     return problem, out._replace(nfev=nfev)
 
 
-#: the kinks' scan (_scan) looks at the kinks and at these fractions of each piece: denser
-#: near the kinks, where the modes of ln L in n that a kink hides sit (Table 3, records 0
-#: and 19: ln L falls from the kink n = 1 into (0, 1) and peaks again at n = 0.85 and 0.7)
+#: the kinks' scan (_scan) looks at these fractions of the pieces next to where its descent
+#: over the kinks ends: denser near the kinks, where the modes of ln L in n that a kink
+#: hides sit (Table 3, records 0 and 19: ln L falls from the kink n = 1 into (0, 1) and
+#: peaks again at n = 0.85 and 0.7)
 SCAN_FRACTIONS = (0.1, 0.25, 0.5, 0.75, 0.9)
 #: relative decrease of the criterion that counts as descent into a neighbouring piece
 PIECE_GAIN = 1e-10
@@ -227,12 +228,12 @@ def criterion_or_inf(problem: SearchProblem, x: FloatArray) -> float:
 def _scan(
     problem: SearchProblem, x: FloatArray, v0: float, i: int, cuts: FloatArray
 ) -> tuple[FloatArray, float, int]:
-    """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i``, and
-    the points at ``SCAN_FRACTIONS`` of each piece between them, from ``x``
-    (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily.at_same_std`;
-    the other parameters as they are): the grid points either side of x_i, then on in the
-    direction that descends while the criterion keeps falling. Returns the lowest point,
-    its criterion and the evaluations used (x itself where no grid point is lower).
+    """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i`` from
+    ``x`` (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily
+    .at_same_std`; the other parameters as they are): the kinks either side of x_i, then on
+    in the direction that descends while the criterion keeps falling; then the points at
+    ``SCAN_FRACTIONS`` of the pieces next to where that descent ends. Returns the lowest
+    point, its criterion and the evaluations used (x itself where none is lower).
 
     One evaluation a point: the family's shape is all but flat at a fixed std (Table 1:
     BCLS stops anywhere in n; ML walked n from 20 to 11 one piece, one search, at a time).
@@ -246,34 +247,48 @@ def _scan(
         return x, v0, 0
     assert isinstance(jitter, JitterFamily)
     theta, rest = x[:nj].tolist(), x[nj:]
-    frac = np.asarray(SCAN_FRACTIONS)
-    inner = cuts[:-1, None] + np.diff(cuts)[:, None] * frac[None, :]
-    grid = np.sort(np.r_[cuts, inner.ravel()])
 
     def at(c: float) -> FloatArray:
         return np.r_[jitter.at_same_std(theta, i, c), rest]
 
-    # the grid points either side of x_i, strictly (x_i on one: its neighbours)
-    below = int(np.searchsorted(grid, x[i], side="left")) - 1  # grid[below] < x_i
-    above = int(np.searchsorted(grid, x[i], side="right"))  # grid[above] > x_i
+    # the kinks either side of x_i, strictly (x_i on a kink: its neighbours)
+    below = int(np.searchsorted(cuts, x[i], side="left")) - 1  # cuts[below] < x_i
+    above = int(np.searchsorted(cuts, x[i], side="right"))  # cuts[above] > x_i
     tried = {
-        j: criterion_or_inf(problem, at(float(grid[j])))
+        j: criterion_or_inf(problem, at(float(cuts[j])))
         for j in (below, above)
-        if 0 <= j < grid.size
+        if 0 <= j < cuts.size
     }
     n = len(tried)
-    if not tried or min(tried.values()) >= v0:
+    best_c, best = float(x[i]), v0
+    if tried and min(tried.values()) < v0:
+        j = min(tried, key=lambda k: tried[k])
+        step = -1 if j == below else 1
+        v = tried[j]
+        while 0 <= j + step < cuts.size:
+            w = criterion_or_inf(problem, at(float(cuts[j + step])))
+            n += 1
+            if not w < v:
+                break
+            j, v = j + step, w
+        best_c, best = float(cuts[j]), v
+    # the pieces next to where the descent ends (one piece where it is inside one)
+    j = int(np.searchsorted(cuts, best_c))
+    on_kink = j < cuts.size and cuts[j] == best_c
+    pieces = [(j - 1, j), (j, j + 1)] if on_kink else [(j - 1, j)]
+    start_c = best_c
+    for p, q in pieces:
+        if p < 0 or q >= cuts.size:
+            continue
+        for f in SCAN_FRACTIONS:
+            c = float(cuts[p] + f * (cuts[q] - cuts[p]))
+            w = criterion_or_inf(problem, at(c))
+            n += 1
+            if w < best:
+                best_c, best = c, w
+    if best_c == float(x[i]) and start_c == best_c:
         return x, v0, n
-    j = min(tried, key=lambda k: tried[k])
-    step = -1 if j == below else 1
-    v = tried[j]
-    while 0 <= j + step < grid.size:
-        w = criterion_or_inf(problem, at(float(grid[j + step])))
-        n += 1
-        if not w < v:
-            break
-        j, v = j + step, w
-    return at(float(grid[j])), v, n
+    return at(best_c), best, n
 
 
 def piecewise(
@@ -289,19 +304,19 @@ def piecewise(
     :attr:`~jitterid.JitterFamily.kinks`, in the problem's
     :attr:`~jitterid.params.ParamLayout.kinks`: n of the family (26) at the integers) is
     searched one piece [k_j, k_j+1] at a time: ``search(problem, x, budget)`` runs with the
-    problem restricted to the piece (:meth:`SearchProblem.restrict`), where the criterion
-    is smooth up to the piece's ends and its derivatives there are one-sided into the
-    piece. From where a piece's search stops, the kinks and points inside the pieces beyond
-    are scanned at the same jitter std (:func:`_scan`, one evaluation each). Where one is
-    lower, its piece (the piece beyond, for a kink) is searched from it. Where none is and
-    the stop is on an end shared with a neighbouring piece, that piece is searched from the
-    stop (a warm start: a few
-    evaluations where there is nothing to gain). A search that lowers the criterion by more
-    than ``PIECE_GAIN`` (relative) replaces the stop, and the walk goes on from there.
-    Otherwise a stop inside its piece is a stationary point of a smooth piece, and a stop on
-    an end is a kink where the criterion rises into both pieces (the one-sided derivatives
-    bracket zero, the other parameters stationary): CONVERGED, with a message naming the
-    kink. Without kinked free parameters this is ``search`` itself.
+    problem restricted to the piece (:meth:`SearchProblem.restrict`), where the criterion is
+    smooth up to the piece's ends and its derivatives there are one-sided into the piece.
+    From where a piece's search stops, the kinks beyond, and points inside the pieces where
+    that descent ends, are scanned at the same jitter std (:func:`_scan`, one evaluation
+    each). Where one is lower, its piece (the piece beyond, for a kink) is searched from it.
+    Where none is and the stop is on an end shared with a neighbouring piece, that piece is
+    searched from the stop (a warm start: a few evaluations where there is nothing to gain).
+    A search that lowers the criterion by more than ``PIECE_GAIN`` (relative) replaces the
+    stop, and the walk goes on from there. Otherwise a stop inside its piece is a stationary
+    point of a smooth piece, and a stop on an end is a kink where the criterion rises into
+    both pieces (the one-sided derivatives bracket zero, the other parameters stationary):
+    CONVERGED, with a message naming the kink. Without kinked free parameters this is
+    ``search`` itself.
     """
     layout = problem.layout
     kinked = layout.kinked()
