@@ -1,0 +1,227 @@
+"""The maximum of :class:`~jitterid.metrology.sinelik_loglik.SineLikelihood`,
+:func:`fit_sine_ml`: damped Newton steps on the observed information (its negative
+curvatures made positive where it is not definite; on records longer than 2^15 samples the
+information of every n-th chunk, scaled, for the steps), in ln of the scales, inside the
+bounds: a few passes over the record. The covariance is the inverse observed information
+of the whole record. The noise std is searched down to a floor (``noise_floor``; on a
+float record :data:`NUMERIC_FLOOR` of the jitter's spread, see
+:mod:`jitterid.metrology.sinelik`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..estimation.result import FitResult, FitStatus
+from ..jitter.laws import JitterFamily
+from ..systems.tones import SineWave
+from .sinelik_loglik import SineLikelihood, sine_ml_applies
+from .sinelik_rule import FloatArray
+
+__all__ = ["NUMERIC_FLOOR", "fit_sine_ml"]
+
+#: The noise floor of a float record (no physical one), relative to the jitter's own spread
+#: of the samples A sqrt((w sigma)^2 / 2): a floor c biases the jitter std low by about
+#: c / 4 to c / 6 on a noise-free record (see the module doc): 1e-3 moves it by ~2e-4
+#: (measured: -0.03 standard errors at N = 2^14, about -0.25 at 2^20). Lower floors
+#: are closer still but slow the search (the likelihood of a noise-free tone is not
+#: regular: its peaks' samples make it rough in the amplitude and offset on the scale
+#: of the floor).
+NUMERIC_FLOOR = 1e-3
+_DECREMENT = 1e-3  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
+
+
+def _positive(H: FloatArray, opg: FloatArray) -> FloatArray:
+    """H with its eigenvalues replaced by their absolute values (floored at 1e-4 of the
+    largest), on the scale of its diagonal (or of the scores' outer product where that is
+    0): a Newton matrix that is definite and keeps H's curvature where H has one."""
+    d = np.abs(np.diag(H))
+    d = np.where(d > 0, d, np.maximum(np.diag(opg), 1e-300))
+    r = 1.0 / np.sqrt(d)
+    lam, vec = np.linalg.eigh(H * np.outer(r, r))
+    top = float(np.max(np.abs(lam))) if lam.size else 1.0
+    lam = np.maximum(np.abs(lam), 1e-4 * top)
+    return (vec * lam) @ vec.T / np.outer(r, r)
+
+
+def fit_sine_ml(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    *,
+    noise_floor: float = 0.0,
+    max_iter: int = 100,
+) -> FitResult:
+    """Maximise :class:`SineLikelihood` from a start: damped Newton steps on the observed
+    information (module doc), in ln of the jitter scale and the noise std, inside the
+    bounds; the covariance is the inverse observed information.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The record.
+    T : float
+        The nominal sampling interval (s).
+    model : SineWave
+        The pure-tone model (its ``band_hz`` bounds the frequency).
+    family : JitterFamily
+        Gaussian, uniform or dual-Dirac family (:func:`sine_ml_applies`).
+    start : array_like
+        The start, in the order of :attr:`SineLikelihood.names`.
+    noise_floor : float
+        The smallest noise std searched (see the module doc: noise-free records).
+    max_iter : int
+        The most steps.
+
+    Returns
+    -------
+    FitResult
+        ``method="ml"``, cost -2 ln L, covariance ``"oim"``; AT_BOUND where a parameter ends
+        on its bound (no standard error then), MAX_EVALUATIONS where the steps ran out.
+    """
+    if not sine_ml_applies(model, family):
+        raise TypeError(
+            "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
+            "family a Gaussian, uniform or dual-Dirac family; use jitterid.fit(..., 'ml') else"
+        )
+    lik = SineLikelihood(y, T, family)
+    lo, hi = lik.bounds(noise_floor, model.band_hz)
+    x = np.clip(np.asarray(start, dtype=float).copy(), lo, hi)
+    if x[lik.nj] < 0:
+        x[lik.nj] = -x[lik.nj]
+        x[lik.nj + 1] += math.pi
+    # the search runs in v: ln of the scales (the jitter's first parameter, the noise std:
+    # ln L is far closer to quadratic in them), the others as they are
+    logs = np.zeros(x.size, bool)
+    logs[0] = logs[-1] = True
+    vlo = np.where(logs, np.log(np.maximum(lo, 1e-300)), lo)
+    vhi = np.where(logs, np.log(np.where(np.isfinite(hi), hi, 1e300)), hi)
+
+    def to_x(v: FloatArray) -> FloatArray:
+        return np.where(logs, np.exp(np.where(logs, v, 0.0)), v)
+
+    # the Newton steps' information from about 2^15 samples (the gradient from all)
+    stride = max(1, (lik.N + (1 << 15) - 1) // (1 << 15))
+
+    def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+        # a trial point far off (a long step) may overflow: it is then rejected as
+        # non-finite, its floating-point warnings are not the caller's
+        with np.errstate(all="ignore"):
+            ll_, g_, opg_, info_ = lik.scores_information(xx, stride)
+        if not (np.all(np.isfinite(g_)) and np.all(np.isfinite(opg_))):
+            ll_ = -math.inf
+        jac = np.where(logs, xx, 1.0)
+        # in v: the chain rule (d2 ln L / dv^2 gains g x on the diagonal of a ln scale)
+        info_v = info_ * np.outer(jac, jac) - np.diag(np.where(logs, g_ * xx, 0.0))
+        return ll_, g_ * jac, opg_ * np.outer(jac, jac), info_v
+
+    v = np.where(logs, np.log(np.maximum(x, 1e-300)), x)
+    x = to_x(v)
+    ll, g, opg, info = evaluate(x)
+    nfev = 1
+    lam = 1e-4
+    stalled = 0
+    status, why = FitStatus.MAX_EVALUATIONS, f"the {max_iter} steps ran out"
+    if not math.isfinite(ll):
+        status, why = FitStatus.NOT_FINITE, "the likelihood is not finite at the start"
+        max_iter = 0
+    for _ in range(max_iter):
+        free = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
+        d = np.zeros_like(v)
+        # Newton on the observed information, its negative curvatures turned positive
+        # where it is not definite (far from the optimum, or a law far from the record's)
+        if np.all(np.isfinite(info)):
+            H = _positive(info[np.ix_(free, free)], opg[np.ix_(free, free)])
+        else:  # BHHH on the scores' covariance
+            H = (opg - np.outer(g, g) / lik.N)[np.ix_(free, free)]
+        diag = np.maximum(np.diag(H), 1e-300)
+        gain = math.inf
+        accepted = False
+        for _try in range(12):
+            try:
+                d[free] = np.linalg.solve(H + lam * np.diag(diag), g[free])
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            d = np.where(logs, np.clip(d, -3.0, 3.0), d)  # a scale moves e^3 at most
+            vn = np.clip(v + d, vlo, vhi)
+            xn = to_x(vn)
+            if xn[lik.nj + 2] <= 0:  # frequency stays positive
+                lam *= 10
+                continue
+            lln, gn, opgn, infon = evaluate(xn)
+            nfev += 1
+            if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
+                gain = lln - ll
+                v, x, ll, g, opg, info = vn, xn, lln, gn, opgn, infon
+                lam = max(lam / 10.0, 1e-9)
+                accepted = True
+                break
+            lam *= 10.0
+        if not accepted:
+            status, why = FitStatus.CONVERGED, "no step raises the likelihood further"
+            break
+        # the Newton decrement (twice the predicted further gain)
+        fr = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
+        try:
+            Hm = _positive(info[np.ix_(fr, fr)], opg[np.ix_(fr, fr)])
+            dec = float(g[fr] @ np.linalg.solve(Hm, g[fr]))
+        except (np.linalg.LinAlgError, ValueError):
+            dec = math.inf
+        stalled = stalled + 1 if gain < 0.1 * _DECREMENT else 0
+        if dec < _DECREMENT and gain < 10 * _DECREMENT:
+            status = FitStatus.CONVERGED
+            why = (
+                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 3 % of "
+                "the standard errors)"
+            )
+            break
+        if stalled >= 3:
+            status = FitStatus.CONVERGED
+            why = (
+                f"ln L rose by less than {0.1 * _DECREMENT:g} in each of 3 steps (a direction "
+                "in which the likelihood is flat, e.g. a dual Dirac's dj near 0)"
+            )
+            break
+    x = np.clip(x, lo, hi)
+    at_bound = (x <= lo * (1 + 1e-12) + 1e-300) | (x >= hi)
+    at_bound[lik.nj] = False  # the amplitude's floor is not a bound of the model
+    free = ~at_bound
+    P = x.size
+    cov = np.full((P, P), math.nan)
+    note = ""
+    if status is not FitStatus.NOT_FINITE:
+        H = lik.observed_information(x)
+        Hf = H[np.ix_(free, free)]
+        try:
+            np.linalg.cholesky(Hf)
+            cov[np.ix_(free, free)] = np.linalg.inv(Hf)
+        except np.linalg.LinAlgError:
+            note = "; the observed information is not positive definite (no standard errors)"
+    names = lik.names
+    if status is FitStatus.CONVERGED and at_bound.any():
+        which = ", ".join(n for n, a in zip(names, at_bound, strict=True) if a)
+        status = FitStatus.AT_BOUND
+        why += f"; on its bound: {which}"
+    jp = x[: lik.nj]
+    return FitResult(
+        method="ml",
+        names=names,
+        x=x,
+        cost=-2.0 * ll,
+        status=status,
+        message=f"structured sine likelihood (jitterid.metrology.sinelik): {why}{note}",
+        nfev=nfev,
+        system=None,
+        jitter_law=family.law(tuple(float(v) for v in jp)),
+        noise_std=float(x[-1]),
+        freqs=np.zeros(0),
+        cov=cov,
+        cov_type="oim",
+        structure=model,
+        jitter_model=family,
+    )
