@@ -13,7 +13,9 @@ windows, Gauss-Legendre panels; its error and derivatives) is
 :mod:`jitterid.metrology.sinelik_rule`; the record's sums, score and information
 :class:`SineLikelihood` (:mod:`jitterid.metrology.sinelik_loglik`); the search
 :func:`fit_sine_ml` (:mod:`jitterid.metrology.sinelik_fit`). This module is their public
-home.
+home. With several laws the meter ranks them before their full fits
+(:func:`rank_sine_law`): a law whose fit, from the leading law's optimum, cannot come
+within :data:`RANK_MARGIN_BIC` of it is not fitted to its maximum.
 
 Noise-free records (sigma -> 0). (S1) holds for every sigma > 0 and the rule scales with
 sigma (the window shrinks with the Gaussian factor), so a noise std of 1e-9 of the
@@ -34,8 +36,17 @@ no standard error; the meter then says the noise is below what the record resolv
 
 from __future__ import annotations
 
-from .sinelik_fit import NUMERIC_FLOOR, fit_sine_ml
+from .sinelik_fit import NUMERIC_FLOOR, RANK_MARGIN_BIC, LawRank, fit_sine_ml, rank_sine_law
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
 from .sinelik_rule import TOLERANCE
 
-__all__ = ["NUMERIC_FLOOR", "TOLERANCE", "SineLikelihood", "fit_sine_ml", "sine_ml_applies"]
+__all__ = [
+    "NUMERIC_FLOOR",
+    "RANK_MARGIN_BIC",
+    "TOLERANCE",
+    "LawRank",
+    "SineLikelihood",
+    "fit_sine_ml",
+    "rank_sine_law",
+    "sine_ml_applies",
+]

@@ -10,6 +10,7 @@ float record :data:`NUMERIC_FLOOR` of the jitter's spread, see
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -17,10 +18,11 @@ from numpy.typing import ArrayLike
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily
 from ..systems.tones import SineWave
+from .reading import LAW_MARGIN_BIC
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
 from .sinelik_rule import FloatArray
 
-__all__ = ["NUMERIC_FLOOR", "fit_sine_ml"]
+__all__ = ["NUMERIC_FLOOR", "RANK_MARGIN_BIC", "LawRank", "fit_sine_ml", "rank_sine_law"]
 
 #: The noise floor of a float record (no physical one), relative to the jitter's own spread
 #: of the samples A sqrt((w sigma)^2 / 2): a floor c biases the jitter std low by about
@@ -30,6 +32,19 @@ __all__ = ["NUMERIC_FLOOR", "fit_sine_ml"]
 #: regular: its peaks' samples make it rough in the amplitude and offset on the scale
 #: of the floor).
 NUMERIC_FLOOR = 1e-3
+#: A family is ranked out (:func:`rank_sine_law`) where even the upper estimate of its
+#: maximum leaves its BIC this far above the leading family's: the margin above which the
+#: meter calls the law chosen (:data:`jitterid.metrology.reading.LAW_MARGIN_BIC`), so a
+#: ranked-out family never turns a chosen law into an undetermined one.
+RANK_MARGIN_BIC = LAW_MARGIN_BIC
+#: The upper estimate of a family's maximum: ln L + RANK_SAFETY x the Newton model's
+#: predicted further gain (g^T H^-1 g / 2, H the observed information made definite).
+#: The quadratic model underestimates the gain where ln L is flatter than quadratic (a
+#: dual Dirac's dj near 0, where ln L is quartic in dj: 2/3 of the gain): 3 covers it twice.
+RANK_SAFETY = 3.0
+#: The fewest Newton steps before a family may be ranked out (the first step from another
+#: family's optimum is the least quadratic).
+RANK_MIN_STEPS = 2
 _DECREMENT = 1e-3  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
 
 
@@ -83,6 +98,96 @@ def fit_sine_ml(
         ``method="ml"``, cost -2 ln L, covariance ``"oim"``; AT_BOUND where a parameter ends
         on its bound (no standard error then), MAX_EVALUATIONS where the steps ran out.
     """
+    return _search(y, T, model, family, start, noise_floor, max_iter, None)[0]
+
+
+@dataclass(frozen=True)
+class LawRank:
+    """A jitter family's fit as far as the law ranking took it (:func:`rank_sine_law`).
+
+    Attributes
+    ----------
+    fit : FitResult
+        Its fit: to its maximum where the family can still win, else stopped
+        (MAX_EVALUATIONS, no covariance, the message says "ranked out").
+    ranked_out : bool
+        Whether the family was ranked out.
+    loglik_upper : float
+        The upper estimate of its maximum ln L (its ln L where fitted to its maximum).
+    """
+
+    fit: FitResult
+    ranked_out: bool
+    loglik_upper: float
+
+
+def rank_sine_law(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    *,
+    rival_loglik: float,
+    rival_n_params: int,
+    noise_floor: float = 0.0,
+    max_iter: int = 100,
+) -> LawRank:
+    """:func:`fit_sine_ml` that gives up on a family that cannot win: the search stops
+    (after ``RANK_MIN_STEPS`` steps at least) once the upper estimate of the family's
+    maximum (ln L + ``RANK_SAFETY`` x the predicted further gain) puts its BIC more than
+    :data:`RANK_MARGIN_BIC` above the rival's; else it runs to the maximum, as
+    :func:`fit_sine_ml` from the same start (the same result).
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The record.
+    T : float
+        The nominal sampling interval (s).
+    model : SineWave
+        The pure-tone model.
+    family : JitterFamily
+        Gaussian, uniform or dual-Dirac family.
+    start : array_like
+        The start (e.g. the rival's optimum with this family's parameters at its std).
+    rival_loglik : float
+        The leading family's maximised ln L.
+    rival_n_params : int
+        The leading family's number of parameters (the BIC's penalty).
+    noise_floor : float
+        The smallest noise std searched.
+    max_iter : int
+        The most steps.
+
+    Returns
+    -------
+    LawRank
+    """
+    N = int(np.size(y))
+    p = len(family.param_names) + 5
+    give_up = (
+        float(rival_loglik) + 0.5 * (p - int(rival_n_params)) * math.log(N) - 0.5 * RANK_MARGIN_BIC
+    )
+    if not math.isfinite(give_up):
+        give_up = -math.inf  # no finite rival: nothing is ranked out
+    return LawRank(*_search(y, T, model, family, start, noise_floor, max_iter, give_up))
+
+
+def _search(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    noise_floor: float,
+    max_iter: int,
+    give_up_below: float | None,
+) -> tuple[FitResult, bool, float]:
+    """:func:`fit_sine_ml`'s search, whether it gave up, and the upper estimate of the
+    maximum of ln L (ln L + ``RANK_SAFETY`` x the predicted gain, at the last step). With
+    ``give_up_below`` it stops (MAX_EVALUATIONS, no covariance) after at least
+    ``RANK_MIN_STEPS`` steps once that upper estimate is below ``give_up_below``."""
     if not sine_ml_applies(model, family):
         raise TypeError(
             "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
@@ -125,11 +230,13 @@ def fit_sine_ml(
     nfev = 1
     lam = 1e-4
     stalled = 0
+    upper = math.inf
+    ranked_out = False
     status, why = FitStatus.MAX_EVALUATIONS, f"the {max_iter} steps ran out"
     if not math.isfinite(ll):
         status, why = FitStatus.NOT_FINITE, "the likelihood is not finite at the start"
         max_iter = 0
-    for _ in range(max_iter):
+    for step in range(max_iter):
         free = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
         d = np.zeros_like(v)
         # Newton on the observed information, its negative curvatures turned positive
@@ -173,6 +280,16 @@ def fit_sine_ml(
         except (np.linalg.LinAlgError, ValueError):
             dec = math.inf
         stalled = stalled + 1 if gain < 0.1 * _DECREMENT else 0
+        upper = ll + RANK_SAFETY * 0.5 * dec
+        if give_up_below is not None and step + 1 >= RANK_MIN_STEPS and upper < give_up_below:
+            ranked_out = True
+            why = (
+                f"ranked out after {step + 1} steps: ln L = {ll:.6g}, and at most "
+                f"{upper:.6g} by {RANK_SAFETY:g} x the predicted further gain {0.5 * dec:.3g}, "
+                f"below {give_up_below:.6g} (this family cannot win by the ranking margin); "
+                "not fitted to its maximum"
+            )
+            break
         if dec < _DECREMENT and gain < 10 * _DECREMENT:
             status = FitStatus.CONVERGED
             why = (
@@ -194,7 +311,7 @@ def fit_sine_ml(
     P = x.size
     cov = np.full((P, P), math.nan)
     note = ""
-    if status is not FitStatus.NOT_FINITE:
+    if status is not FitStatus.NOT_FINITE and not ranked_out:
         H = lik.observed_information(x)
         Hf = H[np.ix_(free, free)]
         try:
@@ -207,21 +324,27 @@ def fit_sine_ml(
         which = ", ".join(n for n, a in zip(names, at_bound, strict=True) if a)
         status = FitStatus.AT_BOUND
         why += f"; on its bound: {which}"
+    if status in (FitStatus.CONVERGED, FitStatus.AT_BOUND):
+        upper = ll  # the maximum the search found
     jp = x[: lik.nj]
-    return FitResult(
-        method="ml",
-        names=names,
-        x=x,
-        cost=-2.0 * ll,
-        status=status,
-        message=f"structured sine likelihood (jitterid.metrology.sinelik): {why}{note}",
-        nfev=nfev,
-        system=None,
-        jitter_law=family.law(tuple(float(v) for v in jp)),
-        noise_std=float(x[-1]),
-        freqs=np.zeros(0),
-        cov=cov,
-        cov_type="oim",
-        structure=model,
-        jitter_model=family,
+    return (
+        FitResult(
+            method="ml",
+            names=names,
+            x=x,
+            cost=-2.0 * ll,
+            status=status,
+            message=f"structured sine likelihood (jitterid.metrology.sinelik): {why}{note}",
+            nfev=nfev,
+            system=None,
+            jitter_law=family.law(tuple(float(v) for v in jp)),
+            noise_std=float(x[-1]),
+            freqs=np.zeros(0),
+            cov=cov,
+            cov_type="oim",
+            structure=model,
+            jitter_model=family,
+        ),
+        ranked_out,
+        upper,
     )
