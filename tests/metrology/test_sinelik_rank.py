@@ -75,13 +75,23 @@ def test_a_family_that_can_win_is_fitted_as_fit_sine_ml_fits_it():
     assert rank.fit.status is full.status
 
 
-@pytest.mark.parametrize("name", ["uniform", "dual-dirac"])
-def test_a_ranked_out_family_s_upper_estimate_bounds_its_maximum(name):
+@pytest.mark.parametrize(
+    ("name", "log2n"),
+    [
+        ("uniform", 12),
+        ("dual-dirac", 12),
+        # on every 4th sample first, then on the whole record (about 20 CPU-s each)
+        pytest.param("uniform", 15, marks=pytest.mark.slow),
+        pytest.param("dual-dirac", 15, marks=pytest.mark.slow),
+    ],
+)
+def test_a_ranked_out_family_s_upper_estimate_bounds_its_maximum(name, log2n):
     """On a Gaussian record, from the Gaussian optimum: the uniform and the dual Dirac are
     given up (after a few steps, fewer than their full fits take), each with an upper
     estimate at least the maximum its full fit reaches, and a status that does not claim
-    convergence (no standard errors)."""
-    y, f = _record("gaussian", 12, 1)
+    convergence (no standard errors). At 2^15 samples the ranking starts from the family's
+    optimum on a subsample."""
+    y, f = _record("gaussian", log2n, 1)
     model, g = _gaussian_fit(y, f)
     fam = _families()[name]
     start = np.r_[fam.start_for_std(g.jitter_std), g.x[1:]]
@@ -145,8 +155,14 @@ def _same_choice(law, seed, log2n, monkeypatch):
     assert ranked.jitter_std == full.jitter_std  # the chosen fit is the same fit
 
 
-@pytest.mark.slow  # about 3 CPU-minutes: the full route fits every law to its maximum
+@pytest.mark.slow  # about 4 CPU-minutes: the full route fits every law to its maximum
 @pytest.mark.parametrize("seed", [0, 1])
 @pytest.mark.parametrize("law", ["gaussian", "uniform", "dual-dirac"])
 def test_ranking_chooses_the_law_the_full_route_chooses(law, seed, monkeypatch):
     _same_choice(law, seed, 12, monkeypatch)
+
+
+@pytest.mark.slow  # about 2 CPU-minutes
+def test_ranking_from_a_subsample_chooses_the_law_the_full_route_chooses(monkeypatch):
+    """At 2^15 samples (the ranking starts from each law's optimum on every 4th sample)."""
+    _same_choice("gaussian", 2, 15, monkeypatch)

@@ -43,9 +43,19 @@ RANK_MARGIN_BIC = LAW_MARGIN_BIC
 #: dual Dirac's dj near 0, where ln L is quartic in dj: 2/3 of the gain): 3 covers it twice.
 RANK_SAFETY = 3.0
 #: The fewest Newton steps before a family may be ranked out (the first step from another
-#: family's optimum is the least quadratic).
+#: family's optimum is the least quadratic; from the subsample's optimum: 1).
 RANK_MIN_STEPS = 2
-_DECREMENT = 1e-3  # the search stops where g^T OPG^-1 g (twice the predicted gain) is below
+#: On records of at least 4 x this many samples the ranking first fits the family on every
+#: s-th sample (s = N // RANK_SUBSAMPLE: a record of its own, at s T, ~1/s of a pass per
+#: step) and continues on the whole record from there: a start within sqrt(s) standard
+#: errors of the family's maximum, where the Newton model is close to quadratic.
+RANK_SUBSAMPLE = 1 << 13
+#: The ranking's subsample fit stops at this Newton decrement (steps within one of its
+#: standard errors: its optimum is sqrt(s) of the record's standard errors off anyway),
+#: and the ranking's steps on the whole record take their information from about
+#: RANK_INFO_SAMPLES samples (fit_sine_ml's: 2^15).
+RANK_SUB_DECREMENT = 1.0
+RANK_INFO_SAMPLES = 1 << 13
 
 
 def _positive(H: FloatArray, opg: FloatArray) -> FloatArray:
@@ -137,7 +147,10 @@ def rank_sine_law(
     (after ``RANK_MIN_STEPS`` steps at least) once the upper estimate of the family's
     maximum (ln L + ``RANK_SAFETY`` x the predicted further gain) puts its BIC more than
     :data:`RANK_MARGIN_BIC` above the rival's; else it runs to the maximum, as
-    :func:`fit_sine_ml` from the same start (the same result).
+    :func:`fit_sine_ml` from the same start (the same result). On a record of at least
+    4 ``RANK_SUBSAMPLE`` samples the search on the whole record starts from the family's
+    optimum on every s-th sample (``RANK_SUBSAMPLE``) instead, and may stop after one
+    step.
 
     Parameters
     ----------
@@ -171,7 +184,37 @@ def rank_sine_law(
     )
     if not math.isfinite(give_up):
         give_up = -math.inf  # no finite rival: nothing is ranked out
-    return LawRank(*_search(y, T, model, family, start, noise_floor, max_iter, give_up))
+    s = N // RANK_SUBSAMPLE
+    min_steps = RANK_MIN_STEPS
+    if s >= 4:
+        yv = np.asarray(y, dtype=float)
+        sub = _search(
+            yv[::s],
+            s * T,
+            model,
+            family,
+            start,
+            noise_floor,
+            max_iter,
+            None,
+            decrement=RANK_SUB_DECREMENT,
+        )[0]
+        if sub.success and np.all(np.isfinite(sub.x)):
+            start, min_steps = sub.x, 1
+    return LawRank(
+        *_search(
+            y,
+            T,
+            model,
+            family,
+            start,
+            noise_floor,
+            max_iter,
+            give_up,
+            min_steps,
+            info_samples=RANK_INFO_SAMPLES,
+        )
+    )
 
 
 def _search(
@@ -183,11 +226,17 @@ def _search(
     noise_floor: float,
     max_iter: int,
     give_up_below: float | None,
+    min_steps: int = RANK_MIN_STEPS,
+    decrement: float = 1e-3,
+    info_samples: int = 1 << 15,
 ) -> tuple[FitResult, bool, float]:
     """:func:`fit_sine_ml`'s search, whether it gave up, and the upper estimate of the
     maximum of ln L (ln L + ``RANK_SAFETY`` x the predicted gain, at the last step). With
     ``give_up_below`` it stops (MAX_EVALUATIONS, no covariance) after at least
-    ``RANK_MIN_STEPS`` steps once that upper estimate is below ``give_up_below``."""
+    ``min_steps`` steps once that upper estimate is below ``give_up_below``. It converges
+    where the Newton decrement is below ``decrement`` (the steps then below sqrt(decrement)
+    standard errors); the Newton steps' information is summed over about ``info_samples``
+    samples (every n-th chunk, scaled; the gradient is the whole record's)."""
     if not sine_ml_applies(model, family):
         raise TypeError(
             "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
@@ -209,8 +258,8 @@ def _search(
     def to_x(v: FloatArray) -> FloatArray:
         return np.where(logs, np.exp(np.where(logs, v, 0.0)), v)
 
-    # the Newton steps' information from about 2^15 samples (the gradient from all)
-    stride = max(1, (lik.N + (1 << 15) - 1) // (1 << 15))
+    # the Newton steps' information from about info_samples samples (the gradient from all)
+    stride = max(1, (lik.N + info_samples - 1) // info_samples)
 
     def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray, FloatArray]:
         # a trial point far off (a long step) may overflow: it is then rejected as
@@ -279,9 +328,9 @@ def _search(
             dec = float(g[fr] @ np.linalg.solve(Hm, g[fr]))
         except (np.linalg.LinAlgError, ValueError):
             dec = math.inf
-        stalled = stalled + 1 if gain < 0.1 * _DECREMENT else 0
+        stalled = stalled + 1 if gain < 0.1 * decrement else 0
         upper = ll + RANK_SAFETY * 0.5 * dec
-        if give_up_below is not None and step + 1 >= RANK_MIN_STEPS and upper < give_up_below:
+        if give_up_below is not None and step + 1 >= min_steps and upper < give_up_below:
             ranked_out = True
             why = (
                 f"ranked out after {step + 1} steps: ln L = {ll:.6g}, and at most "
@@ -290,17 +339,17 @@ def _search(
                 "not fitted to its maximum"
             )
             break
-        if dec < _DECREMENT and gain < 10 * _DECREMENT:
+        if dec < decrement and gain < 10 * decrement:
             status = FitStatus.CONVERGED
             why = (
-                f"the predicted gain in ln L is below {_DECREMENT:g} (steps below 3 % of "
-                "the standard errors)"
+                f"the predicted gain in ln L is below {decrement:g} (steps below "
+                f"{100 * math.sqrt(decrement):.0f} % of the standard errors)"
             )
             break
         if stalled >= 3:
             status = FitStatus.CONVERGED
             why = (
-                f"ln L rose by less than {0.1 * _DECREMENT:g} in each of 3 steps (a direction "
+                f"ln L rose by less than {0.1 * decrement:g} in each of 3 steps (a direction "
                 "in which the likelihood is flat, e.g. a dual Dirac's dj near 0)"
             )
             break
