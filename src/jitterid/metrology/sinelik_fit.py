@@ -50,12 +50,19 @@ RANK_MIN_STEPS = 2
 #: step) and continues on the whole record from there: a start within sqrt(s) standard
 #: errors of the family's maximum, where the Newton model is close to quadratic.
 RANK_SUBSAMPLE = 1 << 13
-#: The ranking's subsample fit stops at this Newton decrement (steps within one of its
-#: standard errors: its optimum is sqrt(s) of the record's standard errors off anyway),
-#: and the ranking's steps on the whole record take their information from about
-#: RANK_INFO_SAMPLES samples (fit_sine_ml's: 2^15).
-RANK_SUB_DECREMENT = 1.0
+#: A subsample's fit (the ranking's, fit_sine_ml's start) stops at this Newton decrement
+#: (steps within one of its standard errors: its optimum is sqrt(s) of the record's
+#: standard errors off anyway); the ranking's steps on the whole record take their
+#: information from about RANK_INFO_SAMPLES samples (fit_sine_ml's: 2^15).
+SUB_DECREMENT = 1.0
 RANK_INFO_SAMPLES = 1 << 13
+#: On records of at least 4 x this many samples fit_sine_ml starts from its own optimum on
+#: every s-th sample (s = N // FIT_SUBSAMPLE): the first, long steps cost 1/s of a pass.
+FIT_SUBSAMPLE = 1 << 16
+#: The least Levenberg-Marquardt damping (relative to the diagonal): where ln L is rough on
+#: the step's scale (a noise-free record: the samples at the tone's peaks against a noise
+#: std on its floor) an undamped step fails, and each rejection raises the damping by 10.
+_LAM_MIN = 1e-3
 
 
 def _positive(H: FloatArray, opg: FloatArray) -> FloatArray:
@@ -108,7 +115,42 @@ def fit_sine_ml(
         ``method="ml"``, cost -2 ln L, covariance ``"oim"``; AT_BOUND where a parameter ends
         on its bound (no standard error then), MAX_EVALUATIONS where the steps ran out.
     """
+    start = _subsample_start(y, T, model, family, start, noise_floor, max_iter, FIT_SUBSAMPLE)
     return _search(y, T, model, family, start, noise_floor, max_iter, None)[0]
+
+
+def _subsample_start(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    noise_floor: float,
+    max_iter: int,
+    size: int,
+) -> ArrayLike:
+    """The family's optimum on every s-th sample (s = N // size, a record of its own at
+    s T), fitted to :data:`SUB_DECREMENT`, where s >= 4 and that fit ends at a maximum
+    (CONVERGED, or AT_BOUND: a noise-free record's noise std on its floor); else
+    ``start``."""
+    s = int(np.size(y)) // size
+    if s < 4:
+        return start
+    yv = np.asarray(y, dtype=float)
+    sub = _search(
+        yv[::s],
+        s * T,
+        model,
+        family,
+        start,
+        noise_floor,
+        max_iter,
+        None,
+        decrement=SUB_DECREMENT,
+        covariance=False,
+    )[0]
+    ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)  # the noise on its floor
+    return sub.x if ended and np.all(np.isfinite(sub.x)) else start
 
 
 @dataclass(frozen=True)
@@ -184,30 +226,15 @@ def rank_sine_law(
     )
     if not math.isfinite(give_up):
         give_up = -math.inf  # no finite rival: nothing is ranked out
-    s = N // RANK_SUBSAMPLE
-    min_steps = RANK_MIN_STEPS
-    if s >= 4:
-        yv = np.asarray(y, dtype=float)
-        sub = _search(
-            yv[::s],
-            s * T,
-            model,
-            family,
-            start,
-            noise_floor,
-            max_iter,
-            None,
-            decrement=RANK_SUB_DECREMENT,
-        )[0]
-        if sub.success and np.all(np.isfinite(sub.x)):
-            start, min_steps = sub.x, 1
+    sub = _subsample_start(y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE)
+    min_steps = 1 if sub is not start else RANK_MIN_STEPS
     return LawRank(
         *_search(
             y,
             T,
             model,
             family,
-            start,
+            sub,
             noise_floor,
             max_iter,
             give_up,
@@ -229,6 +256,7 @@ def _search(
     min_steps: int = RANK_MIN_STEPS,
     decrement: float = 1e-3,
     info_samples: int = 1 << 15,
+    covariance: bool = True,
 ) -> tuple[FitResult, bool, float]:
     """:func:`fit_sine_ml`'s search, whether it gave up, and the upper estimate of the
     maximum of ln L (ln L + ``RANK_SAFETY`` x the predicted gain, at the last step). With
@@ -236,7 +264,8 @@ def _search(
     ``min_steps`` steps once that upper estimate is below ``give_up_below``. It converges
     where the Newton decrement is below ``decrement`` (the steps then below sqrt(decrement)
     standard errors); the Newton steps' information is summed over about ``info_samples``
-    samples (every n-th chunk, scaled; the gradient is the whole record's)."""
+    samples (every n-th chunk, scaled; the gradient is the whole record's). Without
+    ``covariance`` the covariance is not computed (NaN: a start's fit)."""
     if not sine_ml_applies(model, family):
         raise TypeError(
             "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
@@ -272,6 +301,13 @@ def _search(
         # in v: the chain rule (d2 ln L / dv^2 gains g x on the diagonal of a ln scale)
         info_v = info_ * np.outer(jac, jac) - np.diag(np.where(logs, g_ * xx, 0.0))
         return ll_, g_ * jac, opg_ * np.outer(jac, jac), info_v
+
+    def trial(xx: FloatArray) -> float:
+        # ln L alone (a third to a half of a pass with the score and information): the
+        # trial points after a rejected one, where the next may be rejected too
+        with np.errstate(all="ignore"):
+            ll_ = lik.loglik(xx)
+        return ll_ if math.isfinite(ll_) else -math.inf
 
     v = np.where(logs, np.log(np.maximum(x, 1e-300)), x)
     x = to_x(v)
@@ -309,12 +345,25 @@ def _search(
             if xn[lik.nj + 2] <= 0:  # frequency stays positive
                 lam *= 10
                 continue
-            lln, gn, opgn, infon = evaluate(xn)
+            if _try == 0:
+                lln, gn, opgn, infon = evaluate(xn)
+            else:  # after a rejection: ln L first, the rest where it is accepted
+                lln = trial(xn)
+                if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
+                    lln, gn, opgn, infon = evaluate(xn)
+                    nfev += 1
             nfev += 1
             if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
                 gain = lln - ll
+                # the damping follows the gain against the Newton model's (Nielsen's rule:
+                # /10 where the model holds, kept where half of it is realised, raised
+                # where less): where ln L is rough on the step's scale (a noise-free
+                # record's peaks) the next step is not tried undamped again
+                dv = (vn - v)[free]
+                pred = float(g[free] @ dv - 0.5 * dv @ H @ dv)
+                rho = gain / pred if pred > 0 else 1.0
                 v, x, ll, g, opg, info = vn, xn, lln, gn, opgn, infon
-                lam = max(lam / 10.0, 1e-9)
+                lam = max(lam * max(0.1, 1.0 - (2.0 * rho - 1.0) ** 3), _LAM_MIN)
                 accepted = True
                 break
             lam *= 10.0
@@ -360,7 +409,7 @@ def _search(
     P = x.size
     cov = np.full((P, P), math.nan)
     note = ""
-    if status is not FitStatus.NOT_FINITE and not ranked_out:
+    if status is not FitStatus.NOT_FINITE and not ranked_out and covariance:
         H = lik.observed_information(x)
         Hf = H[np.ix_(free, free)]
         try:
