@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import jitterid as ji
-import jitterid.metrology.sinelik as sl
+import jitterid.metrology.sinelik_rule as rule
 from jitterid.estimation.likelihood import ExactLikelihood
 from jitterid.jitter.regular import DualDiracFamily
 from jitterid.metrology.sinelik import TOLERANCE, SineLikelihood, fit_sine_ml, sine_ml_applies
@@ -143,12 +143,12 @@ def test_rule_error_bound(name, noise, spread, monkeypatch):
     y = _record(law, 120, noise, rng)
     x = np.r_[jp, A, PHI, F, C, noise]
     coarse = SineLikelihood(y, T, fam).logpdf(x)
-    monkeypatch.setattr(sl, "_ORDER", 20)
+    monkeypatch.setattr(rule, "_ORDER", 20)
     gx, gw = np.polynomial.legendre.leggauss(20)
-    monkeypatch.setattr(sl, "_GL_X", gx)
-    monkeypatch.setattr(sl, "_GL_LOGW", np.log(gw))
-    monkeypatch.setattr(sl, "_WINDOW", 14.0)
-    monkeypatch.setattr(sl, "_FINE", 32)
+    monkeypatch.setattr(rule, "_GL_X", gx)
+    monkeypatch.setattr(rule, "_GL_LOGW", np.log(gw))
+    monkeypatch.setattr(rule, "_WINDOW", 14.0)
+    monkeypatch.setattr(rule, "_FINE", 32)
     fine = SineLikelihood(y, T, fam).logpdf(x)
     assert np.max(np.abs(coarse - fine)) < TOLERANCE
 

@@ -60,6 +60,7 @@ from .sinelik import (  # issue 26, item 2
     NUMERIC_FLOOR,
     SineLikelihood,
     fit_sine_ml,
+    rank_sine_law,
     sine_ml_applies,
 )
 
@@ -127,7 +128,8 @@ class LawCandidate:
     name : str
         The family's name (``"gaussian"``, ``"uniform"``, ...).
     loglik : float
-        The maximised log-likelihood (NaN if the fit failed).
+        The maximised log-likelihood (NaN if the fit failed); for a family ranked out
+        (:attr:`ranked_out`) the upper estimate of its maximum.
     n_params : int
         Free parameters of the whole model (sine, jitter family, noise std).
     aic, bic : float
@@ -136,6 +138,12 @@ class LawCandidate:
         The fitted law's standard deviation, seconds.
     status : FitStatus
         The fit's status; only a candidate whose status is a success can be chosen.
+    ranked_out : bool
+        The family was ranked out before its full fit (``method="ml"``,
+        :func:`jitterid.metrology.sinelik.rank_sine_law`): even the upper estimate of its
+        maximum puts its BIC :data:`~jitterid.metrology.sinelik.RANK_MARGIN_BIC` or more
+        above the chosen family's (its status is then MAX_EVALUATIONS: not fitted to its
+        maximum; :attr:`bic` a lower estimate).
     """
 
     name: str
@@ -145,6 +153,7 @@ class LawCandidate:
     bic: float
     jitter_std_s: float
     status: FitStatus
+    ranked_out: bool = False
 
 
 @dataclass(frozen=True)
@@ -336,9 +345,10 @@ class JitterMeasurement:
             lines[at:at] = found
         for c in self.laws:
             mark = "*" if c.name == self.family else " "
+            state = "ranked out: ln L, BIC its bounds" if c.ranked_out else c.status.name
             lines.append(
                 f"   {mark} {c.name:<20s} ln L = {c.loglik:12.3f}  BIC = {c.bic:12.3f}  "
-                f"std = {_time(c.jitter_std_s)}  [{c.status.name}]"
+                f"std = {_time(c.jitter_std_s)}  [{state}]"
             )
         if len(self.aliases) > 1:
             lines.append("  aliases (highest likelihood chosen):")
@@ -448,6 +458,7 @@ def _fit_one(
     method: str = "ml",
     other: tuple[FloatArray, float, float] | None = None,
     gauss: FitResult | None = None,
+    alt: FitResult | None = None,
 ) -> FitResult:
     """The Gaussian criterion from the IEEE starts, then (``method="ml"``) the exact
     likelihood from the better of its end and the IEEE start (by the likelihood itself:
@@ -455,7 +466,8 @@ def _fit_one(
     Gaussian). With ``other`` (the sine, jitter std and noise std of another family's fit)
     the likelihood is also maximised from there, and the better end kept: a law far from
     the other's can have a local optimum in phase and frequency near it. ``gauss``: the
-    Gaussian route's fit where it is already known (the moment route's)."""
+    Gaussian route's fit where it is already known (the moment route's); ``alt``: the fit
+    from ``other``'s start where it is already known (the law ranking's)."""
     x0 = np.r_[family.start_for_std(sj), theta, sv]
     if gauss is None:
         gauss = fit(data, model, family, method="gaussian", start=x0)
@@ -498,13 +510,23 @@ def _fit_one(
             continue
     best = min(scored)[2] if scored else xg
     out = ml(best)
-    if other is not None:
-        sine, std, noise = other
-        lo = data.resolution or 0.0
-        alt = ml(np.r_[family.start_for_std(std), sine, max(noise, lo)])
-        if np.isfinite(alt.cost) and (not np.isfinite(out.cost) or alt.cost < out.cost):
-            out = alt
+    if alt is None and other is not None:
+        alt = ml(_other_start(data, family, other))
+    if (
+        alt is not None
+        and np.isfinite(alt.cost)
+        and (not np.isfinite(out.cost) or alt.cost < out.cost)
+    ):
+        out = alt
     return out
+
+
+def _other_start(
+    data: SampledData, family: JitterFamily, other: tuple[FloatArray, float, float]
+) -> FloatArray:
+    """A family's start at another family's fit (its sine, jitter std and noise std)."""
+    sine, std, noise = other
+    return np.r_[family.start_for_std(std), sine, max(noise, data.resolution or 0.0)]
 
 
 def _resolution(given: float | None, step: float | None) -> float | None:
@@ -855,24 +877,46 @@ def measure_jitter(
     # family's fit, the better end kept
     fitted: dict[str, FitResult] = {first_family: best}
     sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
+    other = (sine, best.jitter_std, float(best.x[-1]))
+    ranked: dict[str, float] = {}  # the ranked-out families' upper estimates of ln L
     for name in fam_names[1:]:
+        alt = None
+        if route == "ml" and structured:
+            # rank before the full fit: from the first family's fit (the full route's
+            # second start), given up where it cannot come within the margin of the lead
+            rival_ll, rival_p = _rival(fitted, N)
+            rank = rank_sine_law(
+                yv,
+                T,
+                model,
+                known[name],
+                _other_start(data, known[name], other),
+                rival_loglik=rival_ll,
+                rival_n_params=rival_p,
+                noise_floor=floor,
+            )
+            if rank.ranked_out:
+                fitted[name] = rank.fit
+                ranked[name] = rank.loglik_upper
+                continue
+            alt = rank.fit
         fitted[name] = _fit_one(
-            data,
-            model,
-            known[name],
-            theta_h,
-            sj,
-            sv,
-            route,
-            other=(sine, best.jitter_std, float(best.x[-1])),
+            data, model, known[name], theta_h, sj, sv, route, other=other, alt=alt
         )
     cands_law = []
     for name, r in fitted.items():
         p = r.x.size
-        ll = -0.5 * r.cost
+        ll = ranked.get(name, -0.5 * r.cost)
         cands_law.append(
             LawCandidate(
-                name, ll, p, 2 * p - 2 * ll, p * math.log(N) - 2 * ll, r.jitter_std, r.status
+                name,
+                ll,
+                p,
+                2 * p - 2 * ll,
+                p * math.log(N) - 2 * ll,
+                r.jitter_std,
+                r.status,
+                name in ranked,
             )
         )
     ok = [c for c in cands_law if c.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)]
@@ -969,6 +1013,17 @@ def measure_jitter(
         noise_floor=physical,
         decomposition=decomposition,
     )
+
+
+def _rival(fitted: dict[str, FitResult], N: int) -> tuple[float, int]:
+    """The ranking's rival: the lowest-BIC family among those fitted to their maximum
+    (none: ln L -inf, nothing is ranked out)."""
+    ok = (FitStatus.CONVERGED, FitStatus.AT_BOUND)
+    done = [r for r in fitted.values() if r.status in ok and np.isfinite(r.cost)]
+    if not done:
+        return -math.inf, 0
+    lead = min(done, key=lambda r: r.cost + r.x.size * math.log(N))
+    return -0.5 * lead.cost, int(lead.x.size)
 
 
 def _band(band_hz: tuple[float, float] | None) -> tuple[float, float] | None:

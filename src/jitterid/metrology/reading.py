@@ -119,7 +119,13 @@ def law_evidence(m: JitterMeasurement, margin: float = LAW_MARGIN_BIC) -> LawEvi
     if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0):
         raise ValueError(f"margin must be a finite BIC difference >= 0; got {margin!r}")
     ok = (FitStatus.CONVERGED, FitStatus.AT_BOUND)
-    others = [c for c in m.laws if c.name != m.family and c.status in ok and math.isfinite(c.bic)]
+    others = [
+        c
+        for c in m.laws
+        if c.name != m.family
+        and (c.status in ok or getattr(c, "ranked_out", False))  # ranked out: a BIC bound
+        and math.isfinite(c.bic)
+    ]
     chosen = next((c for c in m.laws if c.name == m.family), None)
     if chosen is None or not others:
         tried = len(m.laws)

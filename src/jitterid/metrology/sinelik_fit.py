@@ -1,0 +1,448 @@
+"""The maximum of :class:`~jitterid.metrology.sinelik_loglik.SineLikelihood`,
+:func:`fit_sine_ml`: damped Newton steps on the observed information (its negative
+curvatures made positive where it is not definite; on records longer than 2^15 samples the
+information of every n-th chunk, scaled, for the steps), in ln of the scales, inside the
+bounds: a few passes over the record. The covariance is the inverse observed information
+of the whole record. The noise std is searched down to a floor (``noise_floor``; on a
+float record :data:`NUMERIC_FLOOR` of the jitter's spread, see
+:mod:`jitterid.metrology.sinelik`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..estimation.result import FitResult, FitStatus
+from ..jitter.laws import JitterFamily
+from ..systems.tones import SineWave
+from .reading import LAW_MARGIN_BIC
+from .sinelik_loglik import SineLikelihood, sine_ml_applies
+from .sinelik_rule import FloatArray
+
+__all__ = ["NUMERIC_FLOOR", "RANK_MARGIN_BIC", "LawRank", "fit_sine_ml", "rank_sine_law"]
+
+#: The noise floor of a float record (no physical one), relative to the jitter's own spread
+#: of the samples A sqrt((w sigma)^2 / 2): a floor c biases the jitter std low by about
+#: c / 4 to c / 6 on a noise-free record (see the module doc): 1e-3 moves it by ~2e-4
+#: (measured: -0.03 standard errors at N = 2^14, about -0.25 at 2^20). Lower floors
+#: are closer still but slow the search (the likelihood of a noise-free tone is not
+#: regular: its peaks' samples make it rough in the amplitude and offset on the scale
+#: of the floor).
+NUMERIC_FLOOR = 1e-3
+#: A family is ranked out (:func:`rank_sine_law`) where even the upper estimate of its
+#: maximum leaves its BIC this far above the leading family's: the margin above which the
+#: meter calls the law chosen (:data:`jitterid.metrology.reading.LAW_MARGIN_BIC`), so a
+#: ranked-out family never turns a chosen law into an undetermined one.
+RANK_MARGIN_BIC = LAW_MARGIN_BIC
+#: The upper estimate of a family's maximum: ln L + RANK_SAFETY x the Newton model's
+#: predicted further gain (g^T H^-1 g / 2, H the observed information made definite).
+#: The quadratic model underestimates the gain where ln L is flatter than quadratic (a
+#: dual Dirac's dj near 0, where ln L is quartic in dj: 2/3 of the gain): 3 covers it twice.
+RANK_SAFETY = 3.0
+#: The fewest Newton steps before a family may be ranked out (the first step from another
+#: family's optimum is the least quadratic; from the subsample's optimum: 1).
+RANK_MIN_STEPS = 2
+#: On records of at least 4 x this many samples the ranking first fits the family on every
+#: s-th sample (s = N // RANK_SUBSAMPLE: a record of its own, at s T, ~1/s of a pass per
+#: step) and continues on the whole record from there: a start within sqrt(s) standard
+#: errors of the family's maximum, where the Newton model is close to quadratic.
+RANK_SUBSAMPLE = 1 << 13
+#: A subsample's fit (the ranking's, fit_sine_ml's start) stops at this Newton decrement
+#: (steps within one of its standard errors: its optimum is sqrt(s) of the record's
+#: standard errors off anyway); the ranking's steps on the whole record take their
+#: information from about RANK_INFO_SAMPLES samples (fit_sine_ml's: 2^15).
+SUB_DECREMENT = 1.0
+RANK_INFO_SAMPLES = 1 << 13
+#: On records of at least 4 x this many samples fit_sine_ml starts from its own optimum on
+#: every s-th sample (s = N // FIT_SUBSAMPLE): the first, long steps cost 1/s of a pass.
+FIT_SUBSAMPLE = 1 << 16
+#: The least Levenberg-Marquardt damping (relative to the diagonal): where ln L is rough on
+#: the step's scale (a noise-free record: the samples at the tone's peaks against a noise
+#: std on its floor) an undamped step fails, and each rejection raises the damping by 10.
+_LAM_MIN = 1e-3
+
+
+def _positive(H: FloatArray, opg: FloatArray) -> FloatArray:
+    """H with its eigenvalues replaced by their absolute values (floored at 1e-4 of the
+    largest), on the scale of its diagonal (or of the scores' outer product where that is
+    0): a Newton matrix that is definite and keeps H's curvature where H has one."""
+    d = np.abs(np.diag(H))
+    d = np.where(d > 0, d, np.maximum(np.diag(opg), 1e-300))
+    r = 1.0 / np.sqrt(d)
+    lam, vec = np.linalg.eigh(H * np.outer(r, r))
+    top = float(np.max(np.abs(lam))) if lam.size else 1.0
+    lam = np.maximum(np.abs(lam), 1e-4 * top)
+    return (vec * lam) @ vec.T / np.outer(r, r)
+
+
+def fit_sine_ml(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    *,
+    noise_floor: float = 0.0,
+    max_iter: int = 100,
+) -> FitResult:
+    """Maximise :class:`SineLikelihood` from a start: damped Newton steps on the observed
+    information (module doc), in ln of the jitter scale and the noise std, inside the
+    bounds; the covariance is the inverse observed information.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The record.
+    T : float
+        The nominal sampling interval (s).
+    model : SineWave
+        The pure-tone model (its ``band_hz`` bounds the frequency).
+    family : JitterFamily
+        Gaussian, uniform or dual-Dirac family (:func:`sine_ml_applies`).
+    start : array_like
+        The start, in the order of :attr:`SineLikelihood.names`.
+    noise_floor : float
+        The smallest noise std searched (see the module doc: noise-free records).
+    max_iter : int
+        The most steps.
+
+    Returns
+    -------
+    FitResult
+        ``method="ml"``, cost -2 ln L, covariance ``"oim"``; AT_BOUND where a parameter ends
+        on its bound (no standard error then), MAX_EVALUATIONS where the steps ran out.
+    """
+    start = _subsample_start(y, T, model, family, start, noise_floor, max_iter, FIT_SUBSAMPLE)
+    return _search(y, T, model, family, start, noise_floor, max_iter, None)[0]
+
+
+def _subsample_start(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    noise_floor: float,
+    max_iter: int,
+    size: int,
+) -> ArrayLike:
+    """The family's optimum on every s-th sample (s = N // size, a record of its own at
+    s T), fitted to :data:`SUB_DECREMENT`, where s >= 4 and that fit ends at a maximum
+    (CONVERGED, or AT_BOUND: a noise-free record's noise std on its floor); else
+    ``start``."""
+    s = int(np.size(y)) // size
+    if s < 4:
+        return start
+    yv = np.asarray(y, dtype=float)
+    sub = _search(
+        yv[::s],
+        s * T,
+        model,
+        family,
+        start,
+        noise_floor,
+        max_iter,
+        None,
+        decrement=SUB_DECREMENT,
+        covariance=False,
+    )[0]
+    ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)  # the noise on its floor
+    return sub.x if ended and np.all(np.isfinite(sub.x)) else start
+
+
+@dataclass(frozen=True)
+class LawRank:
+    """A jitter family's fit as far as the law ranking took it (:func:`rank_sine_law`).
+
+    Attributes
+    ----------
+    fit : FitResult
+        Its fit: to its maximum where the family can still win, else stopped
+        (MAX_EVALUATIONS, no covariance, the message says "ranked out").
+    ranked_out : bool
+        Whether the family was ranked out.
+    loglik_upper : float
+        The upper estimate of its maximum ln L (its ln L where fitted to its maximum).
+    """
+
+    fit: FitResult
+    ranked_out: bool
+    loglik_upper: float
+
+
+def rank_sine_law(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    *,
+    rival_loglik: float,
+    rival_n_params: int,
+    noise_floor: float = 0.0,
+    max_iter: int = 100,
+) -> LawRank:
+    """:func:`fit_sine_ml` that gives up on a family that cannot win: the search stops
+    (after ``RANK_MIN_STEPS`` steps at least) once the upper estimate of the family's
+    maximum (ln L + ``RANK_SAFETY`` x the predicted further gain) puts its BIC more than
+    :data:`RANK_MARGIN_BIC` above the rival's; else it runs to the maximum, as
+    :func:`fit_sine_ml` from the same start (the same result). On a record of at least
+    4 ``RANK_SUBSAMPLE`` samples the search on the whole record starts from the family's
+    optimum on every s-th sample (``RANK_SUBSAMPLE``) instead, and may stop after one
+    step.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The record.
+    T : float
+        The nominal sampling interval (s).
+    model : SineWave
+        The pure-tone model.
+    family : JitterFamily
+        Gaussian, uniform or dual-Dirac family.
+    start : array_like
+        The start (e.g. the rival's optimum with this family's parameters at its std).
+    rival_loglik : float
+        The leading family's maximised ln L.
+    rival_n_params : int
+        The leading family's number of parameters (the BIC's penalty).
+    noise_floor : float
+        The smallest noise std searched.
+    max_iter : int
+        The most steps.
+
+    Returns
+    -------
+    LawRank
+    """
+    N = int(np.size(y))
+    p = len(family.param_names) + 5
+    give_up = (
+        float(rival_loglik) + 0.5 * (p - int(rival_n_params)) * math.log(N) - 0.5 * RANK_MARGIN_BIC
+    )
+    if not math.isfinite(give_up):
+        give_up = -math.inf  # no finite rival: nothing is ranked out
+    sub = _subsample_start(y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE)
+    min_steps = 1 if sub is not start else RANK_MIN_STEPS
+    return LawRank(
+        *_search(
+            y,
+            T,
+            model,
+            family,
+            sub,
+            noise_floor,
+            max_iter,
+            give_up,
+            min_steps,
+            info_samples=RANK_INFO_SAMPLES,
+        )
+    )
+
+
+def _search(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    noise_floor: float,
+    max_iter: int,
+    give_up_below: float | None,
+    min_steps: int = RANK_MIN_STEPS,
+    decrement: float = 1e-3,
+    info_samples: int = 1 << 15,
+    covariance: bool = True,
+) -> tuple[FitResult, bool, float]:
+    """:func:`fit_sine_ml`'s search, whether it gave up, and the upper estimate of the
+    maximum of ln L (ln L + ``RANK_SAFETY`` x the predicted gain, at the last step). With
+    ``give_up_below`` it stops (MAX_EVALUATIONS, no covariance) after at least
+    ``min_steps`` steps once that upper estimate is below ``give_up_below``. It converges
+    where the Newton decrement is below ``decrement`` (the steps then below sqrt(decrement)
+    standard errors); the Newton steps' information is summed over about ``info_samples``
+    samples (every n-th chunk, scaled; the gradient is the whole record's). Without
+    ``covariance`` the covariance is not computed (NaN: a start's fit)."""
+    if not sine_ml_applies(model, family):
+        raise TypeError(
+            "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
+            "family a Gaussian, uniform or dual-Dirac family; use jitterid.fit(..., 'ml') else"
+        )
+    lik = SineLikelihood(y, T, family)
+    lo, hi = lik.bounds(noise_floor, model.band_hz)
+    x = np.clip(np.asarray(start, dtype=float).copy(), lo, hi)
+    if x[lik.nj] < 0:
+        x[lik.nj] = -x[lik.nj]
+        x[lik.nj + 1] += math.pi
+    # the search runs in v: ln of the scales (the jitter's first parameter, the noise std:
+    # ln L is far closer to quadratic in them), the others as they are
+    logs = np.zeros(x.size, bool)
+    logs[0] = logs[-1] = True
+    vlo = np.where(logs, np.log(np.maximum(lo, 1e-300)), lo)
+    vhi = np.where(logs, np.log(np.where(np.isfinite(hi), hi, 1e300)), hi)
+
+    def to_x(v: FloatArray) -> FloatArray:
+        return np.where(logs, np.exp(np.where(logs, v, 0.0)), v)
+
+    # the Newton steps' information from about info_samples samples (the gradient from all)
+    stride = max(1, (lik.N + info_samples - 1) // info_samples)
+
+    def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+        # a trial point far off (a long step) may overflow: it is then rejected as
+        # non-finite, its floating-point warnings are not the caller's
+        with np.errstate(all="ignore"):
+            ll_, g_, opg_, info_ = lik.scores_information(xx, stride)
+        if not (np.all(np.isfinite(g_)) and np.all(np.isfinite(opg_))):
+            ll_ = -math.inf
+        jac = np.where(logs, xx, 1.0)
+        # in v: the chain rule (d2 ln L / dv^2 gains g x on the diagonal of a ln scale)
+        info_v = info_ * np.outer(jac, jac) - np.diag(np.where(logs, g_ * xx, 0.0))
+        return ll_, g_ * jac, opg_ * np.outer(jac, jac), info_v
+
+    def trial(xx: FloatArray) -> float:
+        # ln L alone (a third to a half of a pass with the score and information): the
+        # trial points after a rejected one, where the next may be rejected too
+        with np.errstate(all="ignore"):
+            ll_ = lik.loglik(xx)
+        return ll_ if math.isfinite(ll_) else -math.inf
+
+    v = np.where(logs, np.log(np.maximum(x, 1e-300)), x)
+    x = to_x(v)
+    ll, g, opg, info = evaluate(x)
+    nfev = 1
+    lam = 1e-4
+    stalled = 0
+    upper = math.inf
+    ranked_out = False
+    status, why = FitStatus.MAX_EVALUATIONS, f"the {max_iter} steps ran out"
+    if not math.isfinite(ll):
+        status, why = FitStatus.NOT_FINITE, "the likelihood is not finite at the start"
+        max_iter = 0
+    for step in range(max_iter):
+        free = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
+        d = np.zeros_like(v)
+        # Newton on the observed information, its negative curvatures turned positive
+        # where it is not definite (far from the optimum, or a law far from the record's)
+        if np.all(np.isfinite(info)):
+            H = _positive(info[np.ix_(free, free)], opg[np.ix_(free, free)])
+        else:  # BHHH on the scores' covariance
+            H = (opg - np.outer(g, g) / lik.N)[np.ix_(free, free)]
+        diag = np.maximum(np.diag(H), 1e-300)
+        gain = math.inf
+        accepted = False
+        for _try in range(12):
+            try:
+                d[free] = np.linalg.solve(H + lam * np.diag(diag), g[free])
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            d = np.where(logs, np.clip(d, -3.0, 3.0), d)  # a scale moves e^3 at most
+            vn = np.clip(v + d, vlo, vhi)
+            xn = to_x(vn)
+            if xn[lik.nj + 2] <= 0:  # frequency stays positive
+                lam *= 10
+                continue
+            if _try == 0:
+                lln, gn, opgn, infon = evaluate(xn)
+            else:  # after a rejection: ln L first, the rest where it is accepted
+                lln = trial(xn)
+                if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
+                    lln, gn, opgn, infon = evaluate(xn)
+                    nfev += 1
+            nfev += 1
+            if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
+                gain = lln - ll
+                # the damping follows the gain against the Newton model's (Nielsen's rule:
+                # /10 where the model holds, kept where half of it is realised, raised
+                # where less): where ln L is rough on the step's scale (a noise-free
+                # record's peaks) the next step is not tried undamped again
+                dv = (vn - v)[free]
+                pred = float(g[free] @ dv - 0.5 * dv @ H @ dv)
+                rho = gain / pred if pred > 0 else 1.0
+                v, x, ll, g, opg, info = vn, xn, lln, gn, opgn, infon
+                lam = max(lam * max(0.1, 1.0 - (2.0 * rho - 1.0) ** 3), _LAM_MIN)
+                accepted = True
+                break
+            lam *= 10.0
+        if not accepted:
+            status, why = FitStatus.CONVERGED, "no step raises the likelihood further"
+            break
+        # the Newton decrement (twice the predicted further gain)
+        fr = ~(((v <= vlo) & (g < 0)) | ((v >= vhi) & (g > 0)))
+        try:
+            Hm = _positive(info[np.ix_(fr, fr)], opg[np.ix_(fr, fr)])
+            dec = float(g[fr] @ np.linalg.solve(Hm, g[fr]))
+        except (np.linalg.LinAlgError, ValueError):
+            dec = math.inf
+        stalled = stalled + 1 if gain < 0.1 * decrement else 0
+        upper = ll + RANK_SAFETY * 0.5 * dec
+        if give_up_below is not None and step + 1 >= min_steps and upper < give_up_below:
+            ranked_out = True
+            why = (
+                f"ranked out after {step + 1} steps: ln L = {ll:.6g}, and at most "
+                f"{upper:.6g} by {RANK_SAFETY:g} x the predicted further gain {0.5 * dec:.3g}, "
+                f"below {give_up_below:.6g} (this family cannot win by the ranking margin); "
+                "not fitted to its maximum"
+            )
+            break
+        if dec < decrement and gain < 10 * decrement:
+            status = FitStatus.CONVERGED
+            why = (
+                f"the predicted gain in ln L is below {decrement:g} (steps below "
+                f"{100 * math.sqrt(decrement):.0f} % of the standard errors)"
+            )
+            break
+        if stalled >= 3:
+            status = FitStatus.CONVERGED
+            why = (
+                f"ln L rose by less than {0.1 * decrement:g} in each of 3 steps (a direction "
+                "in which the likelihood is flat, e.g. a dual Dirac's dj near 0)"
+            )
+            break
+    x = np.clip(x, lo, hi)
+    at_bound = (x <= lo * (1 + 1e-12) + 1e-300) | (x >= hi)
+    at_bound[lik.nj] = False  # the amplitude's floor is not a bound of the model
+    free = ~at_bound
+    P = x.size
+    cov = np.full((P, P), math.nan)
+    note = ""
+    if status is not FitStatus.NOT_FINITE and not ranked_out and covariance:
+        H = lik.observed_information(x)
+        Hf = H[np.ix_(free, free)]
+        try:
+            np.linalg.cholesky(Hf)
+            cov[np.ix_(free, free)] = np.linalg.inv(Hf)
+        except np.linalg.LinAlgError:
+            note = "; the observed information is not positive definite (no standard errors)"
+    names = lik.names
+    if status is FitStatus.CONVERGED and at_bound.any():
+        which = ", ".join(n for n, a in zip(names, at_bound, strict=True) if a)
+        status = FitStatus.AT_BOUND
+        why += f"; on its bound: {which}"
+    if status in (FitStatus.CONVERGED, FitStatus.AT_BOUND):
+        upper = ll  # the maximum the search found
+    jp = x[: lik.nj]
+    return (
+        FitResult(
+            method="ml",
+            names=names,
+            x=x,
+            cost=-2.0 * ll,
+            status=status,
+            message=f"structured sine likelihood (jitterid.metrology.sinelik): {why}{note}",
+            nfev=nfev,
+            system=None,
+            jitter_law=family.law(tuple(float(v) for v in jp)),
+            noise_std=float(x[-1]),
+            freqs=np.zeros(0),
+            cov=cov,
+            cov_type="oim",
+            structure=model,
+            jitter_model=family,
+        ),
+        ranked_out,
+        upper,
+    )
