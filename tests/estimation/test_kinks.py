@@ -192,3 +192,19 @@ def test_ml_in_the_family_beats_its_profile_in_n(table, realization):
         _, pinned, _, msg, _ = lik.maximise(data.y, x0)
         lik.restrict(None)
         assert best >= pinned - 1e-6, (n, best, pinned, msg)
+
+
+def test_a_sample_with_no_density_in_its_window_gets_the_most_nodes():
+    """Table 1 case 2 realization 131, ML in the family: a shape step's law put no density
+    at any window piece's ends and middle for one sample, and the rule's slack came out
+    -inf - -inf (a RuntimeWarning, an error under pytest; a NaN slack gave that sample the
+    fewest nodes). It is now no slack (the most nodes), and the fit converges."""
+    from dataclasses import replace
+
+    from jitterid.experiments import runner
+    from jitterid.experiments.config import packaged_path
+    from jitterid.experiments.loader import load_experiment
+
+    exp = replace(load_experiment(packaged_path("table1")), crb=False, methods=("ml",))
+    est, _ = runner.realize(exp, 1, 131, runner.seed_stream(exp.seed, 1, 131), share=False)
+    assert est[0].status == "CONVERGED", est[0].message

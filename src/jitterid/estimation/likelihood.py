@@ -480,7 +480,12 @@ def _window_panels(
         out_u.append(np.zeros(owner.size) + np.inf)
         out_r.append(np.zeros(owner.size) + np.inf)
     o, aa, bb = np.concatenate(out_o), np.concatenate(out_a), np.concatenate(out_b)
-    slack = best_done[o] - np.concatenate(out_u)
+    with np.errstate(invalid="ignore"):
+        slack = best_done[o] - np.concatenate(out_u)
+    # (-inf - -inf: a sample none of whose pieces has a positive bound, the law's density
+    # zero at every piece's ends and middle: no slack, the most nodes; a NaN sorted last in
+    # _piece_orders and gave the fewest)
+    slack = np.where(np.isnan(slack), 0.0, slack)
     span = np.concatenate(out_r)
     order = np.lexsort((aa, o))
     return o[order], aa[order], bb[order], slack[order], span[order]
