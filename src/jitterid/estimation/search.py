@@ -276,7 +276,6 @@ def _scan(
     j = int(np.searchsorted(cuts, best_c))
     on_kink = j < cuts.size and cuts[j] == best_c
     pieces = [(j - 1, j), (j, j + 1)] if on_kink else [(j - 1, j)]
-    start_c = best_c
     for p, q in pieces:
         if p < 0 or q >= cuts.size:
             continue
@@ -286,9 +285,7 @@ def _scan(
             n += 1
             if w < best:
                 best_c, best = c, w
-    if best_c == float(x[i]) and start_c == best_c:
-        return x, v0, n
-    return at(best_c), best, n
+    return (at(best_c), best, n) if best < v0 else (x, v0, n)
 
 
 def piecewise(
@@ -377,7 +374,7 @@ def piecewise(
             if lower(v, out.cost):  # a point beyond is lower: its piece, or beyond a kink
                 k = float(ahead[i])
                 j = int(np.searchsorted(cuts, k))
-                if j == cuts.size or cuts[j] != k:  # a point inside a piece
+                if cuts[j] != k:  # a point inside a piece (k <= the last cut)
                     piece = (float(cuts[j - 1]), float(cuts[j]))
                 else:
                     side = 1 if k > out.x[i] else -1
