@@ -271,17 +271,23 @@ class OutputErrorRoute:
             else:
                 theta_sys, rms = self.oe()
                 starts = [np.r_[np.asarray(js, float), theta_sys] for js in self.jstarts]
-                if len(starts) > 1 and pre.layout.kinked() and not single:
+                held = None
+                kinked = pre.layout.kinked()
+                if len(starts) > 1 and kinked and not single:
                     # A family with kinks is searched piece by piece, the shape scanned
-                    # over its kinks from where each search stops (search.piecewise): as
-                    # the start of another estimator's search, the starts that differ only
-                    # in the kinked shape end near where the best-scored one does, so one
-                    # start per scale is searched (_best_scored); as the estimate itself
-                    # (bcls), every start is, the criterion being multimodal in the shape
+                    # over its kinks from where each search stops (search.piecewise). As
+                    # the estimate itself (bcls) every start is, the criterion being
+                    # multimodal in the shape. As the start of another estimator's search,
+                    # one start per scale is (_best_scored), with the kinked shape held at
+                    # the start's: the first stage's criterion is all but flat in it (BCLS
+                    # ends anywhere in n), the second stage scans it anyway, and a walk
+                    # over its pieces cost the first stage 40-50 evaluations a start
                     starts = _best_scored(pre, starts)
                     nfev += len(self.jstarts)
+                    held = np.ones(len(pre.names), bool)
+                    held[list(kinked)] = False
                 for x_start in starts:
-                    _, out = run_search(pre, x_start, max_nfev)
+                    _, out = run_search(pre, x_start, max_nfev, free=held)
                     nfev += out.nfev
                     if found is None or out.cost < found.cost:
                         found = out
