@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from ..jitter.laws import JitterFamily
 from .problem import Problem, free_moment_plans
-from .search import Outcome, SearchProblem, piecewise, register_search
+from .search import KINKED_TOL, Outcome, SearchProblem, piecewise, register_search
 from .status import FitStatus
 
 __all__ = ["likelihood_adapter", "run_ml"]
@@ -123,7 +123,8 @@ def _search(
     (the windowed rule re-designs itself wherever it stops fitting)."""
     lik, y = problem.likelihood, problem.data.y
     assert lik is not None
-    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev, 2))
+    tol = KINKED_TOL if problem.layout.kinked() else 1e-8
+    x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev, 2), tol=tol)
     for _ in range(3):
         if lik.windowed:  # re-designed wherever it stopped fitting: valid at x already
             break
@@ -133,7 +134,7 @@ def _search(
         if abs(fresh - loglik) <= 1e-6 * max(1.0, abs(fresh)):
             loglik = fresh
             break
-        x, loglik, ok, msg, n = lik.maximise(y, x, max_evaluations=max(max_nfev - nfev, 2))
+        x, loglik, ok, msg, n = lik.maximise(y, x, max_evaluations=max(max_nfev - nfev, 2), tol=tol)
         nfev += n
     return x, -2 * loglik, ok, msg, nfev
 

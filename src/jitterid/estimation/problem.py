@@ -36,7 +36,7 @@ from . import jacobians as _jacobians
 from .estimators import Estimator, as_estimator
 from .likelihood import ExactLikelihood
 from .resources import check_mode_rate
-from .search import LIKELIHOOD_FLOOR, SearchOptions
+from .search import KINKED_TOL, LIKELIHOOD_FLOOR, SearchOptions
 
 __all__ = ["Problem", "default_frequencies", "free_moment_plans"]
 
@@ -365,10 +365,13 @@ class Problem(CachesAreNotState):
 
     def search_options(self, tol: float | None = None) -> SearchOptions:
         """The Newton adapter's options (:class:`~jitterid.estimation.search.SearchOptions`):
-        the parameters themselves, Newton decrement 1e-8 (or ``tol``), and exhausted damping
-        below :data:`~jitterid.estimation.search.LIKELIHOOD_FLOOR` taken as the criterion's
+        the parameters themselves, Newton decrement 1e-8 (or ``tol``; with a kinked jitter
+        shape :data:`~jitterid.estimation.search.KINKED_TOL`), and exhausted damping below
+        :data:`~jitterid.estimation.search.LIKELIHOOD_FLOOR` taken as the criterion's
         rounding floor (the Newton-searched criteria are in units of a log-likelihood)."""
         base = SearchOptions(rounding_floor=LIKELIHOOD_FLOOR)
+        if tol is None and self.layout.kinked():
+            tol = KINKED_TOL
         return base if tol is None else base._replace(tol=tol)
 
     def objective(self, x: FloatArray) -> float:
