@@ -232,7 +232,8 @@ def _scan(
     """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i`` from
     ``x`` (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily
     .at_same_std`; the other parameters as they are): the kinks either side of x_i, then on
-    in the direction that descends while the criterion keeps falling; then the points at
+    in the direction that descends, with a doubling stride while the criterion keeps
+    falling, to a kink lower than both its neighbours (or an end); then the points at
     ``SCAN_FRACTIONS`` of the pieces next to where that descent ends. Returns the lowest
     point, its criterion and the evaluations used (x itself where none is lower).
 
@@ -266,22 +267,30 @@ def _scan(
         step = -1 if j == below else 1
         v = tried[j]
         # on over the kinks while the criterion falls, the stride doubling after each lower
-        # kink and halving after a higher one, down to the next kink (a criterion falling
-        # over 11 kinks to n_max = 20, BCLS's: 7 evaluations, not 12)
-        stride, grow = 1, True
-        while True:
-            k = min(max(j + step * stride, 0), cuts.size - 1)
-            if k == j:
-                break
+        # kink; then the gaps next to the lowest kink halved until both its neighbours are
+        # tried (or it is an end): a lowest kink among its neighbours, as a kink-by-kink
+        # descent ends at, in O(log) evaluations (a criterion falling over 11 kinks to
+        # n_max = 20, BCLS's: 7 evaluations, not 12)
+
+        def value(k: int) -> float:
             if k not in tried:
                 tried[k] = criterion_or_inf(problem, at(float(cuts[k])))
-            if tried[k] < v:
-                j, v = k, tried[k]
-                stride = 2 * stride if grow else stride
-            elif abs(k - j) == 1:
+            return tried[k]
+
+        stride = 1
+        while (k := min(max(j + step * stride, 0), cuts.size - 1)) != j and value(k) < v:
+            j, v, stride = k, tried[k], 2 * stride
+        while True:
+            near = [
+                max((k for k in tried if k < j), default=j),
+                min((k for k in tried if k > j), default=j),
+            ]
+            gap = max(near, key=lambda k: abs(k - j))
+            if abs(gap - j) <= 1:
                 break
-            else:
-                stride, grow = max(abs(k - j) // 2, 1), False
+            k = (j + gap) // 2
+            if value(k) < v:
+                j, v = k, tried[k]
         best_c, best = float(cuts[j]), v
     n = len(tried)
     # the pieces next to where the descent ends (one piece where it is inside one)

@@ -1,0 +1,65 @@
+"""The search loop's economy: no evaluation repeated at the point just rejected, and the scan
+over a family's kinks in logarithmically many evaluations, ending where a kink-by-kink
+descent ends (the referee: the minimum of a criterion known in closed form)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pytest
+
+import jitterid as ji
+from jitterid.estimation.search import _scan, newton_search
+
+
+def test_a_rejected_step_inside_the_box_is_not_evaluated_again():
+    # V = x^4 / 4 with M a quarter of its curvature: the first Newton step overshoots
+    points: list[float] = []
+
+    def evaluate(x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        points.append(float(x[0]))
+        return float(x[0] ** 4 / 4), x**3, np.array([[0.75 * max(x[0] ** 2, 1e-3)]])
+
+    x, ok, msg, n = newton_search(
+        evaluate, np.array([1.0]), np.array([-10.0]), np.array([10.0]), 200
+    )
+    assert ok, msg
+    assert n == len(points)
+    repeats = [a for a, b in zip(points, points[1:]) if a == b]
+    assert not repeats, points
+
+
+@dataclass
+class _Profile:
+    """A problem whose criterion is f(n) alone, n the first parameter of the family (26)."""
+
+    f: Any
+    jitter: ji.SumOfUniformsFamily = field(default_factory=ji.SumOfUniformsFamily)
+    evaluations: int = 0
+
+    def objective(self, x: np.ndarray) -> float:
+        self.evaluations += 1
+        return float(self.f(x[0]))
+
+
+CUTS = np.arange(0.0, 21.0)
+
+
+@pytest.mark.parametrize("m", [3, 8, 10, 13, 17, 19, 20])
+def test_the_scan_descends_over_the_kinks_to_the_lowest_in_log_many_evaluations(m):
+    # V falls over the kinks to the integer m and rises beyond; the start n = 1.5 (a piece
+    # away); a kink-by-kink descent ends at m after |m - 1| + 1 evaluations
+    problem = _Profile(lambda n: (n - m) ** 2)
+    x = np.array([1.5, 0.3, 6.0])
+    x_end, v, n_evals = _scan(problem, x, problem.objective(x), 0, CUTS)
+    assert x_end[0] == m
+    assert v == 0.0
+    assert n_evals == problem.evaluations - 1
+    # the kinks either side, the doubling and halving strides, the fractions of <= 2 pieces
+    assert n_evals <= 2 + 2 * int(np.ceil(np.log2(21))) + 10
+    # (the jitter std kept, the other parameters as they are)
+    assert x_end[2] == 6.0
+    law0, law1 = problem.jitter.law(x[:2].tolist()), problem.jitter.law(x_end[:2].tolist())
+    assert law1.std == pytest.approx(law0.std, rel=1e-12)
