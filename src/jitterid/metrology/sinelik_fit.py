@@ -2,8 +2,10 @@
 :func:`fit_sine_ml`: damped Newton steps on the observed information (its negative
 curvatures made positive where it is not definite; on records longer than 2^15 samples the
 information of every n-th chunk, scaled, for the steps), in ln of the scales, inside the
-bounds: a few passes over the record. The covariance is the inverse observed information
-of the whole record. The noise std is searched down to a floor (``noise_floor``; on a
+bounds: a few passes over the record (a dual Dirac's dj searched as dj^2: ln L is even in
+dj, so flat to fourth order at dj = 0, where Newton steps in dj crawl; in dj^2 it is a
+regular quadratic, and dj = 0 is a bound, AT_BOUND where the record does not resolve a
+dj). The covariance is the inverse observed information of the whole record. The noise std is searched down to a floor (``noise_floor``; on a
 float record :data:`NUMERIC_FLOOR` of the jitter's spread, see
 :mod:`jitterid.metrology.sinelik`)."""
 
@@ -271,9 +273,15 @@ def _search(
             "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
             "family a Gaussian, uniform or dual-Dirac family; use jitterid.fit(..., 'ml') else"
         )
-    lik = SineLikelihood(y, T, family)
+    # a dual Dirac is searched in dj^2: ln L is even in dj, so flat (quartic) at dj = 0,
+    # where Newton steps in dj crawl; in dj^2 it is a regular quadratic there
+    lik = SineLikelihood(y, T, family, dj_squared=True)
+    sq = lik.dj_squared
+    x0 = np.asarray(start, dtype=float).copy()
+    if sq:
+        x0[1] = x0[1] ** 2
     lo, hi = lik.bounds(noise_floor, model.band_hz)
-    x = np.clip(np.asarray(start, dtype=float).copy(), lo, hi)
+    x = np.clip(x0, lo, hi)
     if x[lik.nj] < 0:
         x[lik.nj] = -x[lik.nj]
         x[lik.nj + 1] += math.pi
@@ -424,6 +432,12 @@ def _search(
         why += f"; on its bound: {which}"
     if status in (FitStatus.CONVERGED, FitStatus.AT_BOUND):
         upper = ll  # the maximum the search found
+    if sq:  # back to dj: d dj / d(dj^2) = 1 / (2 dj) (dj^2 on its bound 0: no stderr)
+        x = x.copy()
+        x[1] = math.sqrt(x[1])
+        jac = np.ones(P)
+        jac[1] = 0.5 / x[1] if x[1] > 0 else math.nan
+        cov = cov * np.outer(jac, jac)
     jp = x[: lik.nj]
     return (
         FitResult(
