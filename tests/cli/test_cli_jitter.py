@@ -197,3 +197,39 @@ def test_plots_from_a_measurement() -> None:
         assert np.trapezoid(p, x) == pytest.approx(1.0, abs=1e-3)
     finally:
         plt.close("all")
+
+
+def test_ranked_out_laws_in_the_report_and_json(tmp_path: Path) -> None:
+    """ML with the default three laws on a Gaussian record (issue 26's tone at 2^12): the
+    uniform and the dual Dirac are ranked out before their full fits; the summary (the
+    CLI's report) and jitter.json say so with their ln L upper estimates and the BIC
+    margin (a lower bound), not only through a MAX_EVALUATIONS status."""
+    from jitterid.metrology.sinelik import RANK_MARGIN_BIC
+
+    Ts, n = 1 / 7e9, 1 << 12
+    cyc = round(1e9 * n * Ts)
+    cyc += 1 - cyc % 2
+    rng = np.random.default_rng(1)
+    tau = 100e-15 * rng.standard_normal(n)
+    y = 0.49 * np.sin(2 * np.pi * cyc / (n * Ts) * (np.arange(n) * Ts + tau) + 0.4)
+    y = y + 50e-6 * rng.standard_normal(n)
+    rows = "".join(f"{k},{float(v)!r}\n" for k, v in enumerate(y))
+    rec = tmp_path / "sine.csv"
+    rec.write_text(f"# T: {Ts * 1e9!r}\n# time_unit: ns\nk,y\n" + rows)
+    code, out = _run(str(rec), "--out", str(tmp_path))
+    assert code == 0, out
+    res = json.loads((tmp_path / "jitter.json").read_text())
+    assert res["family"] == "gaussian"
+    by = {c["name"]: c for c in res["laws"]}
+    assert not by["gaussian"]["ranked_out"]
+    assert by["gaussian"]["delta_bic"] == 0.0
+    for name in ("uniform", "dual-dirac"):
+        c = by[name]
+        assert c["ranked_out"], c
+        assert c["status"] == "MAX_EVALUATIONS"
+        assert c["delta_bic"] >= RANK_MARGIN_BIC
+        assert "ranked out" in c["state"]
+        assert f"ln L <= {c['loglik']:.3f} (upper estimate)" in c["state"]
+        assert f"BIC >= chosen + {c['delta_bic']:.2f}" in c["state"]
+        # the report (the summary the CLI prints) carries the same line
+        assert c["state"] in out

@@ -166,3 +166,22 @@ def test_ranking_chooses_the_law_the_full_route_chooses(law, seed, monkeypatch):
 def test_ranking_from_a_subsample_chooses_the_law_the_full_route_chooses(monkeypatch):
     """At 2^15 samples (the ranking starts from each law's optimum on every 4th sample)."""
     _same_choice("gaussian", 2, 15, monkeypatch)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_dual_dirac_ranking_starts_near_the_nested_gaussian(seed):
+    """On a Gaussian record the dual Dirac's ranking starts from the Gaussian optimum with
+    RANK_DJ_SHARE of the variance in dj (near dj = 0, where ln L is close to quadratic in
+    dj^2), so it is ranked out in at most 3 evaluations with an upper estimate within 0.05
+    of the nested Gaussian's maximum (from the even split: 4 evaluations, 0.3-0.45 above;
+    that it bounds the full fit's maximum: the test above)."""
+    y, f = _record("gaussian", 12, seed)
+    model, g = _gaussian_fit(y, f)
+    fam = _families()["dual-dirac"]
+    start = np.r_[fam.start_for_std(g.jitter_std), g.x[1:]]
+    rank = rank_sine_law(
+        y, T, model, fam, start, rival_loglik=-0.5 * g.cost, rival_n_params=g.x.size
+    )
+    assert rank.ranked_out, rank.fit.message
+    assert rank.fit.nfev <= 3
+    assert 0.0 <= rank.loglik_upper + 0.5 * g.cost < 0.05

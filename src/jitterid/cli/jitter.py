@@ -173,6 +173,7 @@ def measurement_json(
 
     lo, hi = m.interval(0.95)
     ev = law_evidence(m)
+    chosen_bic = next((c.bic for c in m.laws if c.name == m.family), math.nan)
     out: dict[str, Any] = {
         "jitter_std_s": _finite(m.jitter_std),
         "jitter_std_stderr_s": _finite(m.jitter_std_stderr),
@@ -210,6 +211,11 @@ def measurement_json(
                 "jitter_std_s": _finite(c.jitter_std_s),
                 "status": c.status.name,
                 "chosen": c.name == m.family,
+                # ranked out (not fitted to its maximum): loglik is its upper estimate,
+                # bic and delta_bic lower bounds
+                "ranked_out": c.ranked_out,
+                "delta_bic": _finite(c.bic - chosen_bic),
+                "state": c.state(chosen_bic),
             }
             for c in m.laws
         ],

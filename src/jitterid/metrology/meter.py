@@ -58,6 +58,7 @@ from .reading import summary_extras  # meterio (issue 26, item 5)
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 from .sinelik import (  # issue 26, item 2
     NUMERIC_FLOOR,
+    RANK_MARGIN_BIC,
     SineLikelihood,
     fit_sine_ml,
     rank_sine_law,
@@ -154,6 +155,24 @@ class LawCandidate:
     jitter_std_s: float
     status: FitStatus
     ranked_out: bool = False
+
+    def state(self, chosen_bic: float) -> str:
+        """How this family's fit ended, for the reports: its status, or for a family
+        ranked out its ln L upper estimate and its BIC margin over the chosen family's
+        (a lower bound: the family was not fitted to its maximum).
+
+        Parameters
+        ----------
+        chosen_bic : float
+            The chosen family's BIC.
+        """
+        if not self.ranked_out:
+            return self.status.name
+        return (
+            f"ranked out, not fitted to its maximum: ln L <= {self.loglik:.3f} (upper "
+            f"estimate), BIC >= chosen + {self.bic - chosen_bic:.2f} (ranking margin "
+            f"{RANK_MARGIN_BIC:g})"
+        )
 
 
 @dataclass(frozen=True)
@@ -343,9 +362,10 @@ class JitterMeasurement:
             at = lines.index("  families (lowest BIC chosen):")
             found = [f"  finding ({f.kind}): {f.message}" for f in self.findings]
             lines[at:at] = found
+        chosen_bic = next((c.bic for c in self.laws if c.name == self.family), math.nan)
         for c in self.laws:
             mark = "*" if c.name == self.family else " "
-            state = "ranked out: ln L, BIC its bounds" if c.ranked_out else c.status.name
+            state = c.state(chosen_bic)
             lines.append(
                 f"   {mark} {c.name:<20s} ln L = {c.loglik:12.3f}  BIC = {c.bic:12.3f}  "
                 f"std = {_time(c.jitter_std_s)}  [{state}]"

@@ -2,10 +2,12 @@
 :func:`fit_sine_ml`: damped Newton steps on the observed information (its negative
 curvatures made positive where it is not definite; on records longer than 2^15 samples the
 information of every n-th chunk, scaled, for the steps), in ln of the scales, inside the
-bounds: a few passes over the record. The covariance is the inverse observed information
-of the whole record. The noise std is searched down to a floor (``noise_floor``; on a
-float record :data:`NUMERIC_FLOOR` of the jitter's spread, see
-:mod:`jitterid.metrology.sinelik`)."""
+bounds: a few passes over the record (a dual Dirac's dj searched as dj^2: ln L is even in
+dj, so flat to fourth order at dj = 0, where Newton steps in dj crawl; in dj^2 it is a
+regular quadratic, and dj = 0 is a bound, AT_BOUND where the record does not resolve a
+dj). The covariance is the inverse observed information of the whole record. The noise
+std is searched down to a floor (``noise_floor``; on a float record :data:`NUMERIC_FLOOR`
+of the jitter's spread, see :mod:`jitterid.metrology.sinelik`)."""
 
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily
+from ..jitter.regular import DualDiracFamily
 from ..systems.tones import SineWave
 from .reading import LAW_MARGIN_BIC
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
@@ -42,6 +45,12 @@ RANK_MARGIN_BIC = LAW_MARGIN_BIC
 #: The quadratic model underestimates the gain where ln L is flatter than quadratic (a
 #: dual Dirac's dj near 0, where ln L is quartic in dj: 2/3 of the gain): 3 covers it twice.
 RANK_SAFETY = 3.0
+#: A dual Dirac's ranking start holds this share of the start's jitter variance in dj
+#: (dj^2 / 4 = share x std^2): the rival is mostly a Gaussian, nested at dj = 0, near
+#: which ln L is close to quadratic in dj^2 (the search's coordinate); at an even split
+#: the start sits on the steep side (on a 2^16 Gaussian record ln L ~450 below, two more
+#: subsample steps and a rejected step on the whole record: 2.4 s of the 4.8).
+RANK_DJ_SHARE = 0.1
 #: The fewest Newton steps before a family may be ranked out (the first step from another
 #: family's optimum is the least quadratic; from the subsample's optimum: 1).
 RANK_MIN_STEPS = 2
@@ -205,7 +214,8 @@ def rank_sine_law(
     family : JitterFamily
         Gaussian, uniform or dual-Dirac family.
     start : array_like
-        The start (e.g. the rival's optimum with this family's parameters at its std).
+        The start (e.g. the rival's optimum with this family's parameters at its std; a
+        dual Dirac's variance is re-split to hold ``RANK_DJ_SHARE`` of it in dj).
     rival_loglik : float
         The leading family's maximised ln L.
     rival_n_params : int
@@ -226,6 +236,12 @@ def rank_sine_law(
     )
     if not math.isfinite(give_up):
         give_up = -math.inf  # no finite rival: nothing is ranked out
+    if isinstance(family, DualDiracFamily):  # the variance re-split (RANK_DJ_SHARE)
+        start = np.asarray(start, dtype=float).copy()
+        var = start[0] ** 2 + 0.25 * start[1] ** 2
+        (rlo, rhi), (dlo, dhi) = family.bounds
+        rj = min(max(math.sqrt((1 - RANK_DJ_SHARE) * var), rlo), rhi)
+        start[:2] = rj, min(max(2 * math.sqrt(RANK_DJ_SHARE * var), dlo), dhi)
     sub = _subsample_start(y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE)
     min_steps = 1 if sub is not start else RANK_MIN_STEPS
     return LawRank(
@@ -271,9 +287,15 @@ def _search(
             "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
             "family a Gaussian, uniform or dual-Dirac family; use jitterid.fit(..., 'ml') else"
         )
-    lik = SineLikelihood(y, T, family)
+    # a dual Dirac is searched in dj^2: ln L is even in dj, so flat (quartic) at dj = 0,
+    # where Newton steps in dj crawl; in dj^2 it is a regular quadratic there
+    lik = SineLikelihood(y, T, family, dj_squared=True)
+    sq = lik.dj_squared
+    x0 = np.asarray(start, dtype=float).copy()
+    if sq:
+        x0[1] = x0[1] ** 2
     lo, hi = lik.bounds(noise_floor, model.band_hz)
-    x = np.clip(np.asarray(start, dtype=float).copy(), lo, hi)
+    x = np.clip(x0, lo, hi)
     if x[lik.nj] < 0:
         x[lik.nj] = -x[lik.nj]
         x[lik.nj + 1] += math.pi
@@ -424,6 +446,12 @@ def _search(
         why += f"; on its bound: {which}"
     if status in (FitStatus.CONVERGED, FitStatus.AT_BOUND):
         upper = ll  # the maximum the search found
+    if sq:  # back to dj: d dj / d(dj^2) = 1 / (2 dj) (dj^2 on its bound 0: no stderr)
+        x = x.copy()
+        x[1] = math.sqrt(x[1])
+        jac = np.ones(P)
+        jac[1] = 0.5 / x[1] if x[1] > 0 else math.nan
+        cov = cov * np.outer(jac, jac)
     jp = x[: lik.nj]
     return (
         FitResult(

@@ -52,6 +52,11 @@ class SineLikelihood:
         The nominal sampling interval (s).
     family : GaussianFamily, UniformFamily or DualDiracFamily
         The jitter family (its parameters come first in x).
+    dj_squared : bool
+        A dual Dirac's second parameter in x is ``dj^2`` (s^2) instead of ``dj``, and its
+        score and information are in it: ln L is even in dj, so flat at dj = 0 in dj but
+        a regular quadratic in dj^2 (the search's coordinate,
+        :func:`jitterid.metrology.sinelik_fit.fit_sine_ml`). Other families: no effect.
 
     Notes
     -----
@@ -75,7 +80,9 @@ class SineLikelihood:
     True
     """
 
-    def __init__(self, y: ArrayLike, T: float, family: JitterFamily) -> None:
+    def __init__(
+        self, y: ArrayLike, T: float, family: JitterFamily, *, dj_squared: bool = False
+    ) -> None:
         self.y = real_array(y, "y", ndim=1)
         if not np.all(np.isfinite(self.y)):
             raise ValueError("y must be finite: remove or interpolate the NaN/inf samples first")
@@ -88,6 +95,7 @@ class SineLikelihood:
             )
         self.family = family
         self.nj = len(family.param_names)
+        self.dj_squared = bool(dj_squared) and isinstance(family, DualDiracFamily)
         self.names = (
             *family.param_names,
             "amplitude",
@@ -107,7 +115,11 @@ class SineLikelihood:
         xv = np.atleast_1d(real_array(x, "x"))
         if xv.shape != (len(self.names),):
             raise ValueError(f"x must hold {len(self.names)} values {self.names}; got {xv.shape}")
-        jp = xv[: self.nj]
+        jp = xv[: self.nj].copy()
+        if self.dj_squared:
+            if not jp[1] >= 0:
+                raise ValueError(f"dj^2 must be >= 0; got {jp[1]!r}")
+            jp[1] = math.sqrt(jp[1])
         A, phi, f, c, sigma = (float(v) for v in xv[self.nj :])
         # the jitter parameters validated (bounds), naming the bad one
         self.family.law(tuple(float(v) for v in jp))
@@ -211,7 +223,18 @@ class SineLikelihood:
             k = np.arange(k0, min(k0 + _CHUNK, self.N), dtype=float)
             with_info = info > 0 and i % info == 0
             ch = _chunk(
-                self.y[k0 : k0 + k.size], k, self.T, comps, A, phi, f, c, sigma, score, with_info
+                self.y[k0 : k0 + k.size],
+                k,
+                self.T,
+                comps,
+                A,
+                phi,
+                f,
+                c,
+                sigma,
+                score,
+                with_info,
+                self.dj_squared,
             )
             if flip and ch.score is not None:
                 ch.score[:, self.nj] *= -1.0
@@ -252,6 +275,8 @@ class SineLikelihood:
             The frequency's bounds, Hz.
         """
         fam = np.array(self.family.bounds, dtype=float)
+        if self.dj_squared:
+            fam[1] = fam[1] ** 2
         blo, bhi = band_hz if band_hz is not None else (1e-300, math.inf)
         lo = np.r_[fam[:, 0], 0.0, -math.inf, max(blo, 1e-300), -math.inf, noise_floor]
         hi = np.r_[fam[:, 1], math.inf, math.inf, bhi, math.inf, math.inf]
