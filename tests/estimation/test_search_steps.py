@@ -63,3 +63,34 @@ def test_the_scan_descends_over_the_kinks_to_the_lowest_in_log_many_evaluations(
     assert x_end[2] == 6.0
     law0, law1 = problem.jitter.law(x[:2].tolist()), problem.jitter.law(x_end[:2].tolist())
     assert law1.std == pytest.approx(law0.std, rel=1e-12)
+
+
+@pytest.mark.parametrize(("g_n", "converged"), [(-1e-9, True), (-1.0, False)])
+def test_exhausted_damping_where_no_step_can_gain_above_the_floor_is_converged(g_n, converged):
+    # a jitter scale collapsed onto its floor (a = 1e-12, its gradient pointing out: held)
+    # leaves the shape n without information (M_nn ~ 1e-17) and its gradient noise: every
+    # step in n is rejected. With |g_n| times the room to n's bound below the rounding floor
+    # no step could gain more than rounding: converged; with a real gradient it is a failure.
+    def evaluate(x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        v = 0.2 * x[1] + 1e-8 * (x[0] - 8.0)  # V rises in n, whatever g says
+        return v, np.array([g_n, 0.2]), np.diag([1e-17, 1e-2])
+
+    lo, hi = np.array([8.0, 1e-12]), np.array([9.0, 0.125])
+    x, ok, msg, _ = newton_search(evaluate, np.array([8.0, 1e-12]), lo, hi, 200, floor=1e-4)
+    assert ok is converged, msg
+    assert ("rounding floor inside the bounds" in msg) is converged
+    assert x[1] == 1e-12
+
+
+def test_a_jitter_scale_on_its_floor_is_said_in_the_message():
+    # no jitter in the data, a known third-order system: the Gaussian criterion's minimum in
+    # the family (26) is zero jitter (n then means nothing), reported as such
+    g = ji.TransferFunction([1.2], [1.0, 2.2, 2.4, 1.2])
+    rng = np.random.default_rng(1002)
+    u = ji.telegraph_input(300 * 0.25 + 2.0, rng)
+    d = ji.simulate(g, u, ji.NoJitter(), 0.25, 300, 0.01, rng)
+    res = ji.fit(d, g, ji.SumOfUniformsFamily(a_max=0.125), "gaussian")
+    assert res.status is ji.FitStatus.CONVERGED, res.message
+    assert res.jitter_std < 1e-6
+    assert "the jitter scale is on its floor" in res.message
+    assert "n mean nothing there" in res.message

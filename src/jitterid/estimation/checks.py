@@ -414,6 +414,19 @@ def _held_jitter(ctx: PostContext) -> str:
     if not isinstance(fam, JitterFamily):
         return ""
     nj = len(fam.param_names)
+    k = fam.scale_index
+    if k is not None and float(ctx.x[k]) <= SCALE_COLLAPSE * ctx.data.T:
+        # (where the data showed jitter, _at_bound has said AT_BOUND before)
+        std = float(fam.law(ctx.x[:nj].tolist()).std)
+        shapes = [ctx.names[i] for i in range(nj) if i != k]
+        return (
+            f"the jitter scale is on its floor ({ctx.names[k]} = {ctx.x[k]:.3g}, jitter std "
+            f"{std:.3g}, below {SCALE_COLLAPSE:g} T): the criterion's minimum is zero jitter, "
+            "a boundary estimate without a standard error"
+            + (f", and {', '.join(shapes)} mean nothing there" if shapes else "")
+            + "; the data show no jitter this criterion can measure (detect_jitter, "
+            "method 'gaussian' or 'ml' for the jitter's own variance)"
+        )
     kink, flat = _kinked(ctx)[:nj], _flat_shapes(ctx)[:nj] & ~_kinked(ctx)[:nj]
     parts = []
     for i in np.flatnonzero(kink):

@@ -716,7 +716,10 @@ def newton_search(
     largest is at most ``floor`` and the rest lies along flatter directions (the shape of a
     jitter family at a fixed std: M, an expected or outer-product Hessian, is all but
     singular there and its step is no guide): the message names the flat direction
-    (``names``: the parameters' names, for it).
+    (``names``: the parameters' names, for it). So it has, too, where no step inside the box
+    could gain more than ``floor`` to first order (|g_i| times the room to the bound g
+    points to, summed over the free parameters): a jitter scale collapsed onto its floor
+    leaves a family's shape without information, and its gradient is rounding.
 
     Returns
     -------
@@ -792,6 +795,20 @@ def newton_search(
                     "the largest, where no step lowers the criterion"
                 )
                 return x, True, msg, n
+            if floor is not None:
+                # the most any step inside the box could gain to first order: |g_i| times
+                # the room to the bound it points to, summed over the free parameters
+                room = np.where(g < 0, hi - x, x - lo)[free]
+                reach = float(np.sum(np.abs(g[free]) * room))
+                if reach <= floor:
+                    # (a jitter scale collapsed onto its floor leaves the shape without
+                    # information: M's entry for it vanishes, its Newton step is noise)
+                    msg = (
+                        "converged: no step can lower the criterion by more than its rounding "
+                        f"floor inside the bounds (|gradient| times the room to the bounds: "
+                        f"{reach:.2g})"
+                    )
+                    return x, True, msg, n
             return x, False, "no step decreases the criterion (damping exhausted)", n
     return x, False, f"evaluation budget ({max_nfev}) used up", n
 
