@@ -4,6 +4,7 @@ descent ends (the referee: the minimum of a criterion known in closed form)."""
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,12 +23,12 @@ def test_a_rejected_step_inside_the_box_is_not_evaluated_again():
         points.append(float(x[0]))
         return float(x[0] ** 4 / 4), x**3, np.array([[0.75 * max(x[0] ** 2, 1e-3)]])
 
-    x, ok, msg, n = newton_search(
+    _, ok, msg, n = newton_search(
         evaluate, np.array([1.0]), np.array([-10.0]), np.array([10.0]), 200
     )
     assert ok, msg
     assert n == len(points)
-    repeats = [a for a, b in zip(points, points[1:]) if a == b]
+    repeats = [a for a, b in itertools.pairwise(points) if a == b]
     assert not repeats, points
 
 
