@@ -118,3 +118,13 @@ def test_a_noise_free_2_18_record_is_fitted_with_an_honest_interval():
     rng = np.random.default_rng(5)
     realised = float(np.std(JITTER * rng.standard_normal(y.size)))
     assert abs(r.jitter_std - realised) < 2 * r.jitter_std_stderr
+
+
+def test_records_from_2_15_samples_start_from_a_subsample():
+    # 2^15-2^17 samples: from every s-th sample, s = N // RANK_SUBSAMPLE (s >= 4); from 2^18
+    # on, s = N // FIT_SUBSAMPLE as before; below 2^15 no subsample (_subsample_start)
+    assert sf._fit_subsample_size(1 << 16) == sf.RANK_SUBSAMPLE
+    assert (1 << 15) // sf._fit_subsample_size(1 << 15) == 4
+    assert (1 << 14) // sf._fit_subsample_size(1 << 14) < 4
+    assert sf._fit_subsample_size(1 << 20) == sf.FIT_SUBSAMPLE == 1 << 16
+    assert sf._fit_subsample_size(1 << 18) == sf.FIT_SUBSAMPLE
