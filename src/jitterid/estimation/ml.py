@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from ..jitter.laws import JitterFamily
 from .problem import Problem, free_moment_plans
-from .search import KINKED_TOL, Outcome, SearchProblem, piecewise, register_search
+from .search import Outcome, SearchProblem, piecewise, register_search
 from .status import FitStatus
 
 __all__ = ["likelihood_adapter", "run_ml"]
@@ -123,7 +123,7 @@ def _search(
     (the windowed rule re-designs itself wherever it stops fitting)."""
     lik, y = problem.likelihood, problem.data.y
     assert lik is not None
-    tol = KINKED_TOL if problem.layout.kinked() else 1e-8
+    tol = problem.search_options().tol  # (KINKED_TOL with a kinked shape)
     x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev, 2), tol=tol)
     for _ in range(3):
         if lik.windowed:  # re-designed wherever it stopped fitting: valid at x already

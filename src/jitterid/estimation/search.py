@@ -521,6 +521,8 @@ class _Stalled(Exception):
 
 #: the rounding floor of a criterion in units of a log-likelihood (the Gaussian-type criteria,
 #: the exact likelihood): exhausted damping at a Newton decrement below it has converged, the
+#: estimate within sqrt(1e-4) = 1/100 of a standard error of stationary (newton_search)
+LIKELIHOOD_FLOOR = 1e-4
 #: Newton-decrement tolerance of a search over a criterion with kinked parameters (a
 #: jitter family's shape, :func:`piecewise`): the estimate within sqrt(1e-6) = 1/1000 of a
 #: standard error of stationary. Where the default 1e-8 (1/10^4 of one) is asked, the
@@ -529,8 +531,6 @@ class _Stalled(Exception):
 #: the criterion by less than 1e-6 (Table 2's records with SumOfUniformsFamily: 21 and 22
 #: evaluations for the two pieces of an ML walk, 11 of them each after that)
 KINKED_TOL = 1e-6
-#: estimate within sqrt(1e-4) = 1/100 of a standard error of stationary (newton_search)
-LIKELIHOOD_FLOOR = 1e-4
 
 #: a stall: the last STALL_WINDOW accepted steps gained less than SearchOptions.stall_gain
 STALL_WINDOW = 6
