@@ -342,3 +342,18 @@ def test_meter_noise_free_coverage():
         lo, hi = m.interval()
         hits += lo <= sj <= hi
     assert hits >= 29
+
+
+def test_a_start_on_a_scale_bound_is_searched_not_refused():
+    """A start at (or clipped onto) a scale's upper bound: searched in ln of the scale,
+    exp(ln b) rounds one ulp past b, which the family refused (ValueError from the law)
+    before the search clipped its points to the bounds."""
+    rng = np.random.default_rng(4)
+    y = _record(ji.Uniform(0.5), 300, 1e-2, rng)
+    b = 0.218  # exp(ln b) > b in floating point
+    assert np.exp(np.log(b)) > b
+    fam = ji.UniformFamily(a_max=b, a_min=1e-9)
+    model = SineWave(band_hz=(0.99 * F, 1.01 * F))
+    fit = fit_sine_ml(y, T, model, fam, [0.5, A, PHI, F, C, 1e-2])
+    assert fit.x[0] <= b
+    assert "a" in fit.message  # on its bound, and said so

@@ -185,3 +185,41 @@ def test_dual_dirac_ranking_starts_near_the_nested_gaussian(seed):
     assert rank.ranked_out, rank.fit.message
     assert rank.fit.nfev <= 3
     assert 0.0 <= rank.loglik_upper + 0.5 * g.cost < 0.05
+
+
+def test_a_family_climbing_faster_than_its_newton_model_is_not_ranked_out():
+    """At a large phase spread (0.6 rad, N = 1000) a record whose jitter is mostly
+    deterministic (dual Dirac, rj = std / 3): ranked from the Gaussian optimum (as the
+    meter ranks it) against the uniform's maximum, the dual Dirac's ln L rises about 3 x
+    faster than the Newton model predicts for its first steps, so the predicted further
+    gain bounds nothing. It is
+    fitted to its maximum (the referee: fit_sine_ml from the truth), far above the
+    uniform's; before RANK_RHO_MAX it was ranked out after two steps with an "upper
+    estimate" 270 below that maximum and the uniform law was reported."""
+    Ts, F, s = 1e-3, 123.0, 0.6
+    sig = s / (2 * np.pi * F)
+    rng = np.random.default_rng([27, 2, 60, 2])
+    rj = sig / 3
+    tau = math.sqrt(sig**2 - rj**2) * rng.choice([-1.0, 1.0], 1000) + rj * rng.normal(0, 1, 1000)
+    t = np.arange(1000) * Ts + tau
+    y = np.sin(2 * np.pi * F * t + 1.0) + 0.1 + 1e-2 * rng.normal(0, 1, 1000)
+    fams = {
+        "gaussian": ji.GaussianFamily(sigma_max=2 * Ts, sigma_min=1e-9 * Ts),
+        "uniform": ji.UniformFamily(a_max=4 * Ts, a_min=1e-9 * Ts),
+        "dual-dirac": DualDiracFamily(rj_max=2 * Ts, rj_min=1e-9 * Ts, dj_max=4 * Ts),
+    }
+    model = SineWave(band_hz=(0.99 * F, 1.01 * F))
+    rest = np.r_[1.0, 1.0, F, 0.1, 1e-2]
+    g = fit_sine_ml(y, Ts, model, fams["gaussian"], np.r_[sig, rest])
+    u = fit_sine_ml(y, Ts, model, fams["uniform"], np.r_[sig * math.sqrt(3), rest])
+    fam = fams["dual-dirac"]
+    truth = fit_sine_ml(y, Ts, model, fam, np.r_[rj, 2 * math.sqrt(sig**2 - rj**2), rest])
+    assert -0.5 * truth.cost > -0.5 * u.cost + 100  # the dual Dirac wins by far
+    start = np.r_[fam.start_for_std(g.jitter_std), g.x[1:]]
+    rank = rank_sine_law(
+        y, Ts, model, fam, start, rival_loglik=-0.5 * u.cost, rival_n_params=u.x.size
+    )
+    assert not rank.ranked_out, rank.fit.message
+    assert rank.fit.status is ji.FitStatus.CONVERGED
+    assert abs(rank.fit.cost - truth.cost) < 1e-3
+    assert abs(rank.fit.jitter_std - truth.jitter_std) < 0.1 * rank.fit.jitter_std_stderr
