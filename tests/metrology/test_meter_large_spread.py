@@ -7,8 +7,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import jitterid as ji
+from jitterid.estimation.estimators.gaussian import GaussianCriterion
+from jitterid.metrology import meter
 
 TS, F = 1e-3, 123.0
 
@@ -39,4 +42,56 @@ def test_a_noisy_record_at_1_rad_is_not_fitted_noise_free():
     assert m.status is ji.FitStatus.CONVERGED, m.message
     assert abs(m.noise_std / 1e-2 - 1) < 0.2
     assert m.laws[0].loglik > -400
+    assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
+
+
+@pytest.mark.slow  # about 8 CPU-s (before the budget: 55)
+def test_the_likelihood_s_gaussian_start_has_a_budget(monkeypatch):
+    """A dual Dirac at 1 rad of phase spread: the Gaussian criterion that starts the
+    likelihood is flat along rj-dj at a fixed std and crawled (gains of 1e-12 a step)
+    through the 2000 evaluations of a fit and 1264 more (13 of the measurement's 50 CPU-s);
+    it is a start, with START_NFEV evaluations a search. The jitter std is right whatever
+    the start's budget (the likelihood's maximum: the referee is the truth, 3 errors)."""
+    rng = np.random.default_rng([27, 2, 100, 0])
+    sig = 1.0 / (2 * math.pi * F)
+    rj = sig / 3
+    tau = math.sqrt(sig**2 - rj**2) * rng.choice([-1.0, 1.0], 1000) + rj * rng.normal(0, 1, 1000)
+    y = np.sin(2 * math.pi * F * (np.arange(1000) * TS + tau) + rng.uniform(0, 2 * math.pi))
+    y = y + 0.1 + 1e-2 * rng.normal(0, 1, 1000)
+    calls = [0]
+    orig = GaussianCriterion.objective_gradient
+
+    def counted(self, *args, **kw):
+        calls[0] += 1
+        return orig(self, *args, **kw)
+
+    monkeypatch.setattr(GaussianCriterion, "objective_gradient", counted)
+    m = ji.measure_jitter(y, TS, laws=["dual-dirac"])
+    assert calls[0] <= 3 * meter.START_NFEV  # (two searches and the error bars; was 3300)
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
+
+
+@pytest.mark.slow  # about 15 CPU-s: the likelihood over three laws at 0.6 and 1 rad
+@pytest.mark.parametrize("theta", [0.6, 1.0])
+def test_the_fast_route_hands_a_shape_it_cannot_tell_to_the_likelihood(theta):
+    """method="gaussian" with the default laws on a uniform record beyond ~0.2 rad: the
+    moments cannot tell the law's shape (the law-free middle was 15-17 % high for a
+    uniform law at 0.6-1 rad, its interval covering by its width alone); the likelihood
+    chooses the law, the message says so, and the std is within 3 errors of the truth."""
+    y, sig = _record("uniform", theta, 1)
+    m = ji.measure_jitter(y, TS, method="gaussian")
+    assert "measured by the exact likelihood" in m.message
+    assert m.family == "uniform"
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
+    assert m.jitter_std_stderr < 0.02 * sig  # the uniform law's edges: 0.3-0.5 %
+
+
+def test_the_fast_route_stays_on_the_moments_where_they_tell_the_shape():
+    """At 0.05 rad the law-free moment route answers itself (no likelihood)."""
+    y, sig = _record("uniform", 0.05, 1)
+    m = ji.measure_jitter(y, TS, method="gaussian")
+    assert m.family == "law-free"
+    assert "exact likelihood" not in m.message
     assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
