@@ -761,9 +761,12 @@ def measure_jitter(
         1057 fit, then the closed-form variance profile by reweighted least squares, a few
         passes over the record, its interval a sandwich that holds for any law and noise);
         with several laws given (the default) it measures the std law-free (the law's
-        shape from the fourth moment; ``family`` is ``"law-free"``), with one it assumes
-        that law (gaussian or uniform). With harmonics, the exact Gaussian criterion on the
-        closed-form moments of the first law.
+        shape from the fourth moment; ``family`` is ``"law-free"``) where the phase spread
+        2 pi f sigma is below about 0.2 rad; beyond, where the moments cannot tell the
+        law's shape and the shape moves the std, it measures with the exact likelihood
+        over the laws (as ``"ml"``; the message says so). With one law it assumes that law
+        (gaussian or uniform) at any spread. With harmonics, the exact Gaussian criterion on
+        the closed-form moments of the first law.
     resolution : float, optional
         The smallest noise std the record can have (the converter's LSB / sqrt(12)), in
         units of y. Default: the record's own quantisation step over sqrt(12) where its
