@@ -32,7 +32,7 @@ plots RMSE / sigma against theta, one panel per (N, noise), with sqrt(CRB) / sig
     python benchmarks/jitter_meter.py                    # the full study (long)
     python benchmarks/jitter_meter.py --records 200 --sizes 1000 --methods ieee1057 adctoolbox
     python benchmarks/jitter_meter.py --instrument       # issue 26: N = 2^16, 1 GHz at 7 GS/s
-    python benchmarks/jitter_meter.py --shapes           # the law-free route, 4 laws
+    python benchmarks/jitter_meter.py --shapes           # the fast route, 4 laws
 
 ``--instrument`` runs the instrument-scale comparison of issue 26 instead (no sqlite, one
 run, the peer in the same process): N = 2^16, a coherent ~1 GHz tone (J prime to N) at
@@ -478,11 +478,12 @@ def _shape_draw(law: str, rng: np.random.Generator, s: float, n: int) -> np.ndar
 
 
 def shapes_study(records: int, n: int) -> None:
-    """The law-free moment route on non-Gaussian laws (``--shapes``): bias and coverage of
-    ``measure_jitter(y, T, method="gaussian")`` (default laws: law-free), a 123 Hz tone at
-    T = 1 ms, amplitude 1, offset 0.1, noise 1e-2, frequency unknown."""
+    """The fast route on non-Gaussian laws (``--shapes``): bias and coverage of
+    ``measure_jitter(y, T, method="gaussian")`` (default laws: law-free on the moments up
+    to ~0.2 rad of phase spread, the likelihood beyond), a 123 Hz tone at T = 1 ms,
+    amplitude 1, offset 0.1, noise 1e-2, frequency unknown."""
     Ts, F = 1e-3, 123.0
-    print(f"# law-free moment route, N = {n}, {records} records a cell")
+    print(f"# fast route (method='gaussian', default laws), N = {n}, {records} records a cell")
     print(f"{'law':<14} {'theta':>6} {'bias':>8} {'rmse':>7} {'cover':>6} {'flagged':>7}")
     for law in ("uniform", "dual_dirac", "gaussian", "scale_mixture"):
         for theta in (0.05, 0.3, 0.6, 1.0):
