@@ -379,8 +379,9 @@ def _resolution(
     "--method",
     type=click.Choice(["ml", "gaussian"]),
     default=None,
-    help="ml: the exact likelihood (ranks the laws); gaussian: the closed-form second-moment "
-    "criterion, O(N), one law. Default: measure_jitter's (ml).",
+    help="ml: the exact likelihood (ranks the laws); gaussian: the closed-form moments, O(N): "
+    "law-free with several laws up to ~0.2 rad of phase spread (the likelihood beyond), one "
+    "law assumed. Default: measure_jitter's (ml).",
 )
 @click.option(
     "--harmonics",
