@@ -166,3 +166,24 @@ def test_sigkill_then_resume_equals_an_uninterrupted_run(definition, reference, 
     out = run_cli(["run", str(definition), "--workers", "1", "--out", str(tmp_path), "--resume"])
     assert f"({at_kill} already stored, {12 - at_kill} new" in out
     assert_same(stored(definition, tmp_path), reference)
+
+
+def _worker_environ() -> dict[str, str | None]:
+    keys = ("MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
+    return {k: os.environ.get(k) for k in keys}
+
+
+def test_local_workers_keep_glibc_s_dynamic_mmap_threshold():
+    """Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers, which turns off
+    glibc's dynamic mmap threshold (every array above 128 kB mapped afresh): a 2^16-sample
+    meter record took 2.5 x its CPU time in a worker, and a batch on 2 workers ran slower
+    than on 1 (benchmarks/bench_batch.py: 8.6 against 13.8 records/s). The local cluster's
+    workers run without it, one BLAS/OpenMP thread each."""
+    with dask_client(2) as client:
+        assert client is not None
+        envs = client.run(_worker_environ)
+    assert len(envs) == 2
+    for env in envs.values():
+        assert env["MALLOC_TRIM_THRESHOLD_"] is None
+        assert env["OPENBLAS_NUM_THREADS"] == "1"
+        assert env["OMP_NUM_THREADS"] == "1"
