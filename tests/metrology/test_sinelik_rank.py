@@ -81,7 +81,20 @@ def test_a_family_that_can_win_is_fitted_as_fit_sine_ml_fits_it():
         ("uniform", 12),
         ("dual-dirac", 12),
         # on every 4th sample first, then on the whole record (about 20 CPU-s each)
-        pytest.param("uniform", 15, marks=pytest.mark.slow),
+        pytest.param(
+            "uniform",
+            15,
+            marks=[
+                pytest.mark.slow,
+                pytest.mark.xfail(
+                    strict=True,
+                    reason="since the full fit at 2^15 starts from its own subsample optimum "
+                    "(sinelik_fit._fit_subsample_size), it reaches the maximum in 3 "
+                    "evaluations and the ranking takes 6: at this size the ranking saves "
+                    "nothing (its upper estimate still bounds the maximum)",
+                ),
+            ],
+        ),
         pytest.param("dual-dirac", 15, marks=pytest.mark.slow),
     ],
 )
@@ -194,7 +207,8 @@ def test_a_family_climbing_faster_than_its_newton_model_is_not_ranked_out():
     faster than the Newton model predicts for its first steps, so the predicted further
     gain bounds nothing. It is
     fitted to its maximum (the referee: fit_sine_ml from the truth), far above the
-    uniform's; before RANK_RHO_MAX it was ranked out after two steps with an "upper
+    uniform's; before the upper estimate was scaled by the steps' realised / predicted
+    gain it was ranked out after two steps with an "upper
     estimate" 270 below that maximum and the uniform law was reported."""
     Ts, F, s = 1e-3, 123.0, 0.6
     sig = s / (2 * np.pi * F)
