@@ -539,7 +539,7 @@ def _fit_one(
     # ln L -657 against -311 at the maximum from the noisy start). An end within a decade
     # of the floor there is searched again from the best-scored start with the noise above
     # it (a dual Dirac at 1 rad ended at 2.2 x the floor, ln L -405 against -54).
-    noisy = [c for s_, _, c in sorted(scored, key=lambda t: t[:2]) if c[-1] > 10 * lo_noise]
+    noisy = [c for _, _, c in sorted(scored, key=lambda t: t[:2]) if c[-1] > 10 * lo_noise]
     spread = 2 * math.pi * float(theta[2]) * sj
     if (
         lo_noise > 0

@@ -44,14 +44,13 @@ RANK_MARGIN_BIC = LAW_MARGIN_BIC
 #: predicted further gain (g^T H^-1 g / 2, H the observed information made definite).
 #: The quadratic model underestimates the gain where ln L is flatter than quadratic (a
 #: dual Dirac's dj near 0, where ln L is quartic in dj: 2/3 of the gain): 3 covers it twice.
-RANK_SAFETY = 3.0
 #: Where the last step realised more than its predicted gain (rho > 1), ln L is steeper than
 #: the Newton model and the predicted further gain is scaled by rho too. A dual Dirac ranked
 #: from near the Gaussian on a record whose jitter is mostly deterministic climbs ln L
 #: 2.8-3.2 x faster than the model for four steps (ln L from -29 to 325): with the model's
 #: gain alone its "upper estimate" after two steps was 32, below the uniform's 69, and the
-#: truth was ranked out (rho x: 135). (Not ranking while rho > 1.5 at all cost a uniform on a
-#: 2^15-sample Gaussian record 6 evaluations against its full fit's 3.)
+#: truth was ranked out (scaled by rho: 135).
+RANK_SAFETY = 3.0
 #: A dual Dirac's ranking start holds this share of the start's jitter variance in dj
 #: (dj^2 / 4 = share x std^2): the rival is mostly a Gaussian, nested at dj = 0, near
 #: which ln L is close to quadratic in dj^2 (the search's coordinate); at an even split
