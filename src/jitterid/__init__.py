@@ -85,6 +85,8 @@ _EXPORTS: dict[str, str] = {
     "UniformFamily": ".jitter.laws",
     "DualDirac": ".jitter.regular",
     "DualDiracFamily": ".jitter.regular",
+    "GaussianScaleMixture": ".jitter.regular",
+    "GaussianScaleMixtureFamily": ".jitter.regular",
     "GeneralizedNormal": ".jitter.regular",
     "GeneralizedNormalFamily": ".jitter.regular",
     "JitterMeasurement": ".metrology.meter",
@@ -131,6 +133,8 @@ __all__ = [
     "Delayed",
     "DualDirac",
     "DualDiracFamily",
+    "GaussianScaleMixture",
+    "GaussianScaleMixtureFamily",
     "FitResult",
     "FitStatus",
     "Gaussian",
@@ -348,6 +352,8 @@ if TYPE_CHECKING:
     from .jitter.regular import (
         DualDirac,
         DualDiracFamily,
+        GaussianScaleMixture,
+        GaussianScaleMixtureFamily,
         GeneralizedNormal,
         GeneralizedNormalFamily,
     )

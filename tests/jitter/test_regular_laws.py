@@ -1,5 +1,5 @@
 """Jitter laws regular in their shape (jitterid.jitter.regular): GeneralizedNormal, DualDirac,
-their families.
+GaussianScaleMixture, their families.
 
 Referees: direct numerical integration of the density (scipy.integrate.quad), the empirical
 characteristic function and moments of simulated draws, the closed-form neighbours
@@ -30,6 +30,8 @@ LAWS = {
     "gn-40": ji.GeneralizedNormal(0.1, 40.0),
     "dd": ji.DualDirac(0.05, 0.3),
     "dd-overlap": ji.DualDirac(0.08, 0.05),
+    "mix-0.6": ji.GaussianScaleMixture(0.1, 0.6),
+    "mix-0.95": ji.GaussianScaleMixture(0.1, 0.95),
 }
 law_param = pytest.mark.parametrize("law", list(LAWS.values()), ids=list(LAWS))
 
@@ -122,6 +124,18 @@ def test_dual_dirac_with_no_deterministic_jitter_is_gaussian():
     assert ji.DualDirac(0.03, 0.4).std == pytest.approx(math.sqrt(0.03**2 + 0.2**2), rel=1e-15)
 
 
+def test_scale_mixture_with_no_split_is_gaussian_and_has_its_kurtosis():
+    mx, g = ji.GaussianScaleMixture(0.07, 0.0), ji.Gaussian(0.07)
+    t = np.linspace(-0.7, 0.7, 141)
+    np.testing.assert_allclose(mx.pdf(t), g.pdf(t), rtol=1e-14, atol=1e-300)
+    np.testing.assert_allclose(mx.cf(t * 30), g.cf(t * 30), rtol=1e-13)
+    assert mx.support == pytest.approx(g.support, rel=1e-15)
+    for rho in (0.3, 0.8):
+        law = ji.GaussianScaleMixture(0.07, rho)
+        assert _quad(lambda t: t**4, law) / law.var**2 == pytest.approx(law.kurtosis, rel=1e-10)
+        assert law.kurtosis == pytest.approx(3 * (1 + rho**2), rel=1e-15)
+
+
 @law_param
 def test_expect_of_smooth_functions_matches_a_fine_reference(law):
     def g(t):
@@ -154,6 +168,12 @@ def test_bad_arguments_name_the_argument_and_the_fix():
         ji.GeneralizedNormalFamily().law([0.1, 60.0])
     with pytest.raises(ValueError, match=r"dj must be finite and lie in \[0, 1\]"):
         ji.DualDiracFamily(dj_max=1.0).law([0.1, -0.1])
+    with pytest.raises(ValueError, match=r"rho must lie in \[0, 1\).*variance split"):
+        ji.GaussianScaleMixture(0.1, 1.0)
+    with pytest.raises(ValueError, match="sigma must be finite and > 0"):
+        ji.GaussianScaleMixture(-0.1, 0.5)
+    with pytest.raises(ValueError, match=r"rho_max must lie in \(0, 0.99\]"):
+        ji.GaussianScaleMixtureFamily(rho_max=1.0)
 
 
 # ------------------------------------------------------------------ families: derivatives
@@ -161,6 +181,7 @@ FAMILIES = {
     "gn": (ji.GeneralizedNormalFamily(std_max=0.5), [0.1, 2.7]),
     "gn-near-integer": (ji.GeneralizedNormalFamily(std_max=0.5), [0.09, 3.0]),
     "dd": (ji.DualDiracFamily(rj_max=0.5, dj_max=1.0), [0.05, 0.2]),
+    "mix": (ji.GaussianScaleMixtureFamily(sigma_max=0.5), [0.1, 0.6]),
 }
 fam_param = pytest.mark.parametrize(("family", "jp"), list(FAMILIES.values()), ids=list(FAMILIES))
 
@@ -305,6 +326,12 @@ def test_registry_is_the_one_table_for_cli_and_toml():
     fam = _specs.parse_jitter("generalized-normal:std_max=0.5,beta_max=20")
     assert fam == ji.GeneralizedNormalFamily(std_max=0.5, beta_max=20.0)
     assert _specs.parse_jitter("dual-dirac:dj_max=1") == ji.DualDiracFamily(dj_max=1.0)
+    assert _specs.parse_jitter("known:scale-mixture:sigma=5ms,rho=0.6") == (
+        ji.GaussianScaleMixture(0.005, 0.6)
+    )
+    assert _specs.parse_jitter("scale-mixture:rho_max=0.9") == ji.GaussianScaleMixtureFamily(
+        rho_max=0.9
+    )
     with pytest.raises(ValueError, match="unknown law"):
         _specs.parse_jitter("known:generalised-normal:std=1,beta=2")
 

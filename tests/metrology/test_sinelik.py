@@ -12,6 +12,7 @@ import pytest
 import jitterid as ji
 import jitterid.metrology.sinelik_rule as rule
 from jitterid.estimation.likelihood import ExactLikelihood
+from jitterid.jitter import registry
 from jitterid.jitter.regular import DualDiracFamily
 from jitterid.metrology.sinelik import TOLERANCE, SineLikelihood, fit_sine_ml, sine_ml_applies
 from jitterid.systems.tones import SineWave
@@ -22,6 +23,11 @@ CASES = {
     "gaussian": (ji.GaussianFamily(), ji.Gaussian(0.3), [0.3]),
     "uniform": (ji.UniformFamily(), ji.Uniform(0.5), [0.5]),
     "dual-dirac": (DualDiracFamily(), ji.DualDirac(0.1, 0.6), [0.1, 0.6]),
+    "scale-mixture": (
+        ji.GaussianScaleMixtureFamily(),
+        ji.GaussianScaleMixture(0.3, 0.6),
+        [0.3, 0.6],
+    ),
 }
 
 
@@ -137,7 +143,8 @@ def test_rule_error_bound(name, noise, spread, monkeypatch):
     nodes per panel, a window 1.4 times as wide, every piece's third rule twice as fine."""
     fam, law, jp = CASES[name]
     w = 2 * np.pi * F
-    jp = list(np.asarray(jp) * spread / (w * law.std))
+    scale = spread / (w * law.std)  # the time-valued parameters scaled (not a split)
+    jp = [v if n in registry.UNITLESS else v * scale for n, v in zip(fam.param_names, jp)]
     law = fam.law(jp)
     rng = np.random.default_rng(16)
     y = _record(law, 120, noise, rng)
@@ -222,7 +229,8 @@ def test_bad_input_is_named():
 def _fit(name, N, noise, rng, spread=0.3):
     fam, law, jp = CASES[name]
     w = 2 * np.pi * F
-    jp = list(np.asarray(jp) * spread / (w * law.std))
+    scale = spread / (w * law.std)  # the time-valued parameters scaled (not a split)
+    jp = [v if n in registry.UNITLESS else v * scale for n, v in zip(fam.param_names, jp)]
     law = fam.law(jp)
     y = _record(law, N, noise, rng)
     start = np.r_[np.asarray(jp) * 1.2, A * 1.01, PHI + 0.01, F, C, noise * 1.3]

@@ -14,12 +14,21 @@ from .laws import (
     Uniform,
     UniformFamily,
 )
-from .regular import DualDirac, DualDiracFamily, GeneralizedNormal, GeneralizedNormalFamily
+from .regular import (
+    DualDirac,
+    DualDiracFamily,
+    GaussianScaleMixture,
+    GaussianScaleMixtureFamily,
+    GeneralizedNormal,
+    GeneralizedNormalFamily,
+)
 
 __all__ = [
     "CustomJitter",
     "DualDirac",
     "DualDiracFamily",
+    "GaussianScaleMixture",
+    "GaussianScaleMixtureFamily",
     "Gaussian",
     "GaussianFamily",
     "GeneralizedNormal",

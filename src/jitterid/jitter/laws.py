@@ -1214,6 +1214,11 @@ class JitterFamily(abc.ABC):
     #: with them (n of (26): support [-a, a] whatever n): the likelihood differences their
     #: score at the same quadrature nodes. Others move the nodes.
     fixed_support_params: ClassVar[tuple[int, ...]] = ()
+    #: Index of a parameter in which the density is even about 0, its lower bound (a dual
+    #: Dirac's dj, a scale mixture's rho): every likelihood's score in it vanishes at 0, so
+    #: the structured sine likelihood (:mod:`jitterid.metrology.sinelik`) searches its
+    #: square, in which ln L is regular there. ``None``: there is none.
+    even_index: ClassVar[int | None] = None
 
     @property
     @abc.abstractmethod

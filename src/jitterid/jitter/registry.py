@@ -12,7 +12,8 @@ Examples
 >>> registry.law_kind("generalized_normal").names
 ('std', 'beta')
 >>> sorted(registry.table(registry.FAMILIES, "-"))
-['dual-dirac', 'gaussian', 'generalized-normal', 'sum-of-uniforms', 'uniform']
+['dual-dirac', 'gaussian', 'generalized-normal', 'scale-mixture', 'sum-of-uniforms',
+ 'uniform']
 """
 
 from __future__ import annotations
@@ -29,7 +30,14 @@ from .laws import (
     Uniform,
     UniformFamily,
 )
-from .regular import DualDirac, DualDiracFamily, GeneralizedNormal, GeneralizedNormalFamily
+from .regular import (
+    DualDirac,
+    DualDiracFamily,
+    GaussianScaleMixture,
+    GaussianScaleMixtureFamily,
+    GeneralizedNormal,
+    GeneralizedNormalFamily,
+)
 
 __all__ = ["FAMILIES", "LAWS", "UNITLESS", "Kind", "canonical", "family_kind", "law_kind", "table"]
 
@@ -59,6 +67,7 @@ LAWS: dict[str, Kind] = _kinds(
     Kind("sum-of-uniforms", SumOfUniforms, ("n", "a")),
     Kind("generalized-normal", GeneralizedNormal, ("std", "beta")),
     Kind("dual-dirac", DualDirac, ("rj", "dj")),
+    Kind("scale-mixture", GaussianScaleMixture, ("sigma", "rho")),
     Kind("none", NoJitter, ()),
 )
 
@@ -73,10 +82,11 @@ FAMILIES: dict[str, Kind] = _kinds(
         ("std_max", "std_min", "beta_min", "beta_max"),
     ),
     Kind("dual-dirac", DualDiracFamily, ("rj_max", "rj_min", "dj_max")),
+    Kind("scale-mixture", GaussianScaleMixtureFamily, ("sigma_max", "sigma_min", "rho_max")),
 )
 
 #: Parameters and options without a time unit (all others are times).
-UNITLESS = frozenset({"n", "n_max", "beta", "beta_min", "beta_max"})
+UNITLESS = frozenset({"n", "n_max", "beta", "beta_min", "beta_max", "rho", "rho_max"})
 
 
 def law_kind(kind: str) -> Kind | None:

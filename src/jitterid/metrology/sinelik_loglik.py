@@ -13,17 +13,19 @@ from numpy.typing import ArrayLike
 
 from .._checks import positive, real_array
 from ..jitter.laws import GaussianFamily, JitterFamily, UniformFamily
-from ..jitter.regular import DualDiracFamily
+from ..jitter.regular import DualDiracFamily, GaussianScaleMixtureFamily
 from ..systems.tones import SineWave
 from .sinelik_rule import _CHUNK, FloatArray, _Chunk, _chunk, _components, _outer_sum
 
 __all__ = ["SineLikelihood", "sine_ml_applies"]
 
+_FAMILIES = (GaussianFamily, UniformFamily, DualDiracFamily, GaussianScaleMixtureFamily)
+
 
 def sine_ml_applies(model: object, family: object) -> bool:
     """Whether :class:`SineLikelihood` handles this model and jitter family: a pure tone
     (:class:`~jitterid.systems.tones.SineWave`, one harmonic, polar form, estimated
-    frequency) with a Gaussian, uniform or dual-Dirac family.
+    frequency) with a Gaussian, uniform, dual-Dirac or Gaussian scale-mixture family.
 
     Parameters
     ----------
@@ -37,7 +39,7 @@ def sine_ml_applies(model: object, family: object) -> bool:
         and model.harmonics == 1
         and model.form == "polar"
         and model.frequency_hz is None
-        and isinstance(family, (GaussianFamily, UniformFamily, DualDiracFamily))
+        and isinstance(family, _FAMILIES)
     )
 
 
@@ -50,12 +52,13 @@ class SineLikelihood:
         The samples at the nominal instants kT.
     T : float
         The nominal sampling interval (s).
-    family : GaussianFamily, UniformFamily or DualDiracFamily
+    family : GaussianFamily, UniformFamily, DualDiracFamily or GaussianScaleMixtureFamily
         The jitter family (its parameters come first in x).
-    dj_squared : bool
-        A dual Dirac's second parameter in x is ``dj^2`` (s^2) instead of ``dj``, and its
-        score and information are in it: ln L is even in dj, so flat at dj = 0 in dj but
-        a regular quadratic in dj^2 (the search's coordinate,
+    squared : bool
+        The family's even parameter (:attr:`~jitterid.JitterFamily.even_index`: a dual
+        Dirac's dj, a scale mixture's rho) is its square in x (``dj^2`` in s^2, ``rho^2``),
+        and its score and information are in it: ln L is even in it, so flat at 0 in it but
+        a regular quadratic in its square (the search's coordinate,
         :func:`jitterid.metrology.sinelik_fit.fit_sine_ml`). Other families: no effect.
 
     Notes
@@ -81,21 +84,23 @@ class SineLikelihood:
     """
 
     def __init__(
-        self, y: ArrayLike, T: float, family: JitterFamily, *, dj_squared: bool = False
+        self, y: ArrayLike, T: float, family: JitterFamily, *, squared: bool = False
     ) -> None:
         self.y = real_array(y, "y", ndim=1)
         if not np.all(np.isfinite(self.y)):
             raise ValueError("y must be finite: remove or interpolate the NaN/inf samples first")
         self.T = positive(T, "T")
-        if not isinstance(family, (GaussianFamily, UniformFamily, DualDiracFamily)):
+        if not isinstance(family, _FAMILIES):
             raise TypeError(
-                "family must be a GaussianFamily, UniformFamily or DualDiracFamily (the laws "
+                "family must be a GaussianFamily, UniformFamily, DualDiracFamily or "
+                "GaussianScaleMixtureFamily (the laws "
                 f"SineLikelihood integrates in closed structure); got {type(family).__name__}: "
                 "use jitterid.estimation.likelihood.ExactLikelihood for other laws"
             )
         self.family = family
         self.nj = len(family.param_names)
-        self.dj_squared = bool(dj_squared) and isinstance(family, DualDiracFamily)
+        #: the index of the parameter whose square x holds (None: none)
+        self.squared: int | None = family.even_index if squared else None
         self.names = (
             *family.param_names,
             "amplitude",
@@ -116,10 +121,11 @@ class SineLikelihood:
         if xv.shape != (len(self.names),):
             raise ValueError(f"x must hold {len(self.names)} values {self.names}; got {xv.shape}")
         jp = xv[: self.nj].copy()
-        if self.dj_squared:
-            if not jp[1] >= 0:
-                raise ValueError(f"dj^2 must be >= 0; got {jp[1]!r}")
-            jp[1] = math.sqrt(jp[1])
+        if self.squared is not None:
+            i = self.squared
+            if not jp[i] >= 0:
+                raise ValueError(f"{self.family.param_names[i]}^2 must be >= 0; got {jp[i]!r}")
+            jp[i] = math.sqrt(jp[i])
         A, phi, f, c, sigma = (float(v) for v in xv[self.nj :])
         # the jitter parameters validated (bounds), naming the bad one
         self.family.law(tuple(float(v) for v in jp))
@@ -219,6 +225,9 @@ class SineLikelihood:
         if flip:  # A sin(psi) = |A| sin(psi + pi)
             A, phi = -A, phi + math.pi
         comps = _components(self.family, jp)
+        mixture = isinstance(self.family, GaussianScaleMixtureFamily)
+        mix = (float(jp[0]), float(jp[1]), self.squared is not None) if mixture else None
+        dj2 = self.squared is not None and not mixture
         for i, k0 in enumerate(range(0, self.N, _CHUNK)):
             k = np.arange(k0, min(k0 + _CHUNK, self.N), dtype=float)
             with_info = info > 0 and i % info == 0
@@ -234,7 +243,8 @@ class SineLikelihood:
                 sigma,
                 score,
                 with_info,
-                self.dj_squared,
+                dj2,
+                mix,
             )
             if flip and ch.score is not None:
                 ch.score[:, self.nj] *= -1.0
@@ -275,8 +285,8 @@ class SineLikelihood:
             The frequency's bounds, Hz.
         """
         fam = np.array(self.family.bounds, dtype=float)
-        if self.dj_squared:
-            fam[1] = fam[1] ** 2
+        if self.squared is not None:
+            fam[self.squared] = fam[self.squared] ** 2
         blo, bhi = band_hz if band_hz is not None else (1e-300, math.inf)
         lo = np.r_[fam[:, 0], 0.0, -math.inf, max(blo, 1e-300), -math.inf, noise_floor]
         hi = np.r_[fam[:, 1], math.inf, math.inf, bhi, math.inf, math.inf]

@@ -9,7 +9,7 @@ sized for any signal):
   Gaussian factor has a single peak, at the root psi_b = b pi + (-1)^b asin(z),
   z = (y - c)/A (clipped to the turning point where |z| > 1). The prior's support (a
   Gaussian's +-8.5 std, the law's own cut; a uniform's +-a; each Gaussian of a dual Dirac
-  separately) is cut into the branches it meets: one or two for a phase spread below pi/2.
+  or of a scale mixture separately) is cut into the branches it meets: one or two for a phase spread below pi/2.
 * **Laplace window.** On each piece the mode m of the log-integrand
   l(psi) = -(y - c - A sin psi)^2 / (2 sigma^2) + ln p_u(psi - theta) is found by a few
   safeguarded Newton steps from the linearised product of the two factors, and its width
@@ -39,7 +39,9 @@ with its scale, so this is exact, boundary terms included)::
     d ln p / d c     = E[e] / sigma^2  d ln p / d sigma = E[e^2] / sigma^3 - 1 / sigma
     d ln p / d scale = E[D w (tau - mu) / scale]        d ln p / d dj = E[D w s / 2]
 
-(s = +-1 the dual Dirac's component). The observed information follows from the same
+(s = +-1 the dual Dirac's component; a dual Dirac's dj^2 and a scale mixture's rho^2 at a
+fixed jitter instead, by their laws' own derivatives: :func:`_dual_dirac_terms`,
+:func:`_mixture_terms`). The observed information follows from the same
 nodes by Louis' identity, -d^2 ln p_k = -E_k[d2 ln f] - Var_k[d ln f] (f the node's
 integrand at a fixed standard jitter variable; test: against central differences of the
 score). The record's sums are :class:`jitterid.metrology.sinelik_loglik.SineLikelihood`'s,
@@ -53,8 +55,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import special
 
 from ..jitter.laws import GaussianFamily, JitterFamily, UniformFamily
+from ..jitter.regular import GaussianScaleMixtureFamily
 
 __all__ = ["TOLERANCE"]
 
@@ -96,6 +100,12 @@ def _components(family: JitterFamily, jp: FloatArray) -> list[_Component]:
         return [_Component(1.0, 0.0, float(jp[0]), False, 0.0)]
     if isinstance(family, UniformFamily):
         return [_Component(1.0, 0.0, float(jp[0]), True, 0.0)]
+    if isinstance(family, GaussianScaleMixtureFamily):
+        sg, rho = float(jp[0]), float(jp[1])
+        return [
+            _Component(0.5, 0.0, sg * math.sqrt(1.0 - rho), False, 0.0),
+            _Component(0.5, 0.0, sg * math.sqrt(1.0 + rho), False, 0.0),
+        ]
     rj, dj = float(jp[0]), float(jp[1])
     return [
         _Component(0.5, -0.5 * dj, rj, False, -1.0),
@@ -127,6 +137,7 @@ class _Group:
     sigma: float
     nj: int
     dj2: bool = False
+    mix: tuple[float, float, bool] | None = None
 
 
 @dataclass(frozen=True)
@@ -152,10 +163,12 @@ def _chunk(
     score: bool,
     info: bool = False,
     dj2: bool = False,
+    mix: tuple[float, float, bool] | None = None,
 ) -> _Chunk:
     """ln p and the per-sample score of one chunk of samples (module doc); ``dj2``: a
     dual Dirac's law columns are d / d rj and d / d (dj^2) at a fixed jitter
-    (:func:`_dual_dirac_terms`)."""
+    (:func:`_dual_dirac_terms`); ``mix``: a scale mixture's (sigma, rho, whether its second
+    column is in rho^2), whose law columns are at a fixed jitter (:func:`_mixture_terms`)."""
     n = y.size
     w = 2 * math.pi * f
     frac = np.mod(f * T * k, 1.0)
@@ -315,7 +328,8 @@ def _chunk(
                 c=c,
                 sigma=sigma,
                 nj=nj,
-                dj2=dj2 and nj == 2,
+                dj2=dj2 and nj == 2 and mix is None,
+                mix=mix,
             )
             _score_group(S, grp)
             if second is not None:
@@ -341,7 +355,12 @@ def _score_group(S: FloatArray, grp: _Group) -> None:
     pd_tau = (np.einsum("ij,ij->i", pd, psi) - th * sum_pd) / w  # E[D tau]
     sum_p = post.sum(axis=1)
     cols = [w * (pd_tau - grp.cen * sum_pd) / grp.scale]
-    if nj == 2:
+    if grp.mix is not None:  # sigma at a fixed standard variable (tau / sigma), rho^2 at a
+        # fixed jitter (its law's score, :func:`_mixture_terms`)
+        sig_m = grp.mix[0]
+        g_u = _mixture_terms((psi - th[:, None]) / w, *grp.mix, False)[0][1]
+        cols = [w * pd_tau / sig_m, np.einsum("ij,ij->i", post, g_u)]
+    elif nj == 2:
         cols.append(w * 0.5 * grp.sgn * sum_pd)
     if grp.dj2:  # d / d(dj^2) = (d / d dj) / (2 dj), where dj resolves it
         dj = 2.0 * float(np.abs(grp.cen[0]))
@@ -391,8 +410,9 @@ def _second_group(grp: _Group) -> FloatArray:
     xi = xi.ravel()
     kT = np.repeat(grp.kT, psi.shape[1])
     sg = np.repeat(grp.sgn, psi.shape[1])
+    fixed = grp.dj2 or grp.mix is not None  # the law's columns at a fixed jitter
     dpsi = np.zeros((P, M))  # d psi / dx
-    if not grp.dj2:  # (at a fixed jitter the law's parameters do not move psi)
+    if not fixed:  # (at a fixed jitter the law's parameters do not move psi)
         dpsi[0] = w * xi
         if nj == 2:
             dpsi[1] = 0.5 * w * sg
@@ -408,11 +428,16 @@ def _second_group(grp: _Group) -> FloatArray:
     g = -e * de / s2
     g[isg] = e * e / (s2 * sigma) - 1.0 / sigma
     law2 = None
-    if grp.dj2:
-        gl, hl = _dual_dirac_terms(tau, grp.scale[0], grp.cen, True)
+    if fixed:
+        if grp.mix is not None:
+            gl, hl = _mixture_terms(tau, *grp.mix, True)
+        else:
+            gl, hl = _dual_dirac_terms(tau, grp.scale[0], grp.cen, True)
         g[0], g[1] = np.where(live, gl[0].ravel(), 0.0), np.where(live, gl[1].ravel(), 0.0)
         assert hl is not None
-        law2 = np.array([[float(np.sum(pw * h.ravel())) for h in row] for row in hl])
+        law2 = np.array(
+            [[float(np.sum(np.where(live, pw * h.ravel(), 0.0))) for h in row] for row in hl]
+        )
     # (BLAS's matmul may raise spurious floating-point flags on these shapes: the sums
     # are checked for finiteness by the caller instead)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -425,10 +450,10 @@ def _second_group(grp: _Group) -> FloatArray:
         d2[iA, :] -= cross
         d2[:, iA] -= cross
         # ... and -A cos psi d2psi: d2psi / df d(scale) = 2 pi xi, d2psi / df ddj = pi s
-        fs = 0.0 if grp.dj2 else -A * float(np.sum(pe * co * 2 * math.pi * xi))
+        fs = 0.0 if fixed else -A * float(np.sum(pe * co * 2 * math.pi * xi))
         d2[ifr, 0] -= fs
         d2[0, ifr] -= fs
-        if nj == 2 and not grp.dj2:
+        if nj == 2 and not fixed:
             fd = -A * float(np.sum(pe * co * math.pi * sg))
             d2[ifr, 1] -= fd
             d2[1, ifr] -= fd
@@ -441,6 +466,111 @@ def _second_group(grp: _Group) -> FloatArray:
     if law2 is not None:  # the law's own second derivatives (at a fixed jitter)
         d2[:2, :2] += law2
     return out + d2
+
+
+def _mixture_polys(kmax: int) -> list[np.polynomial.Polynomial]:
+    """Q_0 .. Q_kmax: d^k N(tau; v) / dv^k = N v^-k Q_k(z), z = tau^2 / v (N the Gaussian
+    density of variance v): Q_0 = 1, Q_{k+1} = -k Q_k - z Q_k' + Q_k (z - 1) / 2."""
+    z = np.polynomial.Polynomial([0.0, 1.0])
+    out = [np.polynomial.Polynomial([1.0])]
+    for k in range(kmax):
+        q = out[-1]
+        out.append(-k * q - z * q.deriv() + q * (z - 1.0) / 2.0)
+    return out
+
+
+#: Below this rho a scale mixture's u-derivatives (u = rho^2) come from the series
+#: S(u, z) = sum_m u^m Q_2m(z) / (2m)! (terms to u^_MIX_TERMS; the closed form's divided
+#: differences lose ~eps / rho^2 there).
+_MIX_SERIES = 2e-3
+_MIX_TERMS = 4
+# the series' coefficients: row m holds Q_2m(z) / (2m)! in powers of z
+_MIX_C = np.array(
+    [
+        np.pad(q.coef / math.factorial(k), (0, 2 * _MIX_TERMS + 1 - q.coef.size))
+        for k, q in enumerate(_mixture_polys(2 * _MIX_TERMS))
+        if k % 2 == 0
+    ]
+)
+
+
+def _mixture_terms(
+    tau: FloatArray, sigma: float, rho: float, squared: bool, second: bool
+) -> tuple[list[FloatArray], list[list[FloatArray]] | None]:
+    """A Gaussian scale mixture's ln p(tau) = ln N(tau; sigma^2) + ln S(u, z), u = rho^2,
+    z = tau^2 / sigma^2, S = (phi(rho) + phi(-rho)) / 2, phi(r) = (1 + r)^(-1/2) exp(z r /
+    (2 (1 + r))), differentiated at a fixed tau in sigma and u (``squared``) or rho::
+
+        d / d sigma   = (z - 1 - 2 z S_z / S) / sigma
+        d / d u       = S_u / S
+        d2 / d sigma2 = (1 - 3 z + 6 z S_z / S + 4 z^2 (S_zz / S - (S_z / S)^2)) / sigma^2
+        d2 / d sigma du = -2 z (S_uz / S - S_u S_z / S^2) / sigma
+        d2 / d u2     = S_uu / S - (S_u / S)^2
+
+    (in rho: d / d rho = 2 rho d / du, d2 / d rho2 = 4 rho^2 d2 / du2 + 2 d / du). S is even
+    in rho, so analytic in u; below ``_MIX_SERIES`` its u-derivatives come from its series
+    in u, above from the closed form (S_u = S_rho / (2 rho), S_uu = (S_rho,rho - S_rho /
+    rho) / (4 rho^2)). Returns the two first derivatives and, with ``second``, the 2 x 2
+    second derivatives, at the nodes; without ``second`` the sigma derivative is left out
+    (an empty array: the score takes it at a fixed standard variable, E[D w tau / sigma])."""
+    z = (tau / sigma) ** 2
+    if rho < _MIX_SERIES:
+        u = rho * rho
+        m = np.arange(_MIX_C.shape[0], dtype=float)
+        um = np.array([u**k for k in range(m.size)])
+        dm = np.r_[0.0, um[:-1]] * m  # d u^m / du
+        ddm = np.r_[0.0, 0.0, um[:-2]] * m * (m - 1.0)
+        c_s, c_u, c_uu = um @ _MIX_C, dm @ _MIX_C, ddm @ _MIX_C
+        deg = np.arange(c_s.size, dtype=float)
+
+        def dz(c: FloatArray) -> FloatArray:  # the z-derivative's coefficients
+            return np.r_[(c * deg)[1:], 0.0]
+
+        coefs = np.stack([c_s, c_u, c_uu, dz(c_s), dz(dz(c_s)), dz(c_u)])
+        zp = np.ones(z.shape + (c_s.size,))
+        for k in range(1, c_s.size):
+            zp[..., k] = zp[..., k - 1] * z
+        vals = zp @ coefs.T
+        S, Su, Suu, Sz, Szz, Suz = (vals[..., i] for i in range(6))
+    else:
+        # per component r = +-rho (b = 1 + r): ln phi = al + c1 z, d ln phi / dz = c1 =
+        # r / (2 b), d ln phi / dr = a1 = z / (2 b^2) - 1 / (2 b), d2 ln phi / dr2 = a2 =
+        # 1 / (2 b^2) - z / b^3 (al, c1 scalars): the ratios to S are sums over the
+        # components' weights W_r = phi_r / (2 S), W_+ = expit(ln phi_+ - ln phi_-)
+        co = []
+        for r in (rho, -rho):
+            bb = 1.0 + r
+            co.append((-0.5 * math.log(bb), r / (2.0 * bb), 0.5 / bb**2, -0.5 / bb, bb))
+        (al_p, c_p, p_p, q_p, b_p), (al_m, c_m, p_m, q_m, b_m) = co
+        w_p = special.expit((al_p - al_m) + (c_p - c_m) * z)  # W_+ (c1 = be)
+        w_m = 1.0 - w_p
+        a1_p, a1_m = p_p * z + q_p, p_m * z + q_m
+        S = 1.0  # (the sums below are already ratios to S)
+        Su = (w_p * a1_p - w_m * a1_m) / (2.0 * rho)
+        if second:
+            Sz = w_p * c_p + w_m * c_m
+            a2_p = 0.5 / b_p**2 - z / b_p**3
+            a2_m = 0.5 / b_m**2 - z / b_m**3
+            Sr = 2.0 * rho * Su
+            Srr = w_p * (a1_p * a1_p + a2_p) + w_m * (a1_m * a1_m + a2_m)
+            Suu = (Srr - Sr / rho) / (4.0 * rho * rho)
+            Szz = w_p * c_p * c_p + w_m * c_m * c_m
+            Szr = w_p * (a1_p * c_p + 0.5 / b_p**2) - w_m * (a1_m * c_m + 0.5 / b_m**2)
+            Suz = Szr / (2.0 * rho)
+    Ru = Su / S
+    g_u = Ru
+    if not second:  # (the score's sigma column is taken at a fixed standard variable)
+        return [np.empty(0), g_u if squared else 2.0 * rho * g_u], None
+    Rz = Sz / S
+    g_s = (z - 1.0 - 2.0 * z * Rz) / sigma
+    h_ss = (1.0 - 3.0 * z + 6.0 * z * Rz + 4.0 * z * z * (Szz / S - Rz * Rz)) / sigma**2
+    h_su = -2.0 * z * (Suz / S - Ru * Rz) / sigma
+    h_uu = Suu / S - Ru * Ru
+    if squared:
+        return [g_s, g_u], [[h_ss, h_su], [h_su, h_uu]]
+    h_sr = 2.0 * rho * h_su
+    h_rr = 4.0 * rho * rho * h_uu + 2.0 * g_u
+    return [g_s, 2.0 * rho * g_u], [[h_ss, h_sr], [h_sr, h_rr]]
 
 
 def _tanhc_terms(x: FloatArray, second: bool) -> tuple[FloatArray, FloatArray, FloatArray]:
