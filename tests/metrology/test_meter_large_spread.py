@@ -18,11 +18,15 @@ TS, F = 1e-3, 123.0
 
 def _record(law: str, theta: float, seed: int, noise: float = 1e-2) -> tuple[np.ndarray, float]:
     """N = 1000 samples of a 123 Hz tone at T = 1 ms, amplitude 1, offset 0.1, jitter of
-    phase std ``theta`` (rad), uniform or Gaussian; returns (y, the jitter std in s)."""
+    phase std ``theta`` (rad), uniform, a Gaussian scale mixture (kurtosis 4.2) or Gaussian;
+    returns (y, the jitter std in s)."""
     rng = np.random.default_rng([27, 1, round(theta * 100), seed])
     sig = theta / (2 * math.pi * F)
     if law == "uniform":
         tau = rng.uniform(-sig * math.sqrt(3), sig * math.sqrt(3), 1000)
+    elif law == "scale-mixture":  # stds 0.6 : 1.28 of the rms, probability 1/2 each
+        sc = np.where(rng.random(1000) < 0.5, 0.6, 1.28) / math.sqrt((0.36 + 1.28**2) / 2)
+        tau = sig * sc * rng.normal(0, 1, 1000)
     else:
         tau = sig * rng.normal(0, 1, 1000)
     t = np.arange(1000) * TS + tau
@@ -95,3 +99,20 @@ def test_the_fast_route_stays_on_the_moments_where_they_tell_the_shape():
     assert m.family == "law-free"
     assert "exact likelihood" not in m.message
     assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
+
+
+@pytest.mark.slow  # about 20 CPU-s (the family's own fit: test_sinelik.py's CASES)
+def test_heavy_tailed_jitter_at_1_rad_is_measured_in_its_family():
+    """A Gaussian scale mixture (kurtosis 4.2) at 1 rad: fitted as Gaussian it came out
+    -5.7 % with coverage 0.50 over 32 records (the Gaussian was the nearest family); the
+    scale-mixture family is chosen by BIC, its rho near the record's (0.64) and its std
+    within 3 of its stated errors of the truth, and the Gaussian's maximum on the same
+    record lower by more than the BIC's penalty for rho."""
+    y, sig = _record("scale-mixture", 1.0, 3)
+    m = ji.measure_jitter(y, TS, laws=["gaussian", "scale-mixture"])
+    assert m.family == "scale-mixture", m.message
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert 0.4 < m.fit.x[1] < 0.85
+    assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
+    ll = {c.name: c.loglik for c in m.laws}
+    assert ll["scale-mixture"] - ll["gaussian"] > 0.5 * math.log(1000)

@@ -144,7 +144,8 @@ def test_rule_error_bound(name, noise, spread, monkeypatch):
     fam, law, jp = CASES[name]
     w = 2 * np.pi * F
     scale = spread / (w * law.std)  # the time-valued parameters scaled (not a split)
-    jp = [v if n in registry.UNITLESS else v * scale for n, v in zip(fam.param_names, jp)]
+    named = zip(fam.param_names, jp, strict=True)
+    jp = [v if n in registry.UNITLESS else v * scale for n, v in named]
     law = fam.law(jp)
     rng = np.random.default_rng(16)
     y = _record(law, 120, noise, rng)
@@ -230,7 +231,8 @@ def _fit(name, N, noise, rng, spread=0.3):
     fam, law, jp = CASES[name]
     w = 2 * np.pi * F
     scale = spread / (w * law.std)  # the time-valued parameters scaled (not a split)
-    jp = [v if n in registry.UNITLESS else v * scale for n, v in zip(fam.param_names, jp)]
+    named = zip(fam.param_names, jp, strict=True)
+    jp = [v if n in registry.UNITLESS else v * scale for n, v in named]
     law = fam.law(jp)
     y = _record(law, N, noise, rng)
     start = np.r_[np.asarray(jp) * 1.2, A * 1.01, PHI + 0.01, F, C, noise * 1.3]

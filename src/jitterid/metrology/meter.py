@@ -510,8 +510,8 @@ def _fit_one(
         x0 = np.r_[x0[:-1], max(float(x0[-1]), lo_noise)]
         cands = [x0]
         cands.insert(0, xg)
-    # a pure tone under a Gaussian, uniform, dual-Dirac or scale-mixture law: the structured likelihood
-    # (jitterid.metrology.sinelik, O(N)); else the generic one
+    # a pure tone under a Gaussian, uniform, dual-Dirac or scale-mixture law: the structured
+    # likelihood (jitterid.metrology.sinelik, O(N)); else the generic one
     if sine_ml_applies(model, family):
         assert isinstance(model, SineWave)
         tone = model

@@ -2,7 +2,8 @@
 
 For a record y_k = c + A sin(psi_k) + v_k, psi_k = theta_k + w tau_k, theta_k = w kT + phi,
 w = 2 pi f, v_k ~ N(0, sigma^2) and tau_k i.i.d. of a law p (Gaussian, uniform,
-dual-Dirac or a Gaussian scale mixture), each sample's density is the one-dimensional integral over the sampling phase
+dual-Dirac or a Gaussian scale mixture), each sample's density is the one-dimensional
+integral over the sampling phase
 
     p(y_k) = int N(y_k - c - A sin psi; sigma^2) p_u(psi - theta_k) dpsi,               (S1)
 

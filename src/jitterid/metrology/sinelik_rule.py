@@ -9,7 +9,8 @@ sized for any signal):
   Gaussian factor has a single peak, at the root psi_b = b pi + (-1)^b asin(z),
   z = (y - c)/A (clipped to the turning point where |z| > 1). The prior's support (a
   Gaussian's +-8.5 std, the law's own cut; a uniform's +-a; each Gaussian of a dual Dirac
-  or of a scale mixture separately) is cut into the branches it meets: one or two for a phase spread below pi/2.
+  or of a scale mixture separately) is cut into the branches it meets: one or two for a
+  phase spread below pi/2.
 * **Laplace window.** On each piece the mode m of the log-integrand
   l(psi) = -(y - c - A sin psi)^2 / (2 sigma^2) + ln p_u(psi - theta) is found by a few
   safeguarded Newton steps from the linearised product of the two factors, and its width
@@ -487,7 +488,10 @@ _MIX_TERMS = 4
 # the series' coefficients: row m holds Q_2m(z) / (2m)! in powers of z
 _MIX_C = np.array(
     [
-        np.pad(q.coef / math.factorial(k), (0, 2 * _MIX_TERMS + 1 - q.coef.size))
+        np.pad(
+            np.asarray(q.coef, dtype=float) / float(math.factorial(k)),
+            (0, 2 * _MIX_TERMS + 1 - q.coef.size),
+        )
         for k, q in enumerate(_mixture_polys(2 * _MIX_TERMS))
         if k % 2 == 0
     ]
@@ -527,7 +531,7 @@ def _mixture_terms(
             return np.r_[(c * deg)[1:], 0.0]
 
         coefs = np.stack([c_s, c_u, c_uu, dz(c_s), dz(dz(c_s)), dz(c_u)])
-        zp = np.ones(z.shape + (c_s.size,))
+        zp = np.ones((*z.shape, c_s.size))
         for k in range(1, c_s.size):
             zp[..., k] = zp[..., k - 1] * z
         vals = zp @ coefs.T
