@@ -97,9 +97,7 @@ def _mixture_record(N: int, seed: int, sigma: float, rho: float, noise: float) -
     return y + noise * rng.standard_normal(N)
 
 
-@pytest.mark.parametrize(
-    ("rho_true", "rho"), [(0.0, 0.0), (0.0, 1e-3), (0.0, 0.05), (0.6, 0.5), (0.6, 0.9)]
-)
+@pytest.mark.parametrize(("rho_true", "rho"), [(0.0, 0.0), (0.0, 1e-3), (0.6, 0.5)])
 def test_scale_mixture_score_information_in_rho_squared(rho_true: float, rho: float) -> None:
     """A scale mixture's score and observed information in u = rho^2 (its law's terms at a
     fixed jitter: the series in u below rho = 2e-3, the closed form above) equal
