@@ -29,6 +29,25 @@ def _family() -> ji.DualDiracFamily:
     return ji.DualDiracFamily(rj_max=10 * T, rj_min=1e-9 * T, dj_max=20 * T)
 
 
+def _check_against_differences(lik, x, h, g, H):
+    """The score g and observed information H at x against differences of ln L and of the
+    score (steps h; one-sided in the squared parameter x[1] where the step reaches 0), on
+    the scale of the standard errors."""
+    E = np.eye(x.size)
+
+    def diff(fun, i):
+        if h[i] >= x[1] and i == 1:
+            return (-3 * fun(x) + 4 * fun(x + h[i] * E[i]) - fun(x + 2 * h[i] * E[i])) / (2 * h[i])
+        return (fun(x + h[i] * E[i]) - fun(x - h[i] * E[i])) / (2 * h[i])
+
+    g_fd = np.array([diff(lik.loglik, i) for i in range(x.size)])
+    H_fd = np.array([-diff(lambda z: lik.scores(z)[1], i) for i in range(x.size)])
+    H_fd = 0.5 * (H_fd + H_fd.T)
+    s = 1.0 / np.sqrt(np.abs(np.diag(H_fd)))  # on the scale of the standard errors
+    assert np.max(np.abs(g - g_fd) * s) < 1e-3
+    assert np.max(np.abs((H - H_fd) * np.outer(s, s))) < 1e-3
+
+
 @pytest.mark.parametrize(("dj_true", "dj"), [(0.0, 0.0), (0.0, 5e-14), (1.2e-13, 1.5e-13)])
 def test_score_information_in_dj_squared(dj_true: float, dj: float) -> None:
     """The score and the observed information in u = dj^2 equal differences of ln L and
@@ -43,19 +62,7 @@ def test_score_information_in_dj_squared(dj_true: float, dj: float) -> None:
     x_dj[1] = dj
     assert ll == pytest.approx(SineLikelihood(y, T, fam).loglik(x_dj), abs=1e-9)
     h = np.array([1e-17, max(1e-29, 1e-2 * dj**2), 1e-7, 1e-7, 10.0, 1e-8, 1e-9])
-    E = np.eye(7)
-
-    def diff(fun, i):
-        if h[i] >= x[1] and i == 1:
-            return (-3 * fun(x) + 4 * fun(x + h[i] * E[i]) - fun(x + 2 * h[i] * E[i])) / (2 * h[i])
-        return (fun(x + h[i] * E[i]) - fun(x - h[i] * E[i])) / (2 * h[i])
-
-    g_fd = np.array([diff(lik.loglik, i) for i in range(7)])
-    H_fd = np.array([-diff(lambda z: lik.scores(z)[1], i) for i in range(7)])
-    H_fd = 0.5 * (H_fd + H_fd.T)
-    s = 1.0 / np.sqrt(np.abs(np.diag(H_fd)))  # on the scale of the standard errors
-    assert np.max(np.abs(g - g_fd) * s) < 1e-3
-    assert np.max(np.abs((H - H_fd) * np.outer(s, s))) < 1e-3
+    _check_against_differences(lik, x, h, g, H)
 
 
 def test_dual_dirac_fit_on_gaussian_record_reaches_its_optimum() -> None:
@@ -114,16 +121,4 @@ def test_scale_mixture_score_information_in_rho_squared(rho_true: float, rho: fl
     x_rho[1] = rho
     assert ll == pytest.approx(SineLikelihood(y, T, fam).loglik(x_rho), abs=1e-9)
     h = np.array([1e-6 * sig, max(1e-8, 1e-3 * rho**2), 1e-7, 1e-7, 10.0, 1e-8, 1e-8])
-    E = np.eye(7)
-
-    def diff(fun, i):
-        if h[i] >= x[1] and i == 1:
-            return (-3 * fun(x) + 4 * fun(x + h[i] * E[i]) - fun(x + 2 * h[i] * E[i])) / (2 * h[i])
-        return (fun(x + h[i] * E[i]) - fun(x - h[i] * E[i])) / (2 * h[i])
-
-    g_fd = np.array([diff(lik.loglik, i) for i in range(7)])
-    H_fd = np.array([-diff(lambda z: lik.scores(z)[1], i) for i in range(7)])
-    H_fd = 0.5 * (H_fd + H_fd.T)
-    s = 1.0 / np.sqrt(np.abs(np.diag(H_fd)))  # on the scale of the standard errors
-    assert np.max(np.abs(g - g_fd) * s) < 1e-3
-    assert np.max(np.abs((H - H_fd) * np.outer(s, s))) < 1e-3
+    _check_against_differences(lik, x, h, g, H)

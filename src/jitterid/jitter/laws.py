@@ -1402,6 +1402,14 @@ def _upper(x: float | None, name: str) -> float:
     return math.inf if x is None else _checks.positive(x, name)
 
 
+def _scale_range(family: object, name: str) -> None:
+    """Check a family's bounds ``{name}_min < {name}_max`` on a scale (the floor positive,
+    the ceiling positive or None), naming the bad one."""
+    lo, hi = getattr(family, f"{name}_min"), getattr(family, f"{name}_max")
+    if not _checks.positive(lo, f"{name}_min") < _upper(hi, f"{name}_max"):
+        raise ValueError(f"{name}_min must be below {name}_max; got {lo!r} >= {hi!r}")
+
+
 @dataclass(frozen=True)
 class UniformFamily(JitterFamily):
     """``U(-a, a)`` with unknown ``a`` (the family (26) at ``n = 0``).
@@ -1428,9 +1436,7 @@ class UniformFamily(JitterFamily):
     scale_index: ClassVar[int | None] = 0
 
     def __post_init__(self) -> None:
-        _upper(self.a_max, "a_max")
-        if not _checks.positive(self.a_min, "a_min") < _upper(self.a_max, "a_max"):
-            raise ValueError(f"a_min must be below a_max; got {self.a_min!r} >= {self.a_max!r}")
+        _scale_range(self, "a")
 
     @property
     def bounds(self) -> tuple[tuple[float, float], ...]:
@@ -1469,11 +1475,7 @@ class GaussianFamily(JitterFamily):
     scale_index: ClassVar[int | None] = 0
 
     def __post_init__(self) -> None:
-        _upper(self.sigma_max, "sigma_max")
-        if not _checks.positive(self.sigma_min, "sigma_min") < _upper(self.sigma_max, "sigma_max"):
-            raise ValueError(
-                f"sigma_min must be below sigma_max; got {self.sigma_min!r} >= {self.sigma_max!r}"
-            )
+        _scale_range(self, "sigma")
 
     @property
     def bounds(self) -> tuple[tuple[float, float], ...]:
@@ -1520,9 +1522,7 @@ class SumOfUniformsFamily(JitterFamily):
         n_max = _checks.positive(self.n_max, "n_max", allow_zero=True)
         if n_max > N_MAX:
             raise ValueError(f"n_max must be at most {N_MAX:g}; got {self.n_max!r}")
-        _upper(self.a_max, "a_max")
-        if not _checks.positive(self.a_min, "a_min") < _upper(self.a_max, "a_max"):
-            raise ValueError(f"a_min must be below a_max; got {self.a_min!r} >= {self.a_max!r}")
+        _scale_range(self, "a")
 
     @property
     def bounds(self) -> tuple[tuple[float, float], ...]:

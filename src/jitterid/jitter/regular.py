@@ -41,6 +41,7 @@ from .laws import (
     JitterFamily,
     JitterLaw,
     _gl_panels,
+    _scale_range,
     _size,
     _upper,
 )
@@ -546,8 +547,28 @@ class GaussianScaleMixture(JitterLaw):
 # --------------------------------------------------------------------------------------------
 
 
+class _ClosedFormGradient(JitterFamily):
+    """A family whose laws give ``d p(tau) / d params`` in closed form (their own
+    ``pdf_gradient``, in the family's parameter order)."""
+
+    def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64]:
+        """``d p(tau) / d params`` at ``params`` (the law's own ``pdf_gradient``), shape
+        ``(len(params),) + tau.shape``.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        tau : array_like
+            Jitter values in s.
+        """
+        law = self.law(params)
+        assert isinstance(law, (GeneralizedNormal, DualDirac, GaussianScaleMixture))
+        return law.pdf_gradient(tau)
+
+
 @dataclass(frozen=True)
-class GeneralizedNormalFamily(JitterFamily):
+class GeneralizedNormalFamily(_ClosedFormGradient):
     """:class:`GeneralizedNormal` with unknown ``(std, beta)``: a regular family of shapes.
 
     ``std`` is a scale (the law is that of ``std xi`` with xi's law free of it), so its
@@ -586,11 +607,7 @@ class GeneralizedNormalFamily(JitterFamily):
     scale_index: ClassVar[int | None] = 0
 
     def __post_init__(self) -> None:
-        _upper(self.std_max, "std_max")
-        if not _checks.positive(self.std_min, "std_min") < _upper(self.std_max, "std_max"):
-            raise ValueError(
-                f"std_min must be below std_max; got {self.std_min!r} >= {self.std_max!r}"
-            )
+        _scale_range(self, "std")
         lo = _checks.positive(self.beta_min, "beta_min")
         hi = _checks.positive(self.beta_max, "beta_max")
         if not BETA_MIN <= lo < hi <= BETA_MAX:
@@ -613,23 +630,9 @@ class GeneralizedNormalFamily(JitterFamily):
         top = min(T / 4.0, _upper(self.std_max, "std_max"))
         return [(s, b) for b in (1.0, 2.0, 8.0) for s in (top / 6.0, top * 0.4)]
 
-    def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64]:
-        """``d p(tau) / d (std, beta)`` at ``params``, shape ``(2,) + tau.shape``.
-
-        Parameters
-        ----------
-        params : sequence of float
-            The family's parameters, in :attr:`param_names` order.
-        tau : array_like
-            Jitter values in s.
-        """
-        law = self.law(params)
-        assert isinstance(law, GeneralizedNormal)
-        return law.pdf_gradient(tau)
-
 
 @dataclass(frozen=True)
-class DualDiracFamily(JitterFamily):
+class DualDiracFamily(_ClosedFormGradient):
     """:class:`DualDirac` with unknown ``(rj, dj)``.
 
     Neither parameter is a scale of the whole law, so both derivatives come from
@@ -664,10 +667,8 @@ class DualDiracFamily(JitterFamily):
     even_index: ClassVar[int | None] = 1
 
     def __post_init__(self) -> None:
-        _upper(self.rj_max, "rj_max")
         _upper(self.dj_max, "dj_max")
-        if not _checks.positive(self.rj_min, "rj_min") < _upper(self.rj_max, "rj_max"):
-            raise ValueError(f"rj_min must be below rj_max; got {self.rj_min!r} >= {self.rj_max!r}")
+        _scale_range(self, "rj")
 
     @property
     def bounds(self) -> tuple[tuple[float, float], ...]:
@@ -700,23 +701,9 @@ class DualDiracFamily(JitterFamily):
         rj_top = min(top, _upper(self.rj_max, "rj_max"))
         return [(r, d) for d in (top / 2.0, 2.0 * top) for r in (rj_top / 6.0, rj_top * 0.4)]
 
-    def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64]:
-        """``d p(tau) / d (rj, dj)`` at ``params``, shape ``(2,) + tau.shape``.
-
-        Parameters
-        ----------
-        params : sequence of float
-            The family's parameters, in :attr:`param_names` order.
-        tau : array_like
-            Jitter values in s.
-        """
-        law = self.law(params)
-        assert isinstance(law, DualDirac)
-        return law.pdf_gradient(tau)
-
 
 @dataclass(frozen=True)
-class GaussianScaleMixtureFamily(JitterFamily):
+class GaussianScaleMixtureFamily(_ClosedFormGradient):
     """:class:`GaussianScaleMixture` with unknown ``(sigma, rho)``: Gaussian jitter and heavier
     tails (kurtosis 3 to ``3 (1 + rho_max^2)``) at one std ``sigma``.
 
@@ -753,11 +740,7 @@ class GaussianScaleMixtureFamily(JitterFamily):
     even_index: ClassVar[int | None] = 1
 
     def __post_init__(self) -> None:
-        _upper(self.sigma_max, "sigma_max")
-        if not _checks.positive(self.sigma_min, "sigma_min") < _upper(self.sigma_max, "sigma_max"):
-            raise ValueError(
-                f"sigma_min must be below sigma_max; got {self.sigma_min!r} >= {self.sigma_max!r}"
-            )
+        _scale_range(self, "sigma")
         if not 0.0 < float(self.rho_max) <= 0.99:
             raise ValueError(
                 f"rho_max must lie in (0, 0.99] (at rho -> 1 the narrow component vanishes); "
@@ -791,17 +774,3 @@ class GaussianScaleMixtureFamily(JitterFamily):
         top = min(T / 4.0, _upper(self.sigma_max, "sigma_max"))
         rhi = float(self.rho_max)
         return [(s, r) for r in (0.3 * rhi, 0.7 * rhi) for s in (top / 6.0, top * 0.4)]
-
-    def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64]:
-        """``d p(tau) / d (sigma, rho)`` at ``params``, shape ``(2,) + tau.shape``.
-
-        Parameters
-        ----------
-        params : sequence of float
-            The family's parameters, in :attr:`param_names` order.
-        tau : array_like
-            Jitter values in s.
-        """
-        law = self.law(params)
-        assert isinstance(law, GaussianScaleMixture)
-        return law.pdf_gradient(tau)
