@@ -546,7 +546,7 @@ def _mixture_terms(
             bb = 1.0 + r
             co.append((-0.5 * math.log(bb), r / (2.0 * bb), 0.5 / bb**2, -0.5 / bb, bb))
         (al_p, c_p, p_p, q_p, b_p), (al_m, c_m, p_m, q_m, b_m) = co
-        w_p = special.expit((al_p - al_m) + (c_p - c_m) * z)  # W_+ (c1 = be)
+        w_p = special.expit((al_p - al_m) + (c_p - c_m) * z)  # W_+
         w_m = 1.0 - w_p
         a1_p, a1_m = p_p * z + q_p, p_m * z + q_m
         S = 1.0  # (the sums below are already ratios to S)
