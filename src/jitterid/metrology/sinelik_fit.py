@@ -57,8 +57,8 @@ RANK_SAFETY = 3.0
 #: the start sits on the steep side (on a 2^16 Gaussian record ln L ~450 below, two more
 #: subsample steps and a rejected step on the whole record: 2.4 s of the 4.8). A scale
 #: mixture's ranking start is near its nested Gaussian likewise: rho^2 = this share
-#: (kurtosis 3.3; from rho = 0.5 the mixture was never ranked out on a 2^16 Gaussian
-#: record, and the meter's ML with it took 17.2 CPU-s against 11.6 without it).
+#: (kurtosis 3.3; on the 2^16 Gaussian record of bench_sinelik.py it is ranked out after
+#: 3 passes of the record).
 RANK_DJ_SHARE = 0.1
 #: The fewest Newton steps before a family may be ranked out (the first step from another
 #: family's optimum is the least quadratic; from the subsample's optimum: 1).
