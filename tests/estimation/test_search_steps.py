@@ -95,3 +95,26 @@ def test_a_jitter_scale_on_its_floor_is_said_in_the_message():
     assert res.jitter_std < 1e-6
     assert "the jitter scale is on its floor" in res.message
     assert "n mean nothing there" in res.message
+
+
+def test_a_scan_does_not_look_inside_a_piece_it_looked_inside_before():
+    # a mode inside (1, 2) (the fractions find it); a second scan from there, as the walk
+    # makes after searching the piece, evaluates the kinks either side and no fraction of
+    # (1, 2) again, but does those of a piece not yet seen
+    problem = _Profile(lambda n: (n - 1.6) ** 2 + 0.5 * abs(n - round(n)))
+    x = np.array([2.0, 0.3, 6.0])
+    scanned: set[tuple[float, float]] = set()
+    x1, v1, _n1 = _scan(problem, x, problem.objective(x), 0, CUTS, scanned)
+    assert 1.0 < x1[0] < 2.0
+    assert v1 < problem.f(2.0)
+    assert scanned == {(1.0, 2.0), (2.0, 3.0)}  # (on the kink 2: the pieces either side)
+    _, _, n2 = _scan(problem, x1, v1, 0, CUTS, scanned)
+    assert n2 == 2  # the kinks 1 and 2 alone
+    # without the memory the same scan looks inside (1, 2) again
+    _, _, n3 = _scan(problem, x1, v1, 0, CUTS)
+    assert n3 == 2 + 5
+    # a descent that ends at a kink next to pieces not seen looks inside them
+    other = _Profile(lambda n: (n - 5) ** 2)
+    _, _, n4 = _scan(other, x1, other.objective(x1), 0, CUTS, scanned)
+    assert scanned == {(1.0, 2.0), (2.0, 3.0), (4.0, 5.0), (5.0, 6.0)}
+    assert n4 == other.evaluations - 1 > 10

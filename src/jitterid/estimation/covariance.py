@@ -178,11 +178,35 @@ def _covariance(
     """The covariance with the parameters at a bound or a kink held fixed and, where the
     data do not identify a jitter family's shape (:func:`unidentified_shapes`), with that
     held fixed too (the others', the jitter std's included, conditional on it)."""
-    cov = _held_covariance(problem, x, cov_type, noise_std, np.zeros(x.size, dtype=bool))
+    memo: _Hessians = {}
+    cov = _held_covariance(problem, x, cov_type, noise_std, np.zeros(x.size, dtype=bool), memo)
     flat = unidentified_shapes(problem, x, cov)
     if flat.any() and not np.all(np.isnan(cov)):
-        cov = _held_covariance(problem, x, cov_type, noise_std, flat)
+        cov = _held_covariance(problem, x, cov_type, noise_std, flat, memo)
     return cov
+
+
+#: the Hessians of V by differences made for one covariance, by the free parameters
+#: (_held_covariance): the pass with an unidentified shape held takes its block of the first
+#: pass's instead of differencing again (each column is the same difference of the same
+#: gradient rows, at the same steps)
+_Hessians = dict[tuple[int, ...], "FloatArray"]
+
+
+def _hessian(
+    memo: _Hessians | None, idx: NDArray[np.intp], make: Callable[[], FloatArray]
+) -> FloatArray:
+    """The Hessian over ``idx``: the block of one in ``memo`` over a superset of ``idx``,
+    else ``make()`` (remembered)."""
+    key = tuple(int(i) for i in idx)
+    for have, H in (memo or {}).items():
+        if set(key) <= set(have):
+            pos = [have.index(i) for i in key]
+            return H[np.ix_(pos, pos)]
+    H = make()
+    if memo is not None:
+        memo[key] = H
+    return H
 
 
 def _held_covariance(
@@ -191,6 +215,7 @@ def _held_covariance(
     cov_type: str,
     noise_std: float | None,
     hold: NDArray[np.bool_],
+    memo: _Hessians | None = None,
 ) -> FloatArray:
     p = x.size
     cov = np.full((p, p), np.nan)
@@ -211,7 +236,7 @@ def _held_covariance(
 
     z0, hz = x[idx], h[idx]
     if problem.likelihood is not None:
-        return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov, info)
+        return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov, info, memo)
     bounds = problem.bounds
     G = _grad_y_jacobian(problem, x, idx, h)
     if problem.estimator.least_squares:
@@ -223,8 +248,14 @@ def _held_covariance(
         def gradient(z: FloatArray) -> FloatArray:
             return problem.objective_gradient(z)[1][idx]
 
-        H = np.array([finite_diff.derivative(gradient, x, i, bounds[i], h=h[i]) for i in idx]).T
-        H = 0.5 * (H + H.T)
+        def make() -> FloatArray:
+            with problem.pinned(x, free):  # (the others' derivatives not made)
+                H = np.array(
+                    [finite_diff.derivative(gradient, x, i, bounds[i], h=h[i]) for i in idx]
+                )
+            return 0.5 * (H + H.T)
+
+        H = _hessian(memo, idx, make)
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
@@ -390,19 +421,19 @@ def _ml_covariance(
     robust: bool,
     cov: FloatArray,
     info: FloatArray | None = None,
+    memo: _Hessians | None = None,
 ) -> FloatArray:
     """Inverse observed information of the exact likelihood (or its Huber-White sandwich).
 
     The Hessian of V = -2 ln L is twice the exact observed information (L5) where the
     signal gives its second derivatives (one evaluation); else the Jacobian of its analytic
-    gradient (the scores (L2)), by one-sided differences from the score at the estimate (p
-    score evaluations), where every parameter's score is analytic; else (a jitter shape
-    differenced inside the score) by central differences of that gradient (2 p score
-    evaluations, each one pass more per differenced parameter, against 2 p^2 passes for
-    second differences of V; within 0.4 % of them in the standard errors on Table 2's
-    records with the family (26), 1e-5 off its flat shape direction). ``info``: the
+    gradient (the scores (L2)): its column for a parameter with an analytic score by a
+    one-sided difference from the score at the estimate (one score evaluation), for one whose
+    score holds a difference (a jitter shape, :meth:`~jitterid.estimation.likelihood
+    .ExactLikelihood.differenced_scores`) by a central difference (two), each one pass more
+    per differenced parameter, against 2 p^2 passes for second differences of V. ``info``: the
     information at ``x`` already computed (:func:`_search_information`), used instead of
-    another evaluation."""
+    another evaluation; ``memo``: :func:`_hessian`'s."""
     lik = problem.likelihood
     assert lik is not None
     if lik.exact_information(x):  # (L5) in closed form: no differences at all
@@ -410,25 +441,7 @@ def _ml_covariance(
             info = lik.information(x, problem.data.y)
         H = 2 * info[np.ix_(idx, idx)]
     else:
-        y = problem.data.y
-
-        def grad(z: FloatArray) -> FloatArray:
-            return -2 * lik.scores(embed(z), y)[1].sum(axis=0)[idx]
-
-        H = np.empty((z0.size, z0.size))
-        if lik.analytic_scores(x):
-            # one-sided differences from the score at x (the likelihood remembers the pass
-            # that gave the natural scale): p + 0 passes over the nodes instead of 2 p, O(h)
-            # with h at most 5 % of a standard error (the score is linear to ~1e-3 over that)
-            g0 = grad(z0)
-            for i in range(z0.size):
-                zi = z0.copy()
-                zi[i] += hz[i]
-                H[:, i] = (grad(zi) - g0) / hz[i]
-        else:  # central: a differenced score's own O(step) error cancels between the pair
-            for k, i in enumerate(idx):
-                H[:, k] = finite_diff.derivative(grad, z0, k, problem.bounds[i], h=hz[k])
-        H = 0.5 * (H + H.T)
+        H = _hessian(memo, idx, lambda: _score_differences(problem, x, idx, embed, z0, hz))
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
@@ -440,3 +453,38 @@ def _ml_covariance(
     else:
         cov[np.ix_(idx, idx)] = 2 * Hinv
     return cov
+
+
+def _score_differences(
+    problem: Problem,
+    x: FloatArray,
+    idx: NDArray[np.intp],
+    embed: Callable[[FloatArray], FloatArray],
+    z0: FloatArray,
+    hz: FloatArray,
+) -> FloatArray:
+    """The Hessian of V = -2 ln L over ``idx`` by differences of its analytic gradient
+    (:func:`_ml_covariance`)."""
+    lik = problem.likelihood
+    assert lik is not None
+    y = problem.data.y
+
+    def grad(z: FloatArray) -> FloatArray:
+        return -2 * lik.scores(embed(z), y)[1].sum(axis=0)[idx]
+
+    H = np.empty((z0.size, z0.size))
+    differenced = set(lik.differenced_scores(x))
+    g0 = None
+    for k, i in enumerate(idx):
+        if i in differenced:
+            # central: a differenced score's own O(step) error cancels between the pair
+            H[:, k] = finite_diff.derivative(grad, z0, k, problem.bounds[i], h=hz[k])
+            continue
+        # one-sided differences from the score at x (the likelihood remembers the pass
+        # that gave the natural scale): one pass over the nodes instead of two, O(h) with
+        # h at most 5 % of a standard error (the score is linear to ~1e-3 over that)
+        g0 = grad(z0) if g0 is None else g0
+        zi = z0.copy()
+        zi[k] += hz[k]
+        H[:, k] = (grad(zi) - g0) / hz[k]
+    return 0.5 * (H + H.T)

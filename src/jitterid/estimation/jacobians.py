@@ -329,7 +329,11 @@ def moment_derivatives(
         dm[nj + delay] = dmi
         if dvi is not None:
             dv[nj + delay] = dvi
-    shape = [i for i in range(nj) if not (analytic_scale and i == scale)]
+    # (a shape pinned by the search's box, held while the system is searched (the first
+    # stage of a kinked family, oe.OutputErrorRoute.search), is not differentiated: its row
+    # stays zero, and the caches are dropped when the box is lifted (Problem.restrict))
+    box = problem.bounds
+    shape = [i for i in range(nj) if not (analytic_scale and i == scale) and box[i][0] < box[i][1]]
     grad = (
         problem.jitter.pdf_gradient(lay.block(x, "jitter").tolist(), np.zeros(0))  # type: ignore[union-attr]
         if shape and delay is None

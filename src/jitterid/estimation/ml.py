@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from ..jitter.laws import JitterFamily
 from .problem import Problem, free_moment_plans
-from .search import Outcome, SearchProblem, piecewise, register_search
+from .search import WALK_TOL, Outcome, SearchProblem, piecewise, register_search
 from .status import FitStatus
 
 __all__ = ["likelihood_adapter", "run_ml"]
@@ -116,14 +116,16 @@ def _ml_start(problem: Problem, x0: FloatArray) -> tuple[list[tuple[float, Float
 
 
 def _search(
-    problem: Problem, x0: FloatArray, max_nfev: int
+    problem: Problem, x0: FloatArray, max_nfev: int, tol: float | None = None
 ) -> tuple[FloatArray, float, bool, str, int]:
-    """Maximise the exact likelihood from x0; the full quadrature rule, designed at the start,
-    is re-designed at the optimum, and the search resumed if ln L moved by more than 1e-6
-    (the windowed rule re-designs itself wherever it stops fitting)."""
+    """Maximise the exact likelihood from x0 to the Newton decrement ``tol`` (None: the
+    problem's, :meth:`Problem.search_options`); the full quadrature rule, designed at the
+    start, is re-designed at the optimum, and the search resumed if ln L moved by more than
+    1e-6 (the windowed rule re-designs itself wherever it stops fitting)."""
     lik, y = problem.likelihood, problem.data.y
     assert lik is not None
-    tol = problem.search_options().tol  # (KINKED_TOL with a kinked shape)
+    if tol is None:
+        tol = problem.search_options().tol  # (KINKED_TOL with a kinked shape)
     x, loglik, ok, msg, nfev = lik.maximise(y, x0, max_evaluations=max(max_nfev, 2), tol=tol)
     for _ in range(3):
         if lik.windowed:  # re-designed wherever it stopped fitting: valid at x already
@@ -145,12 +147,12 @@ def _local(
     """:func:`_search` from x0, one smooth piece at a time where the family has kinks
     (:func:`jitterid.estimation.search.piecewise`)."""
 
-    def one(p: SearchProblem, x: FloatArray, budget: int) -> Outcome:
+    def one(p: SearchProblem, x: FloatArray, budget: int, tol: float | None) -> Outcome:
         assert p is problem
-        xs, cost, ok, msg, n = _search(problem, x, budget)
+        xs, cost, ok, msg, n = _search(problem, x, budget, tol)
         return Outcome(xs, cost, FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED, msg, n)
 
-    out = piecewise(problem, x0, one, max_nfev)
+    out = piecewise(problem, x0, one, max_nfev, walk_tol=WALK_TOL)
     return out.x, out.cost, out.status is FitStatus.CONVERGED, out.message, out.nfev
 
 

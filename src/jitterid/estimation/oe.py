@@ -286,8 +286,10 @@ class OutputErrorRoute:
                     nfev += len(self.jstarts)
                     held = np.ones(len(pre.names), bool)
                     held[list(kinked)] = False
+                free = held if held is not None else np.ones(len(pre.names), bool)
                 for x_start in starts:
-                    _, out = run_search(pre, x_start, max_nfev, free=held)
+                    with pre.pinned(x_start, free):  # (a held shape: its derivatives not made)
+                        _, out = run_search(pre, x_start, max_nfev, free=held)
                     nfev += out.nfev
                     if found is None or out.cost < found.cost:
                         found = out

@@ -17,6 +17,8 @@ parameters (if the law is free), then the system's, then ``noise_std`` when it i
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -171,6 +173,32 @@ class Problem(CachesAreNotState):
         self.release()
         if self.likelihood is not None:
             self.likelihood.restrict(bounds)
+
+    @contextmanager
+    def pinned(self, x: FloatArray, free: NDArray[np.bool_]) -> Iterator[None]:
+        """Within the block, every parameter but the ``free`` ones pinned at its value in
+        ``x`` (its box a point, :meth:`restrict`), the box before restored after: the moment
+        derivatives (:func:`jitterid.estimation.jacobians.moment_derivatives`) skip a pinned
+        jitter shape, whose differences cost two moment passes with new nodes each, where a
+        search or a covariance holds it and never reads them.
+
+        Parameters
+        ----------
+        x : ndarray
+            Parameter vector, in :attr:`names` order.
+        free : ndarray of bool
+            The parameters left free.
+        """
+        if np.all(free):
+            yield
+            return
+        before = self._box
+        box = zip(np.asarray(x, float).tolist(), free.tolist(), self.bounds, strict=True)
+        self.restrict(tuple((v, v) if not f else b for v, f, b in box))
+        try:
+            yield
+        finally:
+            self.restrict(before)
 
     @property
     def method(self) -> str:

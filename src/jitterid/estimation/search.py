@@ -124,24 +124,31 @@ SEARCHES: dict[str, Adapter] = {}
 #: The keys of adapters that apply :func:`piecewise` themselves (around their local search,
 #: inside their own multi-start); :func:`run_search` applies it around the others.
 OWN_PIECES: set[str] = set()
+#: The keys of adapters that search to the Newton-decrement ``tol`` they are given (a walk
+#: over a kinked parameter's pieces searches those to :data:`WALK_TOL` first, :func:`piecewise`)
+WITH_TOLERANCE: set[str] = set()
 
 
-def register_search(key: str, *, own_pieces: bool = False) -> Callable[[Adapter], Adapter]:
+def register_search(
+    key: str, *, own_pieces: bool = False, tolerance: bool = False
+) -> Callable[[Adapter], Adapter]:
     """Decorator: make an adapter ``f(problem, x0, max_nfev, free=None, tol=None) ->
     Outcome`` available to the estimators whose ``search`` is ``key``.
 
     The adapter searches the problem's current :attr:`~SearchProblem.bounds`. Where the
     layout has kinked parameters (:attr:`jitterid.params.ParamLayout.kinks`),
     :func:`run_search` runs it piece by piece (:func:`piecewise`); an adapter with its own
-    starts says ``own_pieces=True`` and calls :func:`piecewise` around its local search.
+    starts says ``own_pieces=True`` and calls :func:`piecewise` around its local search. An
+    adapter that stops at the Newton decrement ``tol`` it is given says ``tolerance=True``.
     """
 
     def deco(f: Adapter) -> Adapter:
         SEARCHES[key] = f
-        if own_pieces:
-            OWN_PIECES.add(key)
-        else:
-            OWN_PIECES.discard(key)
+        for flag, keys in ((own_pieces, OWN_PIECES), (tolerance, WITH_TOLERANCE)):
+            if flag:
+                keys.add(key)
+            else:
+                keys.discard(key)
         return f
 
     return deco
@@ -172,13 +179,15 @@ def run_search(
         )
     adapter = SEARCHES[est.search]
 
-    def local(p: SearchProblem, x: FloatArray, budget: int) -> Outcome:
-        return adapter(p, x, budget, free, tol)
+    def local(p: SearchProblem, x: FloatArray, budget: int, to: float | None = None) -> Outcome:
+        return adapter(p, x, budget, free, tol if to is None else to)
 
     def search(p: SearchProblem, x: FloatArray, budget: int) -> Outcome:
         if est.search in OWN_PIECES:
             return local(p, x, budget)
-        return piecewise(p, x, local, budget, free)
+        loose = est.search in WITH_TOLERANCE and (tol is None or tol < WALK_TOL)
+        walk = WALK_TOL if loose else None
+        return piecewise(p, x, local, budget, free, walk)
 
     rounds = est.freeze_rounds
     if not rounds:
@@ -227,7 +236,12 @@ def criterion_or_inf(problem: SearchProblem, x: FloatArray) -> float:
 
 
 def _scan(
-    problem: SearchProblem, x: FloatArray, v0: float, i: int, cuts: FloatArray
+    problem: SearchProblem,
+    x: FloatArray,
+    v0: float,
+    i: int,
+    cuts: FloatArray,
+    scanned: set[tuple[float, float]] | None = None,
 ) -> tuple[FloatArray, float, int]:
     """A descent over the kinks ``cuts`` of a jitter family's kinked parameter ``i`` from
     ``x`` (criterion ``v0``) at the same jitter std (:meth:`jitterid.JitterFamily
@@ -242,7 +256,13 @@ def _scan(
     The points inside find a mode inside a piece that its ends do not show (Table 3,
     record 19: ln L has a local maximum in n at the kink n = 1 and its largest value at
     n = 0.7; at the same std, 0.8 is above 1 and 0.5 below; record 0: the mode is at
-    0.85, 0.9 above 1 and 0.75 below)."""
+    0.85, 0.9 above 1 and 0.75 below).
+
+    ``scanned``: the pieces whose inside an earlier scan of the same walk looked at (updated
+    here), not looked at again: where that scan found a lower point the walk searched its
+    piece from it, so a mode there has been searched (Table 2's record 0 with the family
+    (26): the scan from the piece [1, 2]'s stop evaluated 0.1 ... 0.9 of [1, 2] again, 5 of
+    the fit's 49 evaluations)."""
     jitter = getattr(problem, "jitter", None)
     nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
     if i >= nj:
@@ -300,6 +320,10 @@ def _scan(
     for p, q in pieces:
         if p < 0 or q >= cuts.size:
             continue
+        if scanned is not None:
+            if (float(cuts[p]), float(cuts[q])) in scanned:
+                continue
+            scanned.add((float(cuts[p]), float(cuts[q])))
         for f in SCAN_FRACTIONS:
             c = float(cuts[p] + f * (cuts[q] - cuts[p]))
             w = criterion_or_inf(problem, at(c))
@@ -309,21 +333,32 @@ def _scan(
     return (at(best_c), best, n) if best < v0 else (x, v0, n)
 
 
+#: the Newton-decrement tolerance of the searches of a walk over pieces (piecewise) before its
+#: last: 1/100 of a standard error from stationary, where the walk's scan decides whether
+#: to move on. A piece left behind was searched to no purpose beyond that: with the shape's
+#: BHHH information the Newton steps creep along the family's all but flat direction (Table
+#: 2's record 3, ML with the family (26): 20 of the 30 evaluations of the piece (8, 9)
+#: gained 1e-5 each, before the scan found ln L higher by 1.4 at n = 1)
+WALK_TOL = 1e-4
+
+
 def piecewise(
     problem: SearchProblem,
     x0: FloatArray,
-    search: Callable[[SearchProblem, FloatArray, int], Outcome],
+    search: Callable[[SearchProblem, FloatArray, int, float | None], Outcome],
     max_nfev: int,
     free: NDArray[np.bool_] | None = None,
+    walk_tol: float | None = None,
 ) -> Outcome:
     """Minimise over the smooth pieces of the kinked parameters: the one kink mechanism.
 
     A parameter in which the criterion is only piecewise smooth (a jitter family's
     :attr:`~jitterid.JitterFamily.kinks`, in the problem's
     :attr:`~jitterid.params.ParamLayout.kinks`: n of the family (26) at the integers) is
-    searched one piece [k_j, k_j+1] at a time: ``search(problem, x, budget)`` runs with the
-    problem restricted to the piece (:meth:`SearchProblem.restrict`), where the criterion is
-    smooth up to the piece's ends and its derivatives there are one-sided into the piece.
+    searched one piece [k_j, k_j+1] at a time: ``search(problem, x, budget, tol)`` runs with
+    the problem restricted to the piece (:meth:`SearchProblem.restrict`), where the criterion
+    is smooth up to the piece's ends and its derivatives there are one-sided into the piece,
+    to the Newton decrement ``tol`` (None: the search's own).
     From where a piece's search stops, the kinks beyond, and points inside the pieces where
     that descent ends, are scanned at the same jitter std (:func:`_scan`, one evaluation
     each). Where one is lower, its piece (the piece beyond, for a kink) is searched from it.
@@ -335,6 +370,12 @@ def piecewise(
     both pieces (the one-sided derivatives bracket zero, the other parameters stationary):
     CONVERGED, with a message naming the kink. Without kinked free parameters this is
     ``search`` itself.
+
+    With ``walk_tol`` (:data:`WALK_TOL`, for a search that takes a tolerance), the walk's
+    searches stop there; where the walk ends, its piece is searched on from there to the
+    search's own tolerance, and the end of that search is examined as above but for the scan,
+    which the walk made from a point within sqrt(walk_tol) standard errors (a move from there
+    scans again).
     """
     layout = problem.layout
     kinked = layout.kinked()
@@ -346,10 +387,12 @@ def piecewise(
     }
     active = {i: cuts for i, cuts in active.items() if cuts.size > 2}
     if not active:
-        return search(problem, x0, max_nfev)
+        return search(problem, x0, max_nfev, None)
     full = tuple(map(tuple, np.c_[lo, hi].tolist()))
     x = np.clip(np.asarray(x0, float), lo, hi)
     pieces = {i: _piece(float(x[i]), cuts) for i, cuts in active.items()}
+
+    tight = walk_tol is None
 
     def run(ps: dict[int, tuple[float, float]], start: FloatArray, budget: int) -> Outcome:
         box = list(full)
@@ -357,7 +400,7 @@ def piecewise(
             box[i] = p
         problem.restrict(tuple(box))
         try:
-            return search(problem, start, budget)
+            return search(problem, start, budget, None if tight else walk_tol)
         finally:
             problem.restrict(None)
 
@@ -366,6 +409,8 @@ def piecewise(
 
     out = run(pieces, x, max_nfev)
     nfev, walked = out.nfev, 0
+    scanned: dict[int, set[tuple[float, float]]] = {i: set() for i in active}
+    rescan = True
     kinks: list[tuple[int, float]] = []
     while out.status is FitStatus.CONVERGED and nfev < max_nfev:
         kinks = []
@@ -390,7 +435,10 @@ def piecewise(
                     end = None
                 else:
                     out = out._replace(x=at_end, cost=min(v_end, out.cost))
-            ahead, v, n = _scan(problem, out.x, out.cost, i, cuts)
+            if rescan:
+                ahead, v, n = _scan(problem, out.x, out.cost, i, cuts, scanned[i])
+            else:  # (the walk's last scan stands)
+                ahead, v, n = out.x, out.cost, 0
             nfev += n
             if lower(v, out.cost):  # a point beyond is lower: its piece, or beyond a kink
                 k = float(ahead[i])
@@ -418,9 +466,15 @@ def piecewise(
                 # not (no step of its descent lowered the criterion), found no descent)
                 kinks.append((i, end))
         if moved is None:
-            break
+            if tight:
+                break
+            # the walk ends here: its piece on to tol, the end of that examined again
+            tight, rescan = True, False
+            out = run(pieces, out.x, max_nfev - nfev)
+            nfev += out.nfev
+            continue
         pieces, out = moved
-        walked += 1
+        walked, rescan = walked + 1, True
     out = out._replace(nfev=nfev)
     if out.status is FitStatus.CONVERGED and kinks:
         where = ", ".join(f"{layout.names[i]} = {v:g}" for i, v in kinks)
@@ -536,7 +590,7 @@ KINKED_TOL = 1e-6
 STALL_WINDOW = 6
 
 
-@register_search("newton")
+@register_search("newton", tolerance=True)
 def newton_adapter(
     problem: SearchProblem,
     x0: FloatArray,
