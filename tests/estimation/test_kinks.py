@@ -19,6 +19,8 @@ import pytest
 import jitterid as ji
 from jitterid.estimation.search import (
     LIKELIHOOD_FLOOR,
+    WALK_TOL,
+    Outcome,
     SearchOptions,
     evaluator,
     newton_search,
@@ -107,21 +109,51 @@ def test_a_search_with_its_own_starts_uses_the_same_mechanism(c, k, best, at_kin
     # the likelihood's adapter calls piecewise around its local Newton search (ml.py)
     problem = Kinked(c, k, "newton")
 
-    def local(p: Kinked, x: np.ndarray, budget: int) -> Any:
-        from jitterid.estimation.search import Outcome
-
-        lo, hi = np.array(p.bounds).T
-        z, ok, msg, n = newton_search(
-            evaluator(p.objective_gradient), x, lo, hi, budget, floor=LIKELIHOOD_FLOOR
-        )
-        return Outcome(
-            z, p.objective(z), FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED, msg, n
-        )
-
-    out = piecewise(problem, np.array([4.5]), local, 400)
+    out = piecewise(problem, np.array([4.5]), _local, 400)
     assert out.status is FitStatus.CONVERGED, out.message
     assert abs(out.x[0] - best) < 1e-6
     assert ("kink" in out.message) is at_kink
+
+
+def _local(p: Kinked, x: np.ndarray, budget: int, tol: float | None) -> Any:
+    """A local Newton search to ``tol`` (1e-8 where None), as the likelihood's (ml.py)."""
+    lo, hi = np.array(p.bounds).T
+    z, ok, msg, n = newton_search(
+        evaluator(p.objective_gradient),
+        x,
+        lo,
+        hi,
+        budget,
+        tol=1e-8 if tol is None else tol,
+        floor=LIKELIHOOD_FLOOR,
+    )
+    return Outcome(
+        z, p.objective(z), FitStatus.CONVERGED if ok else FitStatus.OPTIMISER_FAILED, msg, n
+    )
+
+
+@pytest.mark.parametrize(("c", "k", "best", "at_kink"), CASES)
+def test_a_walk_searches_the_pieces_it_leaves_loosely_and_its_last_to_the_end(c, k, best, at_kink):
+    # from 4.5, two pieces away: the pieces left behind to WALK_TOL, the last on to the
+    # search's own tolerance (None), and the same end as a walk searched tightly throughout
+    tols: list[float | None] = []
+
+    def local(p: Kinked, x: np.ndarray, budget: int, tol: float | None) -> Any:
+        tols.append(tol)
+        return _local(p, x, budget, tol)
+
+    problem = Kinked(c, k, "newton")
+    out = piecewise(problem, np.array([4.5]), local, 400, walk_tol=WALK_TOL)
+    assert out.status is FitStatus.CONVERGED, out.message
+    assert abs(out.x[0] - best) < 1e-6
+    assert ("kink" in out.message) is at_kink
+    assert tols[0] == WALK_TOL
+    assert tols[-1] is None
+    last = tols.index(None)
+    assert set(tols[:last]) == {WALK_TOL}  # loose until the walk ends, then to the end
+    assert set(tols[last:]) == {None}
+    tight = piecewise(Kinked(c, k, "newton"), np.array([4.5]), _local, 400)
+    assert abs(tight.x[0] - out.x[0]) < 1e-6
 
 
 def test_the_family_26_declares_its_kinks_and_the_layout_carries_them():
