@@ -82,11 +82,11 @@ def test_a_stop_at_zero_jitter_is_restarted_from_a_wider_scored_start(at_zero, m
         assert zero
         return [(-np.inf, zero[0][1])] + [s for s in starts if s[1][0] >= 1e-9], n
 
-    def stuck_first(problem, x0, max_nfev):
+    def stuck_first(problem, x0, max_nfev, tol=None):
         calls.append(x0)
         if len(calls) == 1:
             return x0, -2 * problem.likelihood.loglik(x0, problem.data.y), True, "converged", 1
-        return real_search(problem, x0, max_nfev)
+        return real_search(problem, x0, max_nfev, tol)
 
     monkeypatch.setattr(ml, "_ml_start", zero_first)
     monkeypatch.setattr(ml, "_search", stuck_first)
