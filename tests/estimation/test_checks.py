@@ -138,7 +138,10 @@ def test_an_unidentified_jitter_shape_is_held_and_said(data):
     assert "held fixed for the error bars" in res.message
     assert ("n not identified by the data" in res.message) or ("at a kink" in res.message)
     assert np.isnan(res.stderr["n"])
-    assert ("not identified" in res.stderr_notes["n"]) or ("kink" in res.stderr_notes["n"])
+    # (its note: not identified, at a kink or, where the search ended within a hair of 0 and
+    # went there (search.piecewise), on its bound)
+    note = res.stderr_notes["n"]
+    assert any(why in note for why in ("not identified", "kink", "on its bound 0"))
     # (a small jitter, 0.029 T, is weakly told by bcls: the message states how weakly)
     se = res.jitter_std_stderr
     assert np.isfinite(se)

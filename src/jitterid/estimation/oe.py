@@ -30,7 +30,7 @@ from .problem import Problem, default_frequencies, free_moment_plans
 from .resources import check_fit as check_fit_resources
 from .result import FitResult
 from .route import Staged
-from .search import Outcome, criterion_or_inf, run_search
+from .search import Outcome, Walks, criterion_or_inf, run_search
 from .status import FitStatus
 
 __all__ = ["OutputErrorRoute", "noise_from_residuals"]
@@ -287,9 +287,10 @@ class OutputErrorRoute:
                     held = np.ones(len(pre.names), bool)
                     held[list(kinked)] = False
                 free = held if held is not None else np.ones(len(pre.names), bool)
+                walks = Walks()  # (walks that meet end alike: search.Walks)
                 for x_start in starts:
                     with pre.pinned(x_start, free):  # (a held shape: its derivatives not made)
-                        _, out = run_search(pre, x_start, max_nfev, free=held)
+                        _, out = run_search(pre, x_start, max_nfev, free=held, walks=walks)
                     nfev += out.nfev
                     if found is None or out.cost < found.cost:
                         found = out
