@@ -227,16 +227,8 @@ def _held_covariance(
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov
-    xf = x.copy()
-
-    def embed(z: FloatArray) -> FloatArray:
-        out = xf.copy()
-        out[idx] = z
-        return out
-
-    z0, hz = x[idx], h[idx]
     if problem.likelihood is not None:
-        return _ml_covariance(problem, x, idx, embed, z0, hz, cov_type == "robust", cov, info, memo)
+        return _ml_covariance(problem, x, idx, h[idx], cov_type == "robust", cov, info, memo)
     bounds = problem.bounds
     G = _grad_y_jacobian(problem, x, idx, h)
     if problem.estimator.least_squares:
@@ -415,8 +407,6 @@ def _ml_covariance(
     problem: Problem,
     x: FloatArray,
     idx: NDArray[np.intp],
-    embed: Callable[[FloatArray], FloatArray],
-    z0: FloatArray,
     hz: FloatArray,
     robust: bool,
     cov: FloatArray,
@@ -441,7 +431,7 @@ def _ml_covariance(
             info = lik.information(x, problem.data.y)
         H = 2 * info[np.ix_(idx, idx)]
     else:
-        H = _hessian(memo, idx, lambda: _score_differences(problem, x, idx, embed, z0, hz))
+        H = _hessian(memo, idx, lambda: _score_differences(problem, x, idx, hz))
     try:
         Hinv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
@@ -459,18 +449,19 @@ def _score_differences(
     problem: Problem,
     x: FloatArray,
     idx: NDArray[np.intp],
-    embed: Callable[[FloatArray], FloatArray],
-    z0: FloatArray,
     hz: FloatArray,
 ) -> FloatArray:
-    """The Hessian of V = -2 ln L over ``idx`` by differences of its analytic gradient
-    (:func:`_ml_covariance`)."""
+    """The Hessian of V = -2 ln L over the parameters ``idx`` by differences (steps ``hz``)
+    of its analytic gradient (:func:`_ml_covariance`)."""
     lik = problem.likelihood
     assert lik is not None
     y = problem.data.y
+    z0 = x[idx]
 
     def grad(z: FloatArray) -> FloatArray:
-        return -2 * lik.scores(embed(z), y)[1].sum(axis=0)[idx]
+        xz = x.copy()
+        xz[idx] = z
+        return -2 * lik.scores(xz, y)[1].sum(axis=0)[idx]
 
     H = np.empty((z0.size, z0.size))
     differenced = set(lik.differenced_scores(x))

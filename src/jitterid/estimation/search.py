@@ -181,8 +181,8 @@ def run_search(
         )
     adapter = SEARCHES[est.search]
 
-    def local(p: SearchProblem, x: FloatArray, budget: int, to: float | None = None) -> Outcome:
-        return adapter(p, x, budget, free, tol if to is None else to)
+    def local(p: SearchProblem, x: FloatArray, budget: int, walk: float | None = None) -> Outcome:
+        return adapter(p, x, budget, free, tol if walk is None else walk)
 
     def search(p: SearchProblem, x: FloatArray, budget: int) -> Outcome:
         if est.search in OWN_PIECES:
@@ -482,18 +482,16 @@ def piecewise(
             # which has no piece beyond: Table 1, ML from a walk's stop at n = 3e-4
             # converged there, 1e-6 above n = 0, where the shape the data do not tell was
             # then not held but singular)
-            near = [e for e in (a, b) if 0 < abs(out.x[i] - e) <= SNAP * (b - a)]
-            end = next((e for e in near if e not in (lo[i], hi[i])), None)
-            for e in near:
-                at_end = _same_std(problem, out.x, i, e)
-                v_end = criterion_or_inf(problem, at_end)
-                nfev += 1
-                if lower(out.cost, v_end):  # (the end is higher: the stop is inside)
-                    end = None if e == end else end
-                else:
-                    out = out._replace(x=at_end, cost=min(v_end, out.cost))
-            if end is None and out.x[i] in (a, b) and out.x[i] not in (lo[i], hi[i]):
-                end = float(out.x[i])  # (a stop on an inner end: its neighbour is searched)
+            for e in (a, b):
+                if 0 < abs(out.x[i] - e) <= SNAP * (b - a):
+                    at_end = _same_std(problem, out.x, i, e)
+                    v_end = criterion_or_inf(problem, at_end)
+                    nfev += 1
+                    if not lower(out.cost, v_end):  # (else the stop is inside)
+                        out = out._replace(x=at_end, cost=min(v_end, out.cost))
+            # (a stop on an end shared with a neighbouring piece: that piece is searched)
+            inner = out.x[i] in (a, b) and out.x[i] not in (lo[i], hi[i])
+            end = float(out.x[i]) if inner else None
             if rescan:
                 ahead, v, n = _scan(problem, out.x, out.cost, i, cuts, scanned[i])
             else:  # (the walk's last scan stands)
