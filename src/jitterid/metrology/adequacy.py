@@ -69,7 +69,8 @@ class Finding:
     ----------
     kind : str
         ``"no-tone"``, ``"folding"``, ``"clipping"``, ``"lines"``, ``"periodic-jitter"``,
-        ``"coloured-jitter"`` or ``"stderr"``.
+        ``"coloured-jitter"``, ``"sharp-edges"`` (:mod:`jitterid.metrology.edges`) or
+        ``"stderr"``.
     p_value : float
         The test's p-value (NaN for a deterministic finding such as folding).
     message : str

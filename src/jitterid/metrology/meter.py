@@ -18,8 +18,10 @@ estimated (the JOE structure (2c) with a signal model, the paper's (1a)). In ord
    quadrature of :mod:`jitterid.estimation.likelihood`;
 5. the adequacy checks on the chosen fit (rails, lines in the residual), the per-sample
    phase error (:mod:`jitterid.metrology.phase`: periodic and coloured jitter, the RJ/PJ
-   decomposition, a Newey-West interval for a coloured jitter), and the status: what was
-   found and what to do, never ``CONVERGED`` beside a NaN standard error.
+   decomposition, a Newey-West interval for a coloured jitter), a law's hard edges
+   sharper than the record resolves (:mod:`jitterid.metrology.edges`: the interval is then
+   too narrow, and the message says so), and the status: what was found and what to do,
+   never ``CONVERGED`` beside a NaN standard error.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from .adequacy import (
     tone_significance,
 )
 from .converter import ConverterFigures, converter_figures  # meterio (issue 26, item 3)
+from .edges import sharp_edge_finding
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .reading import summary_extras  # meterio (issue 26, item 5)
@@ -1051,6 +1054,11 @@ def measure_jitter(
                 # the likelihood assumes independent samples: widen its standard error by
                 # the moment route's Newey-West / independent-sample ratio
                 jse *= max(widened.jitter_var_stderr / mf.jitter_var_stderr, 1.0)
+    if route == "ml" and structured and not on_route:
+        # a law's hard edges sharper than the record resolves: the interval is too narrow
+        edge = sharp_edge_finding(r, N)
+        if edge is not None:
+            info = [*info, edge]
     lsb = step if step else (physical * math.sqrt(12.0) if physical else None)
     pj_f = decomposition.pj_frequency_hz if decomposition and decomposition.periodic else None
     findings = _adequacy(
