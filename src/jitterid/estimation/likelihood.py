@@ -849,18 +849,21 @@ def _bounds(law: JitterLaw, pc: _Pieces, T: float) -> _Bounds:
     return top + pc.near, best
 
 
-def _serves(law: JitterLaw, pieces: Sequence[_Pieces], T: float) -> list[_Bounds | None] | None:
+def _serves(
+    law: JitterLaw, pieces: Sequence[_Pieces], T: float, keep: bool
+) -> list[_Bounds | None] | None:
     """Whether pieces built for another law serve ``law``: in every sample the pieces
     dropped at the build lie below e^-(``_WINDOW_CUT`` - ``_WINDOW_LOST``) of the best
     piece under this law (a law narrower than the build's, whose support barely reaches
     where a sample's signal meets it, may have its mass where the build dropped the pieces).
-    Returns the bounds under this law (:func:`_bounds`, per chunk) if they do, else None."""
+    Returns, if they do, the bounds under this law (:func:`_bounds`, per chunk; with ``keep``
+    only, else None each: a long record's, made again chunk by chunk), else None."""
     out: list[_Bounds | None] = []
     for pc in pieces:
         upper, best = _bounds(law, pc, T)
         if not np.all(pc.lost < best - _WINDOW_CUT + _WINDOW_LOST):
             return None
-        out.append((upper, best))
+        out.append((upper, best) if keep else None)
     return out
 
 
@@ -1317,7 +1320,8 @@ class ExactLikelihood(CachesAreNotState):
         knotted = np.asarray(law.breakpoints()).size > 2
         held = self._pieces
         if held is not None and _takes(held[0], law, knotted):
-            bounds = _serves(law, held[1], self.T)
+            small = sum(pc.owner.size for pc in held[1]) <= self.node_budget // 4
+            bounds = _serves(law, held[1], self.T, small)
             if bounds is not None:
                 return held[1], bounds
         assert self._design is not None
