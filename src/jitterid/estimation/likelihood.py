@@ -37,11 +37,25 @@ flat signals, smooth and switching. The windows depend on y and on the parameter
 they were designed; the rule is re-designed at any parameter whose signal moved by more than
 half a noise std at a piece's midpoint, or whose noise std left [0.8, 1.25] of the design's
 (a window that missed the peak would underestimate p(y_k) grossly); the last designs are
-kept for a return (a check at a start far off, then back at the estimate).
+kept for a return (a check at a start far off, then back at the estimate). Across jitter
+laws (a family's parameters, a delay) the pieces are built once for an envelope of the law
+and kept for the laws near it (:meth:`ExactLikelihood._window_pieces`): the law stretched
+1.25 times about its mean, or, for a law whose knots move with its parameters (the paper's
+SumOfUniforms(n, a)), its support so stretched with a flat pdf twice the law's largest: no
+knot of one law is built in. A law takes them where its support lies inside the envelope's,
+its std is at least half the envelope's, its pdf below the envelope's (the flat value; a
+stretched scale family's within a factor 2) and, in every sample, the pieces the build
+dropped below e^-22 of the best one under its own pdf (:func:`_serves`: a narrower law may
+have its mass where the build's law had none worth keeping). Each law then re-tests the
+pieces with its own pdf (dropping those below e^-24 of the sample's best), cuts them at its
+support's ends and at its knots, so that Gauss-Legendre never straddles a knot of the
+piecewise-polynomial pdf, and gives each part the nodes its share of the piece's span and
+bound requires (:func:`_under`). A known law whose knots cannot move (no delay) gets pieces
+of its own, built on its knots.
 
 Memory. The nodes of a rule are kept between evaluations up to ``NODE_BUDGET``; a larger
 rule (a long record) is made again chunk by chunk (``_CHUNK`` samples) at each evaluation
-from its pieces (~30 bytes each) or its cuts, and every evaluation, score and information
+from its pieces (~40 bytes each) or its cuts, and every evaluation, score and information
 streams through the chunks: the memory is bounded independently of N (:class:`_Rule`).
 
 With posterior weights pi_j = w_j N(y; s_j, sigma_v^2) / p(y) (sum 1 per sample), the score is
@@ -138,7 +152,9 @@ _WINDOW_SIGMA_REDESIGN = 0.8  # ... below this fraction (or above its inverse): 
 _FAR, _FAR_FRACTION = 10.0, 0.25  # the windowed rule gives way to the full one (_far)
 _SPARE_DESIGNS = 2  # earlier windowed designs kept (a check far off, then back)
 _TRIM_FROM = 100_000  # records from this many samples return freed pages after a design
-_WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby scales)
+_WINDOW_STRETCH = 1.25  # pieces built for the law stretched by this (kept for nearby laws)
+_FLAT_PEAK = 2.0  # ... a law with moving knots: for a flat pdf this times the law's largest
+_WINDOW_LOST = 2.0  # ... kept for a law under whose pdf no piece dropped is above e^-(24 - 2)
 _WINDOW_EXTRA_ORDER = 4  # Gauss-Legendre nodes per piece: order + this (pieces span 4 sigma
 #                          of the Gaussian factor by a tight slope bound; near an extremum of
 #                          s the exponent is quartic in t, where 8 nodes give ~1e-7)
@@ -398,6 +414,26 @@ def _slope_at(signal: Signal, t: FloatArray) -> FloatArray:
     return (signal(t + h) - signal(t - h)) / (2 * h)
 
 
+@dataclass(frozen=True, eq=False)
+class _Panels:
+    """The pieces of :func:`_window_panels`, sorted by owner and time: ``slack`` the ln of the
+    sample's best piece's lower bound less this piece's upper bound, ``span`` the bound on the
+    change of (y - s) / sigma over it (:func:`_piece_orders`; -inf and inf for a piece left
+    open), ``near`` and ``far`` the Gaussian factor's part of its upper and lower bounds,
+    -(d_lo)^2 / 2 and -(d_hi)^2 / 2 (d the distance from y_k in noise std's, shortened by the
+    margin and lengthened by the slope bound), and ``lost`` per sample the largest upper
+    bound of a piece dropped (-inf: none)."""
+
+    owner: NDArray[np.int64]
+    a: FloatArray
+    b: FloatArray
+    slack: FloatArray
+    span: FloatArray
+    near: FloatArray
+    far: FloatArray
+    lost: FloatArray
+
+
 def _window_panels(
     pch: PanelChunk,
     T: float,
@@ -408,7 +444,7 @@ def _window_panels(
     profile: _SlopeProfile,
     density: JitterLaw,
     reach: JitterLaw | _Stretched | None = None,
-) -> tuple[NDArray[np.int64], FloatArray, FloatArray, FloatArray, FloatArray]:
+) -> _Panels:
     """The panels of the windowed rule (module doc, "Windows").
 
     Each sample's pieces ``pch`` (the slope grid's cells inside its window, cut at the
@@ -421,19 +457,14 @@ def _window_panels(
     from the design). Every edge lies on a dyadic subdivision of the fixed pieces, so the
     rule changes with the jitter parameters only where a piece's depth or the support's
     edges do. With ``reach`` (a wider law), a piece is kept by that law's pdf and compared
-    with the best piece under ``density``: the pieces then serve both. Returns (owner, a,
-    b, slack, span) sorted by owner and time: slack the ln of the sample's best piece's lower
-    bound less this piece's upper bound, span the bound on the change of (y - s) / sigma over
-    the piece (:func:`_piece_orders`; -inf and inf for a piece left open)."""
-    wide = density if reach is None else reach
-    lo, hi = density.support
-    rlo, rhi = wide.support
-    pdf_len = _WINDOW_PDF * float(wide.std)
+    with the best piece under ``density``: the pieces then serve both. Returns the
+    pieces sorted by owner and time, with their bounds (:class:`_Panels`)."""
+    pdf_len = _WINDOW_PDF * float((density if reach is None else reach).std)
     owner, a, b = pch.owner, pch.a, pch.b
     n = pch.k1 - pch.k0
     yk_all = y[pch.k0 : pch.k1]
-    best_done = np.full(n, -np.inf)
-    out_o, out_a, out_b, out_u, out_r = [], [], [], [], []
+    best_done, lost = np.full(n, -np.inf), np.full(n, -np.inf)
+    out_o, out_a, out_b, out_u, out_r, out_n, out_f = [], [], [], [], [], [], []
     with np.errstate(divide="ignore"):
         for _ in range(_WINDOW_ROUNDS):
             if owner.size == 0:
@@ -450,15 +481,15 @@ def _window_panels(
             d = np.abs(yk_all[owner] - s_mid)
             dlo = np.maximum((d - dev) / sigma - _WINDOW_MARGIN, 0.0)
             dhi = (d + dev) / sigma
-            base = (pch.k0 + owner) * T
-            up_pdf = np.array([_density(wide, np.clip(v - base, rlo, rhi)) for v in (a, mid, b)])  # type: ignore[arg-type]
-            lo_pdf = np.array([_density(density, np.clip(v - base, lo, hi)) for v in (a, mid, b)])
-            inside = (b - base > lo) & (a - base < hi)
-            upper = np.log(2 * half * up_pdf.max(axis=0)) - 0.5 * dlo**2
-            lower = np.where(inside, np.log(2 * half * lo_pdf.min(axis=0)), -np.inf) - 0.5 * dhi**2
+            base = np.asarray((pch.k0 + owner) * T, dtype=float)
+            top, least = _pdf_range(density, a, b, base)
+            if reach is not None:
+                top = _pdf_range(reach, a, b, base)[0]
+            upper, lower = top - 0.5 * dlo**2, least - 0.5 * dhi**2
             best = best_done.copy()
             np.maximum.at(best, owner, lower)
             keep = upper >= best[owner] - _WINDOW_CUT
+            np.maximum.at(lost, owner[~keep], upper[~keep])
             short = (2 * half * S <= panel * sigma) & (2 * half <= pdf_len)
             done = keep & (short | (half <= _WINDOW_FLOOR * T))
             if np.any(done):
@@ -468,6 +499,8 @@ def _window_panels(
                 out_b.append(b[done])
                 out_u.append(upper[done])
                 out_r.append((2 * half * S / sigma)[done])
+                out_n.append(-0.5 * dlo[done] ** 2)
+                out_f.append(-0.5 * dhi[done] ** 2)
             split = keep & ~done
             o, lo_, mi, hi_ = owner[split], a[split], mid[split], b[split]
             owner = np.concatenate([o, o])
@@ -479,6 +512,8 @@ def _window_panels(
         out_b.append(b)
         out_u.append(np.zeros(owner.size) + np.inf)
         out_r.append(np.zeros(owner.size) + np.inf)
+        out_n.append(np.zeros(owner.size))
+        out_f.append(np.zeros(owner.size) - np.inf)
     o, aa, bb = np.concatenate(out_o), np.concatenate(out_a), np.concatenate(out_b)
     with np.errstate(invalid="ignore"):
         slack = best_done[o] - np.concatenate(out_u)
@@ -486,9 +521,27 @@ def _window_panels(
     # zero at every piece's ends and middle: no slack, the most nodes; a NaN sorted last in
     # _piece_orders and gave the fewest)
     slack = np.where(np.isnan(slack), 0.0, slack)
-    span = np.concatenate(out_r)
+    span, near, far = np.concatenate(out_r), np.concatenate(out_n), np.concatenate(out_f)
     order = np.lexsort((aa, o))
-    return o[order], aa[order], bb[order], slack[order], span[order]
+    return _Panels(
+        o[order], aa[order], bb[order], slack[order], span[order], near[order], far[order], lost
+    )
+
+
+def _pdf_range(
+    law: JitterLaw | _Stretched, a: FloatArray, b: FloatArray, base: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """ln of the length times the largest and the least of the pdf at the ends and the
+    middle of each piece [a, b] (tau = t - ``base``, clipped into the support): the pdf's
+    part of :func:`_window_panels`' upper and lower bounds on the integrand (the least -inf
+    on a piece that misses the support)."""
+    lo, hi = law.support
+    ends = (a, 0.5 * (a + b), b)
+    pdf = np.array([_density(law, np.clip(v - base, lo, hi)) for v in ends])  # type: ignore[arg-type]
+    with np.errstate(divide="ignore"):
+        top = np.log((b - a) * pdf.max(axis=0))
+        least = np.log((b - a) * pdf.min(axis=0))
+    return top, np.where((b - base > lo) & (a - base < hi), least, -np.inf)
 
 
 @dataclass(frozen=True, eq=False)
@@ -632,17 +685,24 @@ def _has_slope(sig: Signal, analytic: bool) -> bool:
 
 @dataclass(frozen=True, eq=False)
 class _Pieces:
-    """The windowed rule's pieces of samples k0..k1-1 (before the law's support cuts them),
-    the Gauss-Legendre nodes of each (:func:`_piece_orders`) and the design signal at their
-    midpoints (the re-design test)."""
+    """The windowed rule's pieces of samples k0..k1-1 (before a law's support and knots cut
+    them), the design signal at their midpoints (the re-design test), and what sets the
+    nodes of each under a law (:func:`_under`): its span and the Gaussian factor's part of
+    the bounds on its integrand (``near``, ``far``), per sample the largest bound of a piece
+    dropped (``lost``), and the nodes under the law they were built for (``estimate``: the
+    memory check)."""
 
     k0: int
     k1: int
     owner: NDArray[np.int32]
     a: FloatArray
     b: FloatArray
-    nodes: NDArray[np.int8]
     probe: FloatArray
+    span: NDArray[np.float32]
+    near: NDArray[np.float32]
+    far: NDArray[np.float32]
+    lost: NDArray[np.float32]
+    estimate: int
 
     @property
     def mid(self) -> FloatArray:
@@ -678,23 +738,38 @@ def _piece_orders(slack: FloatArray, span: FloatArray, order: int, top: int) -> 
 class _Stretched:
     """The law of ``m + factor * (tau - m)``, m the law's mean: the windowed rule's pieces
     are built for it, so that they serve every scale of a family between 1 / 2 and 1 of it
-    (about the mean: a law shifted by a delay stays inside)."""
+    (about the mean: a law shifted by a delay stays inside). With ``flat`` (a law with knots
+    inside its support, which move with its parameters) its knots are left out and its pdf is
+    the constant ``flat`` on the stretched support: a bound on the pdf of every law that takes
+    the pieces (:meth:`ExactLikelihood._window_pieces`), whose knots cut them at node time."""
 
-    def __init__(self, law: JitterLaw, factor: float) -> None:
-        self.law, self.factor = law, factor
+    def __init__(self, law: JitterLaw, factor: float, flat: float | None = None) -> None:
+        self.law, self.factor, self.flat = law, factor, flat
         self.centre = m = float(law.mean)
         lo, hi = law.support
         self.support = (m + (lo - m) * factor, m + (hi - m) * factor)
         self.std = float(law.std) * factor
 
     def breakpoints(self) -> FloatArray:
+        if self.flat is not None:
+            return np.array(self.support, dtype=float)
         bp = np.asarray(self.law.breakpoints(), dtype=float)
         return self.centre + (bp - self.centre) * self.factor
 
     def pdf(self, tau: ArrayLike) -> FloatArray:
         tau = np.asarray(tau, dtype=float)
+        if self.flat is not None:
+            lo, hi = self.support
+            return np.where((tau >= lo) & (tau <= hi), self.flat, 0.0)
         inner = self.centre + (tau - self.centre) / self.factor
         return np.asarray(self.law.pdf(inner)) / self.factor
+
+
+def _peak(law: JitterLaw) -> float:
+    """The largest pdf of ``law`` at its knots and seven points inside each knot piece."""
+    bp = np.asarray(law.breakpoints(), dtype=float)
+    x = bp[:-1, None] + np.diff(bp)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]
+    return float(np.max(_density(law, x.ravel())))
 
 
 class _Rule:
@@ -734,6 +809,94 @@ class _Rule:
             self._kept = kept
 
 
+def _cut_at_knots(
+    index: NDArray[np.intp], a: FloatArray, b: FloatArray, base: FloatArray, knots: FloatArray
+) -> tuple[NDArray[np.intp], FloatArray, FloatArray]:
+    """The pieces [a, b] cut at the law's knots ``base + knots`` inside them (the pdf is a
+    polynomial between its knots, which Gauss-Legendre must not straddle): the parts in the
+    same order, each with its piece's ``index``. A knot within ~1e-9 of a piece's length (or
+    a few roundings) of its ends cuts nothing (pieces built for the law itself end at its
+    knots), nor does one within a rounding of the time of the knot before it."""
+    if knots.size <= 2 or a.size == 0:
+        return index, a, b
+    tol = 1e-9 * (b - a) + 4.0 * np.spacing(np.abs(b))
+    i0 = np.searchsorted(knots, a - base + tol, side="right")
+    i1 = np.searchsorted(knots, b - base - tol, side="left")
+    cuts = np.maximum(i1 - i0, 0)
+    if not np.any(cuts):
+        return index, a, b
+    parts = cuts + 1
+    parent = np.repeat(np.arange(a.size), parts)
+    pos = np.arange(parent.size) - np.repeat(np.cumsum(parts) - parts, parts)
+    k = i0[parent] + pos  # the knot that ends each part (but the last)
+    left = np.where(pos == 0, a[parent], base[parent] + knots[np.maximum(k - 1, 0)])
+    right = np.where(
+        pos == cuts[parent], b[parent], base[parent] + knots[np.minimum(k, knots.size - 1)]
+    )
+    live = right > left  # (knots closer than a rounding of the time: one part)
+    return index[parent][live], left[live], right[live]
+
+
+_Bounds = tuple[FloatArray, FloatArray]  # a chunk's pieces' upper bounds, its samples' best
+
+
+def _bounds(law: JitterLaw, pc: _Pieces, T: float) -> _Bounds:
+    """Every piece's upper bound on its integrand under ``law`` (:func:`_window_panels`'
+    bounds, with this law's pdf) and per sample the best piece's lower bound."""
+    top, least = _pdf_range(law, pc.a, pc.b, np.asarray((pc.k0 + pc.owner) * T, dtype=float))
+    best = np.full(pc.k1 - pc.k0, -np.inf)
+    np.maximum.at(best, pc.owner, least + pc.far)
+    return top + pc.near, best
+
+
+def _serves(
+    law: JitterLaw, pieces: Sequence[_Pieces], T: float, keep: bool
+) -> list[_Bounds | None] | None:
+    """Whether pieces built for another law serve ``law``: in every sample the pieces
+    dropped at the build lie below e^-(``_WINDOW_CUT`` - ``_WINDOW_LOST``) of the best
+    piece under this law (a law narrower than the build's, whose support barely reaches
+    where a sample's signal meets it, may have its mass where the build dropped the pieces).
+    Returns, if they do, the bounds under this law (:func:`_bounds`, per chunk; with ``keep``
+    only, else None each: a long record's, made again chunk by chunk), else None."""
+    out: list[_Bounds | None] = []
+    for pc in pieces:
+        upper, best = _bounds(law, pc, T)
+        if not np.all(pc.lost < best - _WINDOW_CUT + _WINDOW_LOST):
+            return None
+        out.append((upper, best) if keep else None)
+    return out
+
+
+def _under(
+    law: JitterLaw,
+    pc: _Pieces,
+    T: float,
+    order: int,
+    bounds: _Bounds | None = None,
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray, NDArray[np.int8]]:
+    """The parts of the pieces ``pc`` under ``law``, and the Gauss-Legendre nodes of each:
+    :func:`_window_panels`' test and :func:`_piece_orders`' choice made again with this
+    law's pdf in the bounds (a piece below e^-``_WINDOW_CUT`` of its sample's best is
+    dropped), then each piece cut to the law's support and at its knots (the pdf is a
+    polynomial between them: Gauss-Legendre must not straddle one), a part taking its
+    share of its piece's span and bound (``bounds``: :func:`_bounds`, if made already).
+    Returns (owner, a, b, nodes)."""
+    lo, hi = law.support
+    upper, best = _bounds(law, pc, T) if bounds is None else bounds
+    with np.errstate(invalid="ignore"):
+        slack = best[pc.owner] - upper
+    slack = np.where(np.isnan(slack), 0.0, slack)  # (see _window_panels)
+    base = np.asarray((pc.k0 + pc.owner) * T, dtype=float)
+    a, b = np.maximum(pc.a, base + lo), np.minimum(pc.b, base + hi)
+    live = np.flatnonzero((upper >= best[pc.owner] - _WINDOW_CUT) & (b > a))
+    knots = np.asarray(law.breakpoints(), dtype=float)
+    i, a, b = _cut_at_knots(live, a[live], b[live], base[live], knots)
+    share = (b - a) / (pc.b[i] - pc.a[i])
+    top = min(order + _WINDOW_EXTRA_ORDER, 127)
+    nodes = _piece_orders(slack[i] - np.log(share), pc.span[i] * share, order, top)
+    return pc.owner[i].astype(np.int64), a, b, nodes
+
+
 @functools.cache
 def _legendre_table(top: int) -> tuple[FloatArray, FloatArray]:
     """Gauss-Legendre nodes and weights on [-1, 1] for 0..top nodes: row n holds the n-node
@@ -744,7 +907,24 @@ def _legendre_table(top: int) -> tuple[FloatArray, FloatArray]:
     return xg, wg
 
 
-_Held = tuple[tuple[float, float, float], list[_Pieces]]  # pieces kept for nearby scales
+# pieces kept for nearby laws, with their envelope's (support, std, flat pdf or None)
+_Held = tuple[tuple[float, float, float, float | None], list[_Pieces]]
+
+
+def _takes(
+    envelope: tuple[float, float, float, float | None], law: JitterLaw, knotted: bool
+) -> bool:
+    """Whether pieces built for ``envelope`` (support, std and flat pdf or None: the law
+    stretched, :class:`_Stretched`) serve ``law``: its support inside the envelope's, its std
+    at least half the envelope's, and its pdf below the envelope's, which kept the pieces: a
+    flat envelope's value bounds the law's largest pdf (:func:`_peak`); a stretched law
+    bounds a stretched scale of it within a factor 2 (a law with no knots inside its support:
+    a scale family's)."""
+    lo, hi = law.support
+    blo, bhi, bstd, flat = envelope
+    if not (blo <= lo and hi <= bhi and float(law.std) >= 0.5 * bstd):
+        return False
+    return not knotted if flat is None else _peak(law) <= flat
 
 
 def _far(pieces: Sequence[_Pieces], y: FloatArray, sigma: float) -> bool:
@@ -1089,7 +1269,7 @@ class ExactLikelihood(CachesAreNotState):
                     ),
                     None,
                 )
-                # kept only while small (a long record's pieces are ~30 bytes each)
+                # kept only while small (a long record's pieces are ~40 bytes each)
                 small = sum(pc.owner.size for pc in rule.pieces) <= self.node_budget // 4
                 rest = [sp for sp in self._spares if sp is not spare]
                 self._spares = ([current] if small else []) + rest
@@ -1108,7 +1288,7 @@ class ExactLikelihood(CachesAreNotState):
         budget = kept_nodes(self.node_budget, family)
         if y is None:
             return _Rule(lambda: self._make_nodes(law, sig), (), budget)
-        pieces = self._window_pieces(law, sig, y)
+        pieces, bounds = self._window_pieces(law, sig, y)
         assert self._design is not None
         if _far(pieces, y, self._design[1]):
             # the model far from the data (residuals of many noise std's): the integrands
@@ -1121,68 +1301,89 @@ class ExactLikelihood(CachesAreNotState):
         if self.N >= _TRIM_FROM:  # the build's temporaries: pages back to the system
             trim()
         n_pieces = sum(pc.owner.size for pc in pieces)
-        n_nodes = sum(float(np.sum(pc.nodes, dtype=float)) for pc in pieces)
+        n_nodes = float(sum(pc.estimate for pc in pieces))
         check_likelihood(self, law, sig, n_nodes, n_pieces)
-        return _Rule(lambda: self._make_windowed(law, sig, pieces), pieces, budget)
+        return _Rule(lambda: self._make_windowed(law, sig, pieces, bounds), pieces, budget)
 
-    def _window_pieces(self, law: JitterLaw, sig: Signal, y: FloatArray) -> list[_Pieces]:
+    def _window_pieces(
+        self, law: JitterLaw, sig: Signal, y: FloatArray
+    ) -> tuple[list[_Pieces], list[_Bounds | None] | None]:
         """The windowed rule's pieces for ``law``: kept from the last build where that was
-        made for a law whose support holds this one's and whose std is at most twice this
-        one's (a law with no knots inside its support: the pieces are then cut only at the
-        support's edges); else built (:func:`_window_panels`) for the law stretched by
-        ``_WINDOW_STRETCH``, so that nearby scales of a family reuse them."""
-        lo, hi = law.support
-        simple = np.asarray(law.breakpoints()).size <= 2
+        made for an envelope whose support holds this law's, whose std is at most twice this
+        law's and whose pdf bounds this law's (:func:`_takes`); else built
+        (:func:`_window_panels`) for an envelope of the law (:class:`_Stretched`), so that
+        nearby laws of a family reuse them: the law stretched by ``_WINDOW_STRETCH`` (a law
+        with no knots inside its support), or its stretched support with a flat pdf
+        ``_FLAT_PEAK`` times the law's largest (a law whose knots move with its parameters,
+        which cut the pieces at node time: :meth:`_make_windowed`). A law with knots that
+        cannot move (a known law, no delay) gets pieces of its own, cut at its knots."""
+        knotted = np.asarray(law.breakpoints()).size > 2
         held = self._pieces
-        if (
-            simple
-            and held is not None
-            and held[0][0] <= lo
-            and hi <= held[0][1]
-            and float(law.std) >= 0.5 * held[0][2]
-        ):
-            return held[1]
+        if held is not None and _takes(held[0], law, knotted):
+            small = sum(pc.owner.size for pc in held[1]) <= self.node_budget // 4
+            bounds = _serves(law, held[1], self.T, small)
+            if bounds is not None:
+                return held[1], bounds
         assert self._design is not None
         assert self._profile is not None
         design_sig, design_sigma = self._design
-        build: JitterLaw | _Stretched = _Stretched(law, _WINDOW_STRETCH) if simple else law
+        moving = isinstance(self.jitter, JitterFamily) or self._delay is not None
+        build: JitterLaw | _Stretched = law
+        if not knotted:
+            build = _Stretched(law, _WINDOW_STRETCH)
+        elif moving:
+            build = _Stretched(law, _WINDOW_STRETCH, flat=_FLAT_PEAK * _peak(law))
         knots = np.unique(np.asarray(build.breakpoints(), dtype=float))
         fixed = np.union1d(np.asarray(sig.breaks, dtype=float), self._profile.grid)
         pieces = []
         top = min(self.order + _WINDOW_EXTRA_ORDER, 127)  # int8 node counts
         for pch in jitter_panels(law, self.T, self.N, fixed, knots, chunk=_CHUNK):
-            o, a, b, slack, span = _window_panels(
+            pan = _window_panels(
                 pch, self.T, y, design_sig, design_sigma, self.panel, self._profile, law, build
             )
+            estimate = np.sum(_piece_orders(pan.slack, pan.span, self.order, top), dtype=np.int64)
             pieces.append(
                 _Pieces(
                     pch.k0,
                     pch.k1,
-                    o.astype(np.int32),
-                    a,
-                    b,
-                    _piece_orders(slack, span, self.order, top),
-                    design_sig(0.5 * (a + b)),
+                    pan.owner.astype(np.int32),
+                    pan.a,
+                    pan.b,
+                    design_sig(0.5 * (pan.a + pan.b)),
+                    pan.span.astype(np.float32),
+                    pan.near.astype(np.float32),
+                    pan.far.astype(np.float32),
+                    pan.lost.astype(np.float32),
+                    int(estimate),
                 )
             )
-        blo, bhi = build.support
-        self._pieces = ((float(blo), float(bhi), float(build.std)), pieces) if simple else None
-        return pieces
+        if isinstance(build, _Stretched):
+            blo, bhi = build.support
+            self._pieces = ((float(blo), float(bhi), float(build.std), build.flat), pieces)
+        else:
+            self._pieces = None
+        return pieces, None
 
     def _make_windowed(
-        self, law: JitterLaw, sig: Signal, pieces: list[_Pieces]
+        self,
+        law: JitterLaw,
+        sig: Signal,
+        pieces: list[_Pieces],
+        bounds: list[_Bounds | None] | None = None,
     ) -> Iterator[_Nodes]:
-        """The windowed rule's nodes (module doc): its pieces (:meth:`_window_pieces`) cut to
-        the law's support, with :func:`_piece_orders` Gauss-Legendre nodes each."""
+        """The windowed rule's nodes (module doc): its pieces (:meth:`_window_pieces`) under
+        the law (:func:`_under`: re-tested with its pdf, cut to its support and at its knots),
+        with :func:`_piece_orders` Gauss-Legendre nodes each (``bounds``: the pieces' bounds
+        under the law, made by the reuse test, :func:`_serves`)."""
         sig.check_covers((self.N - 1) * self.T + law.support[1], "the last jittered instant")
         lo, hi = law.support
         split = bool(self._weight_params()) and hi > lo
         clip = rule_frame(law)[2]
-        for pc in pieces:
-            base = (pc.k0 + pc.owner) * self.T
-            a, b = np.maximum(pc.a, base + lo), np.minimum(pc.b, base + hi)
-            live = b > a
-            o, a, b, n = pc.owner[live], a[live], b[live], pc.nodes[live]
+        for j, pc in enumerate(pieces):
+            known = None
+            if bounds is not None:  # made by the reuse test: used once (a pass that streams
+                known, bounds[j] = bounds[j], None  # the rule makes them again)
+            o, a, b, n = _under(law, pc, self.T, self.order, known)
             half, mid = 0.5 * (b - a), 0.5 * (a + b)
             # each piece's n nodes in a row (ragged): piece index and position of each node
             n = n.astype(np.intp)

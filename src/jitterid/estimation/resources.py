@@ -76,8 +76,9 @@ LIKELIHOOD_SECONDS = 8e-6
 STREAM_BYTES = 600.0
 #: most nodes in one chunk of the full rule (its temporaries: ~150 MB at STREAM_BYTES)
 CHUNK_NODES = 262_144
-#: bytes per piece of the windowed rule (ends, owner, node count, design value: 29)
-PIECE_BYTES = 32.0
+#: bytes per piece of the windowed rule (ends, owner, design value, span and the Gaussian
+#: factor's bounds: 40)
+PIECE_BYTES = 40.0
 #: at most this fraction of the memory budget holds a rule's nodes between evaluations
 KEPT_FRACTION = 0.25
 #: Gauss-Legendre nodes per panel of the likelihood's rule (likelihood.DEFAULT_ORDER)
