@@ -123,7 +123,7 @@ def sharp_edge_finding(fit: FitResult, N: int) -> Finding | None:
     return Finding(
         "sharp-edges",
         math.nan,
-        f"the fitted {fit.jitter_law} has hard edges sharper than the record resolves (the "
+        f"the fitted {fit.jitter_law!r} has hard edges sharper than the record resolves (the "
         f"noise blurs them over {ratio:.2g} x the spacing of the jitter values, below "
         f"{EDGE_RATIO:g}): there the likelihood is not regular and the stated standard error "
         "understates the estimate's spread (measured 1.2-7 x; 95 % intervals covering "
