@@ -119,11 +119,14 @@ def test_pdf_gradient_matches_high_precision_differences(n, tol):
     p, dn, da = _referee(tau, n, A)
     # the referee is the law (its own density, to the law's accuracy)
     np.testing.assert_allclose(law.pdf(tau), p, rtol=0, atol=1e-13 * np.max(p))
-    g = law.pdf_gradient(tau)
-    assert g is not None
-    assert g.shape == (2, *tau.shape)
-    assert np.max(np.abs(g[0] - dn)) <= tol * np.max(np.abs(dn))
-    assert np.max(np.abs(g[1] - da)) <= 1e-12 * np.max(np.abs(da))
+    # a few points: the closed form at each; many (the quadratures' nodes): the window form
+    # from its Chebyshev pieces (SumOfUniforms._gradient_pieces)
+    many = np.r_[tau, np.linspace(-A, A, 4 * 51**2 + 1)]
+    for g in (law.pdf_gradient(tau), law.pdf_gradient(many)[:, : tau.size]):
+        assert g is not None
+        assert g.shape == (2, *tau.shape)
+        assert np.max(np.abs(g[0] - dn)) <= tol * np.max(np.abs(dn))
+        assert np.max(np.abs(g[1] - da)) <= 1e-12 * np.max(np.abs(da))
 
 
 @pytest.mark.parametrize(

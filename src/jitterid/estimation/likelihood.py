@@ -1757,7 +1757,7 @@ class ExactLikelihood(CachesAreNotState):
                 tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
                 theta_j = self.layout.block(x, "jitter").tolist()
                 dp = self.jitter.pdf_gradient(theta_j, tau)  # type: ignore[union-attr]
-                dens = law.pdf(tau)
+                dens = _density(law, tau)  # (the weights' own density, and fast)
                 # (a node whose density rounds to 0 carries no posterior weight either)
                 ratio = np.divide(
                     dp[closed],  # type: ignore[index]
