@@ -8,6 +8,7 @@ noise std known and estimated.
 
 import numpy as np
 import pytest
+from helpers import TABLE2_N, TABLE2_NOISE, TABLE2_T, TABLE2_TRUTH, table2_data
 
 import jitterid as ji
 from jitterid.estimation import jacobians as _jacobians
@@ -313,3 +314,113 @@ def test_derivative_cache_follows_the_parameter_vector():
     other = _jacobians.moment_derivatives(pb, x * 1.001)
     assert other is not first
     assert not np.array_equal(other[2], first[2])
+
+
+# ---------------------------------------------------------------------------- n of (26)
+def _table2_family(method):
+    data = table2_data(0, ji.SumOfUniforms(2, 1 / (2 * np.sqrt(3))))
+    f = ji.default_frequencies(TABLE2_N, TABLE2_T)
+    return Problem(data, ji.PolePairGain(), ji.SumOfUniformsFamily(), method, f, TABLE2_NOISE)
+
+
+def _in_piece(pb, n):
+    """Search n within its smooth piece, as the piece walk does (the differences' bounds)."""
+    pb.restrict(((float(np.floor(n)), float(np.ceil(n))), *pb.bounds[1:]))
+
+
+def _counting_differences(monkeypatch):
+    calls = []
+    differenced = _jacobians._differenced
+
+    def counted(problem, x, i, **kw):
+        calls.append(i)
+        return differenced(problem, x, i, **kw)
+
+    monkeypatch.setattr(_jacobians, "_differenced", counted)
+    return calls, differenced
+
+
+@pytest.mark.parametrize("method", ["gaussian", "bcls"])
+@pytest.mark.parametrize("n", [0.4, 1.6, 2.02, 2.5, 7.3])
+def test_shape_derivative_of_the_family_26_is_closed_form_and_matches_differences(
+    n, method, monkeypatch
+):
+    """dm, dVar in n from the family's closed-form dp/dn at the base law's nodes (Table 2's
+    system, n in (0, 1), (1, 2), (2, 3) just above 2 (the window form) and mid-piece,
+    (7, 8)), against _differenced (central differences of the moments, step 1e-5 max(n, 1):
+    its own error is 1e-8-4e-7 of the largest value here, from the quadrature's rounding over
+    the step) and, tighter, against Richardson-extrapolated central differences at steps
+    2e-3 and 1e-3 (O(h^4) ~ 1e-11; rounding ~1e-13 / h), within 5e-8 (measured <= 3.5e-8)."""
+    pb = _table2_family(method)
+    _in_piece(pb, n)
+    x = np.r_[n, 0.3, TABLE2_TRUTH * 1.01]
+    calls, differenced = _counting_differences(monkeypatch)
+    _, _, dm, dw = _jacobians.moment_derivatives(pb, x)
+    assert 0 not in calls  # n's row from the closed form, not from differences
+    var = pb.needs_variances
+    ref_m, ref_v = differenced(pb, x, 0, variance=var, shape=True)
+
+    def stacked(v):
+        mv = _jacobians.moments(pb, v)
+        return np.r_[mv.mean, mv.var] if var else mv.mean
+
+    def central(h):
+        up, down = x.copy(), x.copy()
+        up[0] += h
+        down[0] -= h
+        return (stacked(up) - stacked(down)) / (2 * h)
+
+    rich = (4 * central(1e-3) - central(2e-3)) / 3
+    got = np.r_[dm[0], dw[0]] if var else dm[0]
+    assert np.max(np.abs(got - rich)) <= 5e-8 * np.max(np.abs(rich))
+    for a, b in ((dm[0], ref_m), (dw[0], ref_v)):
+        if b is not None:
+            assert np.max(np.abs(a - b)) <= 1e-6 * np.max(np.abs(b))
+
+
+@pytest.mark.parametrize(
+    ("n", "piece"), [(2.0, (1.0, 2.0)), (2.0, (2.0, 3.0)), (2 - 5e-10, (1.0, 2.0))]
+)
+def test_shape_derivative_of_the_family_26_is_differenced_where_there_is_no_closed_form(
+    n, piece, monkeypatch
+):
+    """At an integer n (a kink) and less than 1e-9 below one the family gives no dp/dn:
+    n's row is the difference route's, one-sided into the piece searched."""
+    pb = _table2_family("gaussian")
+    pb.restrict((piece, *pb.bounds[1:]))
+    x = np.r_[n, 0.3, TABLE2_TRUTH * 1.01]
+    calls, differenced = _counting_differences(monkeypatch)
+    _, _, dm, dw = _jacobians.moment_derivatives(pb, x)
+    assert calls == [0]
+    ref_m, ref_v = differenced(pb, x, 0, variance=True, shape=True)
+    np.testing.assert_array_equal(dm[0], ref_m)
+    np.testing.assert_array_equal(dw[0], ref_v)
+
+
+def test_the_shape_pass_reuses_the_base_laws_kept_plan(monkeypatch):
+    """Along the modal path the n pass lays out no nodes: the base law's kept plan (built
+    with its geometry) reweighted by dp/dn gives what a plan laid out for dp/dn gives."""
+    pb = _table2_family("gaussian")
+    x = np.r_[2.5, 0.3, TABLE2_TRUTH * 1.01]
+    _jacobians.moment_derivatives(pb, x)  # the base law's plan is kept after this pass
+    law, sig, _ = pb.split(x)
+    mom = _jacobians.moments(pb, x)
+    built = []
+    build = _modal.SegmentPlan._build
+
+    def counted(self):
+        built.append(self.law)
+        return build(self)
+
+    monkeypatch.setattr(_modal.SegmentPlan, "_build", counted)
+    dm, dv = _jacobians._law_derivative(pb, x, law, sig, 0, mom.mean, True)
+    assert not built
+    d, seg = pb.data, sig.modal_segments
+    dlaw = _jacobians._PdfDerivative(pb.jitter, [2.5, 0.3], law, 0)
+    poles = seg.system.modal.poles
+    fresh = _modal.SegmentPlan(dlaw, d.T, d.N, d.u, float(np.max(np.abs(poles))), poles=poles)
+    mean, var, _, _ = _modal.modal_moments(fresh, _modal.tables(seg.system, d.u), keep=False)
+    assert built  # (the referee laid its nodes out)
+    np.testing.assert_allclose(dm, mean, rtol=0, atol=1e-14 * np.max(np.abs(mean)))
+    ref_v = var + 2 * mean * (mean - mom.mean)
+    np.testing.assert_allclose(dv, ref_v, rtol=0, atol=1e-14 * np.max(np.abs(ref_v)))

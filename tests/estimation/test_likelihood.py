@@ -198,6 +198,43 @@ def test_scores_match_differences_of_the_log_likelihood(jitter, x, noise):
     np.testing.assert_allclose(dy, fd, rtol=1e-5, atol=1e-3)
 
 
+@pytest.mark.parametrize("n", [0.4, 0.97, 1.003, 1.4, 1.999, 2.02, 2.3, 7.5])
+def test_closed_form_shape_score_matches_extrapolated_differences_of_ln_p(n, monkeypatch):
+    """The n-score of the family (26) off its integers: sum_j pi_j (dp/dn / p)(tau_j) from
+    the family's closed-form dp/dn (no difference of ln p: finite_diff.forward is never asked
+    for n), per sample against Richardson-extrapolated central differences of ln p(y_k)
+    (steps h and h/2 inside the piece, h = min(1e-3, a tenth of the distance to its ends):
+    O(h^4), measured <= 4e-8 of the largest value), n in (0, 1), just above 1 (the window
+    form), mid (1, 2), 1e-3 below 2, just above 2, mid (2, 3) and (7, 8)."""
+    data = table_data(2, LAWS["sum of uniforms"], n=60)
+    lik = ji.ExactLikelihood(ji.PolePairGain(), ji.SumOfUniformsFamily(), data.u, T, 60, NOISE)
+    lo, hi = float(np.floor(n)), float(np.ceil(n))
+    box = list(lik.bounds)
+    box[0] = (lo, hi)
+    lik.restrict(tuple(box))
+    x = np.r_[n, 0.3, TRUTH]
+    forward = lk.finite_diff.forward
+    asked = []
+
+    def counted(v, i, *args, **kw):
+        asked.append(i)
+        return forward(v, i, *args, **kw)
+
+    monkeypatch.setattr(lk.finite_diff, "forward", counted)
+    _, G = lik.scores(x, data.y)
+    assert 0 not in asked
+
+    def central(h):
+        up, down = x.copy(), x.copy()
+        up[0] += h
+        down[0] -= h
+        return (lik.logpdf(up, data.y) - lik.logpdf(down, data.y)) / (2 * h)
+
+    h = min(1e-3, 0.1 * min(n - lo, hi - n))
+    ref = (4 * central(h / 2) - central(h)) / 3
+    assert np.max(np.abs(G[:, 0] - ref)) <= 1e-7 * np.max(np.abs(ref))
+
+
 @pytest.mark.parametrize(("n", "piece"), [(1.0, (0.0, 1.0)), (1.0, (1.0, 2.0)), (2.0, (1.0, 2.0))])
 def test_shape_score_at_a_kink_is_one_sided_into_the_piece(n, piece):
     """At an integer n of the family (26), restricted to one smooth piece (the piece walk),

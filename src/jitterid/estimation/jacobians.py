@@ -23,10 +23,12 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
   its slope, :func:`~jitterid.moments.sample.moment_pass`). Other jitter parameters change
   the shape of the law. Where the family gives dp/dtheta in closed form
   (:meth:`JitterFamily.pdf_gradient`: ``GeneralizedNormalFamily``'s beta, both parameters of
-  ``DualDiracFamily``), dm = sum_j w_j dp/dtheta(tau_j) s(t_j) at the base law's own nodes,
-  and dVar alike (:func:`_law_derivative`), one extra pass each and smooth in theta.
-  Otherwise (``n``, which moves the quadrature nodes) a one-sided difference of the moments
-  (the step of scipy's "2-point" rule, which these replace), one extra evaluation each.
+  ``DualDiracFamily``, ``n`` of ``SumOfUniformsFamily`` off its integers),
+  dm = sum_j w_j dp/dtheta(tau_j) s(t_j) at the base law's own nodes (its kept plan
+  reweighted: no node laid out again), and dVar alike (:func:`_law_derivative`), one extra
+  pass each and smooth in theta. Otherwise (``n`` at an integer, or less than 1e-9 below
+  one, where the family gives none) central differences of the moments, second-order
+  one-sided at a piece's end (:func:`_differenced`), two extra evaluations each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
 
 The criteria turn dm, dw into their own derivatives (one module each in
@@ -119,9 +121,22 @@ def _plan(problem: Problem, x: FloatArray, law: JitterLaw, tf: TransferFunction)
     memo = problem.plan_memo
     if memo is not None and memo[0][0] == key[0] and memo[1].law == law:
         return memo[1]
-    plan = cached_plan(law, d.T, d.N, d.u, rate, p)
+    # with the nodes' geometry where the shape's derivative will be summed on them
+    plan = cached_plan(law, d.T, d.N, d.u, rate, p, geometry=_closed_form(problem, x))
     problem.plan_memo = (key, plan)
     return plan
+
+
+def _closed_form(problem: Problem, x: FloatArray) -> bool:
+    """Whether the jitter family gives dp/dtheta in closed form at ``x``
+    (:meth:`JitterFamily.pdf_gradient`; not for a delayed model, whose law at the nodes is
+    the family's shifted)."""
+    fam = problem.jitter
+    if not isinstance(fam, JitterFamily) or not problem.n_jitter:
+        return False
+    if getattr(problem.structure, "delay_index", None) is not None:
+        return False
+    return fam.pdf_gradient(problem.layout.block(x, "jitter").tolist(), np.zeros(0)) is not None
 
 
 def moments(problem: Problem, x: FloatArray) -> SampleMoments:
@@ -205,7 +220,9 @@ def _law_derivative(
     """dm_k and dVar_k in jitter parameter i from the family's dp/dtheta_i at the base law's
     nodes (:meth:`JitterFamily.pdf_gradient`): dm = sum w' s, and, with the pass's
     Var' = sum w' (s - m')^2, dVar = sum w' (s - m)^2 = Var' + 2 m' (m' - m) (the rule's
-    sum w' = d(mass)/dtheta_i is zero up to the quadrature error, ~1e-15)."""
+    sum w' = d(mass)/dtheta_i is zero up to the quadrature error, ~1e-15). Along the modal
+    path the pass reuses the base law's kept plan, reweighted (:meth:`SegmentPlan.reweighted`:
+    the nodes are not laid out again); a plan is built for dp/dtheta_i where it is not kept."""
     fam = problem.jitter
     assert isinstance(fam, JitterFamily)
     dlaw = _PdfDerivative(fam, problem.layout.block(x, "jitter").tolist(), law, i)
@@ -215,7 +232,8 @@ def _law_derivative(
         assert isinstance(d.u, PiecewiseConstant)
         p = seg.system.modal.poles
         rate = float(np.max(np.abs(p))) if p.size else 0.0
-        plan = SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
+        kept = _plan(problem, x, law, seg.system).reweighted(dlaw)
+        plan = kept if kept is not None else SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
         dmean, dvar, _, _ = modal_moments(
             plan, tables(seg.system, d.u), keep=False, variance=need_var
         )
@@ -334,16 +352,12 @@ def moment_derivatives(
     # stays zero, and the caches are dropped when the box is lifted (Problem.restrict))
     box = problem.bounds
     shape = [i for i in range(nj) if not (analytic_scale and i == scale) and box[i][0] < box[i][1]]
-    grad = (
-        problem.jitter.pdf_gradient(lay.block(x, "jitter").tolist(), np.zeros(0))  # type: ignore[union-attr]
-        if shape and delay is None
-        else None
-    )
-    for i in shape if grad is not None else ():  # the family's closed-form dp/dtheta_i
+    closed = bool(shape) and _closed_form(problem, x)
+    for i in shape if closed else ():  # the family's closed-form dp/dtheta_i
         dm[i], dvi = _law_derivative(problem, x, law, sig, i, mom.mean, need_var)
         if dvi is not None:
             dv[i] = dvi
-    for i in shape if grad is None else ():
+    for i in shape if not closed else ():
         # other jitter parameters move the nodes: differences of the moments, central (or
         # second-order one-sided at a bound, e.g. a piece's end: finite_diff), O(h^2). A
         # one-sided O(h) difference at sqrt(eps) was dominated by the quadrature's rounding,

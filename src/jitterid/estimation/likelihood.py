@@ -77,9 +77,10 @@ exponentials as s (:class:`_NodeSignal`); for other signals their own gradient w
 have one (the steady-state response to a multisine, a tone model), else forward differences
 of s. A jitter family's scale a (the law of a xi) moves the nodes only:
 ds/da = (tau / a) s'(t), s' from the same modal form; its shape parameters (n) move the
-weights only: a forward difference of ln p with the shifted law's pdf at the same nodes, or,
-for a family with a closed-form dp/dtheta (``JitterFamily.pdf_gradient``),
-d ln p / d theta = sum_j pi_j (dp/dtheta / p)(tau_j) at the same nodes.
+weights only: for a family with a closed-form dp/dtheta (``JitterFamily.pdf_gradient``; n
+of the family (26) off its integers) d ln p / d theta = sum_j pi_j (dp/dtheta / p)(tau_j) at
+the same nodes, else a forward difference of ln p with the shifted law's pdf at the same
+nodes (n at an integer and just below one).
 :meth:`ExactLikelihood.maximise` uses these scores with a Gauss-Newton observed information
 in :func:`jitterid.estimation.search.newton_search`. The Fisher information of one record is
 
@@ -1522,7 +1523,9 @@ class ExactLikelihood(CachesAreNotState):
         System parameters by (L2) with ds/dtheta from the modal form, or the signal's own
         gradient (a steady-state multisine response), else forward differences of s
         (relative step 1e-7), noise std
-        analytic, jitter-family parameters by forward differences of ln p (step 1e-7).
+        analytic, jitter-family parameters from the family's closed-form dp/dtheta where it
+        gives one (``JitterFamily.pdf_gradient``), else by forward differences of ln p (step
+        1e-7).
 
         Parameters
         ----------
@@ -1664,7 +1667,10 @@ class ExactLikelihood(CachesAreNotState):
         SumOfUniforms at fixed n) enters p(y_k) = int p(xi) N(y_k; s(kT + a xi)) dxi through
         the signal only, so ds/da = xi s'(kT + a xi) = (tau / a) s'(t): its score is (L2)
         with that derivative at the same nodes, exact for the integral, with s' from the
-        modal form. The shape parameters (n) move the weights: forward differences of ln p.
+        modal form. The shape parameters (n) move the weights: where the family gives
+        dp/dtheta in closed form (``JitterFamily.pdf_gradient``: n of the family (26) off its
+        integers) d ln p / dtheta = sum_j pi_j (dp/dtheta / p)(tau_j) at the same nodes, else
+        forward differences of ln p.
         """
         law, sig, sigma = self.split(x)
         nj, p = self.n_jitter, x.size
@@ -1751,7 +1757,14 @@ class ExactLikelihood(CachesAreNotState):
                 tau = np.clip(nd.t - (nd.k0 + nd.owner) * self.T, lo, hi)
                 theta_j = self.layout.block(x, "jitter").tolist()
                 dp = self.jitter.pdf_gradient(theta_j, tau)  # type: ignore[union-attr]
-                ratio = dp[closed] / law.pdf(tau)  # type: ignore[index]
+                dens = _density(law, tau)  # (the weights' own density, and fast)
+                # (a node whose density rounds to 0 carries no posterior weight either)
+                ratio = np.divide(
+                    dp[closed],  # type: ignore[index]
+                    dens,
+                    out=np.zeros((len(closed), tau.size)),
+                    where=dens > 0,
+                )
                 G[rows, closed] = np.add.reduceat(ratio * ev.post, nd.starts, axis=1).T
             A = D * (ev.e / sigma)
             if noise:

@@ -43,8 +43,10 @@ reused for every parameter value with the same layout
 (:func:`jitterid.moments.quadrature.panel_layout`), from a small process-wide cache
 (:func:`cached_plan`); the plan of a band law (a Gaussian: its
 :attr:`~jitterid.jitter.laws.JitterLaw.band_rule`) serves every scale of its band (only the
-weights change). A standard panel (one no switch cuts) has the same offsets and weights in every
-sample, so its node sums are a phasor times a per-law table (:class:`StdTable`). A plan is
+weights change), and a kept plan built with ``geometry`` serves the derivative dp/dtheta
+of its law on the same nodes (:meth:`SegmentPlan.reweighted`). A standard panel (one no
+switch cuts) has the same offsets and weights in every sample, so its node sums are a phasor
+times a per-law table (:class:`StdTable`). A plan is
 kept in memory up to ``_PLAN_BYTES`` (~1 kB per sample for a Gaussian window over a few
 switches) and otherwise rebuilt chunk by chunk at every evaluation, so memory stays bounded
 whatever N. Runs of equal input levels are one segment (:func:`merged_input`).
@@ -195,10 +197,12 @@ class PieceChunk(CachesAreNotState):
         return self.sp_m.size * self.std.hx.shape[1] + self.cn_w.size
 
     def reweighted(self, law: JitterLaw, std: StdTable) -> PieceChunk:
-        """The same nodes with the weights of ``law`` (which must share this rule)."""
+        """The same nodes with the weights of ``law`` (which must share this rule), its pdf
+        taken at the offsets clipped as :func:`_pieces` clips them."""
         assert self.cn_gw is not None
         assert self.cn_tau is not None
-        w = self.cn_gw * law.pdf(self.cn_tau)
+        lo, hi = rule_frame(law)[2]
+        w = self.cn_gw * law.pdf(np.minimum(np.maximum(self.cn_tau, lo), hi))
         mass = _piece_mass(self.sp_piece, self.sp_m, self.cn_piece, w, std, self.row.size)
         return replace(self, cn_w=w, mass=mass, std=std)
 
@@ -337,6 +341,10 @@ class SegmentPlan:
     poles : array_like, optional
         The signal's poles: the layout is then :func:`panel_layout`'s (fast damped modes get
         graded cuts after every switch instead of short panels everywhere).
+    geometry : bool, optional
+        Keep every cut panel node's rule weight and offset in the chunks (16 bytes a node),
+        so that the kept plan serves another measure on the same nodes: a derivative
+        dp/dtheta of its law (:meth:`reweighted`). Always kept for a band law's plan.
 
     Raises
     ------
@@ -353,6 +361,7 @@ class SegmentPlan:
     order: int = DEFAULT_ORDER
     chunk: int = DEFAULT_CHUNK
     poles: ArrayLike | None = None
+    geometry: bool = False
     edges: FloatArray = field(init=False)
     grade: FloatArray = field(init=False)
     _store: _Store = field(init=False, default_factory=_Store)
@@ -396,6 +405,10 @@ class SegmentPlan:
             return True
         return band_rule(law) is not None and band_rule(self.law) is not None
 
+    @property
+    def _keeps_geometry(self) -> bool:
+        return self.geometry or band_rule(self.law) is not None
+
     def matches(
         self,
         law: JitterLaw,
@@ -404,10 +417,14 @@ class SegmentPlan:
         u: PiecewiseConstant,
         rate: float,
         poles: ArrayLike | None = None,
+        geometry: bool = False,
     ) -> bool:
         """Whether this plan's nodes are the rule for these arguments (same panel edges and
-        graded cuts; the law itself, or a band law of the same band)."""
+        graded cuts; the law itself, or a band law of the same band), with the nodes'
+        geometry kept if ``geometry`` asks for it."""
         if not (u is self.u and (T, N) == (self.T, self.N) and self._same_rule(law)):
+            return False
+        if geometry and not self._keeps_geometry:
             return False
         if (poles is None) != (self.poles is None):
             return False
@@ -429,6 +446,25 @@ class SegmentPlan:
         out.law = law
         return out
 
+    def reweighted(self, law: JitterLaw) -> SegmentPlan | None:
+        """This plan's kept nodes with the weights of ``law``, a measure with this plan's
+        support and breakpoints: the derivative dp/dtheta of its law, posing as a law
+        (``jitterid.estimation.jacobians._PdfDerivative``), whose moment pass then needs
+        no new nodes; the weights are those a plan built for ``law`` would give (gw * the
+        measure at the clipped offsets). None where the plan does not hold its nodes (not
+        yet passed over, too large to keep, or built without ``geometry``): the caller
+        builds a plan for ``law``, and passes over it with ``keep=False``.
+
+        Parameters
+        ----------
+        law : JitterLaw
+            The measure (its ``pdf``) on this plan's nodes.
+        """
+        kept = self._store.kept
+        if kept is None or not all(pc.cn_gw is not None for pc in kept):
+            return None
+        return self.view(law)
+
     def _build(self) -> Iterator[PieceChunk]:
         if self.edges.size == 0:  # a point mass: one node per sample, at kT + lo
             yield from self._point_mass()
@@ -436,7 +472,7 @@ class SegmentPlan:
         panels = jitter_panels(
             self.law, self.T, self.N, self._times, self.edges, grade=self.grade, chunk=self.chunk
         )
-        geometry = band_rule(self.law) is not None  # kept, to reweight for the band's laws
+        geometry = self._keeps_geometry  # kept, to reweight for the band's laws (or dp/dtheta)
         std = StdTable.make(self.law, self.edges, self.order)
         for pch in panels:
             yield _pieces(pch, self.law, self.T, self.order, std, self._times, geometry)
@@ -518,18 +554,20 @@ def cached_plan(
     u: PiecewiseConstant,
     rate: float,
     poles: ArrayLike | None = None,
+    geometry: bool = False,
 ) -> SegmentPlan:
     """The plan for these arguments from a small process-wide cache (least recently used first
     out), so that every criterion fitted to one data set, the BCLS pre-fit and the lazy
     covariance share one node geometry, and no result object keeps one alive. A band law
     gets a view of the plan of its band (:meth:`SegmentPlan.view`): a search over sigma
-    rebuilds no nodes until sigma leaves the band."""
+    rebuilds no nodes until sigma leaves the band. ``geometry``: see :class:`SegmentPlan`
+    (a plan without it does not serve a call that asks for it)."""
     with _plans_lock:
         for key, plan in _plans.items():
-            if plan.matches(law, T, N, u, rate, poles):
+            if plan.matches(law, T, N, u, rate, poles, geometry):
                 _plans.move_to_end(key)
                 return plan.view(law)
-    plan = SegmentPlan(law, T, N, u, rate, poles=poles)
+    plan = SegmentPlan(law, T, N, u, rate, poles=poles, geometry=geometry)
     with _plans_lock:
         if band_rule(law) is not None:
             # A search over sigma leaves a band for good (or returns once): keep one band
