@@ -136,7 +136,7 @@ def _closed_form(problem: Problem, x: FloatArray) -> bool:
         return False
     if getattr(problem.structure, "delay_index", None) is not None:
         return False
-    return fam.pdf_gradient(problem.layout.block(x, "jitter").tolist(), np.zeros(0)) is not None
+    return fam.gives_pdf_gradient(problem.layout.block(x, "jitter").tolist())
 
 
 def moments(problem: Problem, x: FloatArray) -> SampleMoments:

@@ -1502,6 +1502,17 @@ class JitterFamily(abc.ABC):
         """
         return None
 
+    def gives_pdf_gradient(self, params: Sequence[float]) -> bool:
+        """Whether :meth:`pdf_gradient` gives dp/dtheta in closed form at ``params`` (the
+        moments' derivatives and the likelihood's score then take it; else they difference).
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        """
+        return self.pdf_gradient(params, np.zeros(0)) is not None
+
     @property
     def kinks(self) -> tuple[tuple[float, ...], ...]:
         """Where the law is not differentiable in each parameter: one tuple per parameter (in
