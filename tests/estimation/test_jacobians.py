@@ -378,14 +378,56 @@ def test_shape_derivative_of_the_family_26_is_closed_form_and_matches_difference
             assert np.max(np.abs(a - b)) <= 1e-6 * np.max(np.abs(b))
 
 
-@pytest.mark.parametrize(
-    ("n", "piece"), [(2.0, (1.0, 2.0)), (2.0, (2.0, 3.0)), (2 - 5e-10, (1.0, 2.0))]
-)
+@pytest.mark.parametrize("method", ["gaussian", "bcls"])
+@pytest.mark.parametrize(("n", "piece"), [(0.0, (0.0, 1.0)), (2.0, (2.0, 3.0)), (5.0, (5.0, 6.0))])
+def test_shape_derivative_of_the_family_26_from_above_a_kink_is_the_scales(
+    n, piece, method, monkeypatch
+):
+    """n on an integer at the bottom of the piece searched (the bound 0, a kink): the row
+    from above is -a / (2 (n + 1)) x the scale's (JitterFamily.scale_equivalent), with no
+    difference taken. Referees: forward differences of the moments into the piece at steps
+    8e-3, 4e-3, 2e-3, Richardson-extrapolated twice (measured 8e-9-5e-8 of the largest
+    value: truncation at n = 0, the quadrature's rounding over the step at n = 5; the
+    plain forward difference at 2e-3 is off by 3e-4-2e-3), within 1e-7, and _differenced
+    (the route this replaces) within 1e-6. Can fail: with the factor's sign flipped or
+    without its 1/2 the rows differ by 100 %."""
+    pb = _table2_family(method)
+    pb.restrict((piece, *pb.bounds[1:]))
+    x = np.r_[n, 0.3, TABLE2_TRUTH * 1.01]
+    calls, differenced = _counting_differences(monkeypatch)
+    _, _, dm, dw = _jacobians.moment_derivatives(pb, x)
+    assert 0 not in calls
+    var = pb.needs_variances
+
+    def stacked(v):
+        mv = _jacobians.moments(pb, v)
+        return np.r_[mv.mean, mv.var] if var else mv.mean
+
+    base = stacked(x)
+
+    def forward(h):
+        up = x.copy()
+        up[0] += h
+        return (stacked(up) - base) / h
+
+    d1, d2, d3 = forward(8e-3), forward(4e-3), forward(2e-3)
+    r1, r2 = 2 * d2 - d1, 2 * d3 - d2
+    rich = (4 * r2 - r1) / 3
+    got = np.r_[dm[0], dw[0]] if var else dm[0]
+    assert np.max(np.abs(got - rich)) <= 1e-7 * np.max(np.abs(rich))
+    ref_m, ref_v = differenced(pb, x, 0, variance=var, shape=True)
+    for a, b in ((dm[0], ref_m), (dw[0], ref_v)):
+        if b is not None:
+            assert np.max(np.abs(a - b)) <= 1e-6 * np.max(np.abs(b))
+
+
+@pytest.mark.parametrize(("n", "piece"), [(2.0, (1.0, 2.0)), (2 - 5e-10, (1.0, 2.0))])
 def test_shape_derivative_of_the_family_26_is_differenced_where_there_is_no_closed_form(
     n, piece, monkeypatch
 ):
-    """At an integer n (a kink) and less than 1e-9 below one the family gives no dp/dn:
-    n's row is the difference route's, one-sided into the piece searched."""
+    """At an integer n at the top of the piece searched (the derivative from below is
+    infinite there) and less than 1e-9 below one the family gives no dp/dn: n's row is
+    the difference route's, one-sided into the piece searched."""
     pb = _table2_family("gaussian")
     pb.restrict((piece, *pb.bounds[1:]))
     x = np.r_[n, 0.3, TABLE2_TRUTH * 1.01]

@@ -194,3 +194,43 @@ def test_widths_are_accurate_near_a_pieces_ends():
             s = (k * (k - nd) / (nd + 1)).sqrt()
             bd = Decimal(A) * (k + s) / (k * (k + 1))
         assert b == pytest.approx(float(bd), rel=4e-16)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 5])
+def test_scale_equivalent_gives_the_derivative_from_above_at_an_integer(n):
+    """On an integer n (a kink, or the bound 0) the family gives the derivative from above
+    as a multiple of the scale's: dp/dn (+) = -a / (2 (n + 1)) dp/da. Referee: the
+    truncated-power form at n + d and n + 2 d (d = 1e-30: a forward difference from above,
+    truncation ~1e-30, the form's 1/2c cancellation costing 30 of its 90 digits), against
+    the central difference in a at n + d, at points off the knots. Can fail: a factor off
+    by its sign, its 1/2 or its nu is off by 100 % or more."""
+    fam = ji.SumOfUniformsFamily()
+    r = fam.scale_equivalent((float(n), A), 0)
+    assert r is not None
+    law = ji.SumOfUniforms(n + 1e-3, A)  # its knots: those of n, split by +-c
+    tau = _points(law)
+    got, ref = [], []
+    with localcontext() as ctx:
+        ctx.prec = _DIGITS
+        d = Decimal("1e-30")
+        nd, ad = Decimal(n) + d, Decimal(A)
+        for t in tau:
+            td = Decimal(float(t))
+            dn = (_pdf(td, nd + d, ad) - _pdf(td, nd, ad)) / d
+            ha = _STEP * ad
+            da = (_pdf(td, nd, ad + ha) - _pdf(td, nd, ad - ha)) / (2 * ha)
+            got.append(float(da) * r)
+            ref.append(float(dn))
+    got_a, ref_a = np.array(got), np.array(ref)
+    assert np.max(np.abs(ref_a)) > 0
+    np.testing.assert_allclose(got_a, ref_a, rtol=0, atol=1e-12 * np.max(np.abs(ref_a)))
+
+
+def test_scale_equivalent_only_on_an_integer_n():
+    """No factor off the integers (there pdf_gradient gives the closed form), none for the
+    scale a itself, and none from the families without kinks."""
+    fam = ji.SumOfUniformsFamily()
+    assert fam.scale_equivalent((2.0 + 1e-9, A), 0) is None
+    assert fam.scale_equivalent((2.5, A), 0) is None
+    assert fam.scale_equivalent((2.0, A), 1) is None
+    assert ji.GaussianFamily().scale_equivalent((0.1,), 0) is None

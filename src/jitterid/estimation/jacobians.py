@@ -26,9 +26,12 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
   ``DualDiracFamily``, ``n`` of ``SumOfUniformsFamily`` off its integers),
   dm = sum_j w_j dp/dtheta(tau_j) s(t_j) at the base law's own nodes (its kept plan
   reweighted: no node laid out again), and dVar alike (:func:`_law_derivative`), one extra
-  pass each and smooth in theta. Otherwise (``n`` at an integer, or less than 1e-9 below
-  one, where the family gives none) central differences of the moments, second-order
-  one-sided at a piece's end (:func:`_differenced`), two extra evaluations each.
+  pass each and smooth in theta. ``n`` on an integer at the bottom of the searched piece
+  (a kink, or the bound 0) is, to first order from above, a move of the scale
+  (:meth:`JitterFamily.scale_equivalent`): dm_n = -a / (2 (n + 1)) dm_a, no pass at all
+  (:func:`_from_above_as_scale`). Otherwise (``n`` at an integer elsewhere, or less than
+  1e-9 below one) central differences of the moments, second-order one-sided at a piece's
+  end (:func:`_differenced`), two extra evaluations each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
 
 The criteria turn dm, dw into their own derivatives (one module each in
@@ -245,6 +248,19 @@ def _law_derivative(
     return dmean, dvar + 2 * dmean * (dmean - mean)
 
 
+def _from_above_as_scale(problem: Problem, x: FloatArray, i: int) -> float | None:
+    """The family's factor r (:meth:`jitterid.JitterFamily.scale_equivalent`) where its
+    parameter ``i`` sits on the lower end of the searched box (a kink that starts the piece,
+    or the bound), so that the derivative asked for is the one from above, which
+    :func:`_differenced` would take one-sided: then dm_i = r dm_scale exactly, without the
+    two moment passes over new nodes. None elsewhere (an integer inside the box: a central
+    difference across the kink, as before)."""
+    fam = problem.jitter
+    if not isinstance(fam, JitterFamily) or x[i] != problem.bounds[i][0]:
+        return None
+    return fam.scale_equivalent(problem.layout.block(x, "jitter").tolist(), i)
+
+
 def _differenced(
     problem: Problem, x: FloatArray, i: int, *, variance: bool, shape: bool = False
 ) -> tuple[FloatArray, FloatArray | None]:
@@ -358,6 +374,13 @@ def moment_derivatives(
         if dvi is not None:
             dv[i] = dvi
     for i in shape if not closed else ():
+        r = _from_above_as_scale(problem, x, i) if analytic_scale else None
+        if r is not None:  # on a kink at its piece's bottom: r x the scale's row (exact)
+            assert scale is not None
+            dm[i] = r * dm[scale]
+            if need_var:
+                dv[i] = r * dv[scale]
+            continue
         # other jitter parameters move the nodes: differences of the moments, central (or
         # second-order one-sided at a bound, e.g. a piece's end: finite_diff), O(h^2). A
         # one-sided O(h) difference at sqrt(eps) was dominated by the quadrature's rounding,

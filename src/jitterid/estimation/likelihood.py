@@ -1553,7 +1553,8 @@ class ExactLikelihood(CachesAreNotState):
     def differenced_scores(self, x: ArrayLike) -> tuple[int, ...]:
         """The parameters (indices in :attr:`names` order) whose score at ``x`` holds a
         difference (every one where the system's ds/dtheta is differenced; else the jitter
-        family's parameters but its scale); empty where :meth:`analytic_scores`.
+        family's parameters but its scale that its ``pdf_gradient`` does not give, nor its
+        ``scale_equivalent`` on a kink); empty where :meth:`analytic_scores`.
 
         Parameters
         ----------
@@ -1567,7 +1568,7 @@ class ExactLikelihood(CachesAreNotState):
         if ns and not (analytic or sig.has_gradient):
             return tuple(range(x.size))
         scale = self._scale_index(_has_slope(sig, analytic))
-        return tuple(i for i in range(self.n_jitter) if i != scale)
+        return tuple(self._shape_routes(x, scale)[2])
 
     def exact_information(self, x: ArrayLike) -> bool:
         """Whether :meth:`_terms`' information at ``x`` is the exact observed information
@@ -1625,6 +1626,28 @@ class ExactLikelihood(CachesAreNotState):
         Any other parameter of a family without an analytic score is differenced with new
         nodes (it may move the support, whose edges then carry part of the derivative)."""
         return tuple(getattr(self.jitter, "fixed_support_params", ()))
+
+    def _shape_routes(
+        self, x: FloatArray, scale: int | None
+    ) -> tuple[list[int], dict[int, float], list[int]]:
+        """The jitter parameters other than the analytic ``scale``, by the route of their
+        score: (closed form from ``pdf_gradient``, ``{i: r}`` on a kink where the forward
+        difference would step up (r x the scale's score,
+        :meth:`~jitterid.JitterFamily.scale_equivalent`), forward differences)."""
+        rest = [i for i in range(self.n_jitter) if i != scale]
+        if self._pdf_gradient(x):
+            return rest, {}, []
+        above: dict[int, float] = {}
+        if scale is not None and rest:
+            fam = self.jitter
+            assert isinstance(fam, JitterFamily)
+            theta = self.layout.block(x, "jitter").tolist()
+            for i in rest:
+                r = fam.scale_equivalent(theta, i)
+                up = x[i] + finite_diff.step(x, i, _SCORE_STEP) <= self.bounds[i][1]
+                if r is not None and up:
+                    above[i] = r
+        return [], above, [i for i in rest if i not in above]
 
     def _pdf_gradient(self, x: FloatArray) -> bool:
         """Whether the jitter family gives dp/dtheta in closed form (``pdf_gradient``)."""
@@ -1696,8 +1719,7 @@ class ExactLikelihood(CachesAreNotState):
         # score, and the system's where neither the modal form nor the model gives ds/dtheta
         # jitter parameters of a family with a closed-form dp/dtheta (JitterFamily.pdf_gradient):
         # d ln p(y_k) / dtheta_i = sum_j pi_j (dp/dtheta_i / p)(tau_j) at the same nodes
-        closed = [i for i in range(nj) if i not in inner] if self._pdf_gradient(x) else []
-        differenced = [i for i in range(nj) if i not in inner and i not in closed]
+        closed, above, differenced = self._shape_routes(x, scale)
         delay = self._delay
         if dmodal is None and not own_gradient:
             differenced += [i for i in range(nj, nj + ns) if i != delay]
@@ -1796,6 +1818,9 @@ class ExactLikelihood(CachesAreNotState):
                     C[gn, -1] += cross
                     C[-1, gn] += cross
                     C[-1, -1] += np.sum(pi * (3 * e2 - 1 - (e2 - 1) ** 2)) / sigma**2
+        for i, r in above.items():  # on a kink, from above: r x the scale's score (exact)
+            assert scale is not None
+            G[:, i] = r * G[:, scale]
         moving = [i for i in range(nj) if i in fwd and i not in weights_only]
         for i in moving:  # parameters that may move the support: new nodes
             xi, h = fwd[i]

@@ -1513,6 +1513,24 @@ class JitterFamily(abc.ABC):
         """
         return self.pdf_gradient(params, np.zeros(0)) is not None
 
+    def scale_equivalent(self, params: Sequence[float], index: int) -> float | None:
+        """Where :meth:`pdf_gradient` gives none because ``params[index]`` sits on a kink
+        (or a lower bound) of the family, the factor ``r`` for which the density's
+        derivative in that parameter *from above* is ``r`` times its derivative in the scale
+        (:attr:`scale_index`): ``dp/dtheta_index (+) = r dp/d(scale)``. The moments'
+        derivatives and the likelihood's score in it from above are then ``r`` times the
+        scale's (analytic) ones, where they would be one-sided differences with new nodes.
+        ``None`` (the default) where the family gives no such factor.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        index : int
+            The parameter, an index into :attr:`param_names`.
+        """
+        return None
+
     @property
     def kinks(self) -> tuple[tuple[float, ...], ...]:
         """Where the law is not differentiable in each parameter: one tuple per parameter (in
@@ -1783,6 +1801,36 @@ class SumOfUniformsFamily(JitterFamily):
         law = self.law(params)
         assert isinstance(law, SumOfUniforms)
         return law.pdf_gradient(tau)
+
+    def scale_equivalent(self, params: Sequence[float], index: int) -> float | None:
+        """``-a / (2 nu)`` for ``n`` at an integer ``nu - 1`` (within ``1e-12``: a kink, or
+        the bound 0), else ``None``.
+
+        Just above an integer, ``K = nu`` equal uniforms of half-width ``b`` and one of
+        half-width ``c = a - K b`` make the law (:class:`SumOfUniforms`); at the integer
+        ``b = a / nu``, ``db/dn = -a / (2 nu^2)`` (finite from above), and ``c`` grows
+        linearly in the distance ``eps`` while its effect on the law is ``O(c^2)`` (the
+        window mean of a smooth integrand). To first order in ``eps`` the law is therefore
+        that of ``nu`` equal uniforms of total half-width ``a (1 - eps / (2 nu))``, the
+        family at the same ``n`` with its scale moved: ``dp/dn (+) = -a / (2 nu) dp/da``.
+        (From below ``db/dn`` is infinite: no factor, the callers difference.)
+        Measured on the characteristic function (26): the forward differences in ``n``,
+        Richardson-extrapolated, agree with ``-a / (2 nu)`` times the central ones in ``a``
+        to 1e-9 at n = 0, 1, 2, 5 (tests/jitter/test_sum_of_uniforms_gradient.py).
+
+        Parameters
+        ----------
+        params : sequence of float
+            ``(n, a)``.
+        index : int
+            0 (``n``); ``a`` is the scale (``None``).
+        """
+        if index != 0:
+            return None
+        n, a = float(params[0]), float(params[1])
+        if abs(n - round(n)) > _INTEGER_TOL:
+            return None
+        return -a / (2.0 * (round(n) + 1.0))
 
     def _starts(self, T: float) -> list[tuple[float, ...]]:
         top = min(T / 2.0, _upper(self.a_max, "a_max"))
