@@ -198,20 +198,16 @@ def test_scores_match_differences_of_the_log_likelihood(jitter, x, noise):
     np.testing.assert_allclose(dy, fd, rtol=1e-5, atol=1e-3)
 
 
-@pytest.mark.parametrize("n", [0.4, 0.97, 1.003, 1.4, 1.999, 2.02, 2.3, 7.5])
-def test_closed_form_shape_score_matches_extrapolated_differences_of_ln_p(n, monkeypatch):
-    """The n-score of the family (26) off its integers: sum_j pi_j (dp/dn / p)(tau_j) from
-    the family's closed-form dp/dn (no difference of ln p: finite_diff.forward is never asked
-    for n), per sample against Richardson-extrapolated central differences of ln p(y_k)
-    (steps h and h/2 inside the piece, h = min(1e-3, a tenth of the distance to its ends):
-    O(h^4), measured <= 4e-8 of the largest value), n in (0, 1), just above 1 (the window
-    form), mid (1, 2), 1e-3 below 2, just above 2, mid (2, 3) and (7, 8)."""
+def _n_score_without_differences(n, piece, monkeypatch):
+    """(data, likelihood, x, ln p, scores) of the family (26) at n (restricted to ``piece``
+    where given) on Table 2's record, asserting that n's score took no forward difference
+    of ln p."""
     data = table_data(2, LAWS["sum of uniforms"], n=60)
     lik = ji.ExactLikelihood(ji.PolePairGain(), ji.SumOfUniformsFamily(), data.u, T, 60, NOISE)
-    lo, hi = float(np.floor(n)), float(np.ceil(n))
-    box = list(lik.bounds)
-    box[0] = (lo, hi)
-    lik.restrict(tuple(box))
+    if piece is not None:
+        box = list(lik.bounds)
+        box[0] = piece
+        lik.restrict(tuple(box))
     x = np.r_[n, 0.3, TRUTH]
     forward = lk.finite_diff.forward
     asked = []
@@ -221,8 +217,21 @@ def test_closed_form_shape_score_matches_extrapolated_differences_of_ln_p(n, mon
         return forward(v, i, *args, **kw)
 
     monkeypatch.setattr(lk.finite_diff, "forward", counted)
-    _, G = lik.scores(x, data.y)
+    logp, G = lik.scores(x, data.y)
     assert 0 not in asked
+    return data, lik, x, logp, G
+
+
+@pytest.mark.parametrize("n", [0.4, 0.97, 1.003, 1.4, 1.999, 2.02, 2.3, 7.5])
+def test_closed_form_shape_score_matches_extrapolated_differences_of_ln_p(n, monkeypatch):
+    """The n-score of the family (26) off its integers: sum_j pi_j (dp/dn / p)(tau_j) from
+    the family's closed-form dp/dn (no difference of ln p: finite_diff.forward is never asked
+    for n), per sample against Richardson-extrapolated central differences of ln p(y_k)
+    (steps h and h/2 inside the piece, h = min(1e-3, a tenth of the distance to its ends):
+    O(h^4), measured <= 4e-8 of the largest value), n in (0, 1), just above 1 (the window
+    form), mid (1, 2), 1e-3 below 2, just above 2, mid (2, 3) and (7, 8)."""
+    lo, hi = float(np.floor(n)), float(np.ceil(n))
+    data, lik, x, _, G = _n_score_without_differences(n, (lo, hi), monkeypatch)
 
     def central(h):
         up, down = x.copy(), x.copy()
@@ -268,23 +277,7 @@ def test_shape_score_from_above_a_kink_is_the_scales(n, piece, monkeypatch):
     2.5e-4, Richardson-extrapolated twice, within 2e-7 of the largest value (measured 4.5e-8
     at n = 0, 2-3e-9 at 1 and 2; the plain forward difference at 2.5e-4 is off by 6e-5 to
     2e-3). Can fail: a wrong factor misses by 100 %."""
-    data = table_data(2, LAWS["sum of uniforms"], n=60)
-    lik = ji.ExactLikelihood(ji.PolePairGain(), ji.SumOfUniformsFamily(), data.u, T, 60, NOISE)
-    if piece is not None:
-        box = list(lik.bounds)
-        box[0] = piece
-        lik.restrict(tuple(box))
-    x = np.r_[n, 0.3, TRUTH]
-    forward = lk.finite_diff.forward
-    asked = []
-
-    def counted(v, i, *args, **kw):
-        asked.append(i)
-        return forward(v, i, *args, **kw)
-
-    monkeypatch.setattr(lk.finite_diff, "forward", counted)
-    logp, G = lik.scores(x, data.y)
-    assert 0 not in asked
+    data, lik, x, logp, G = _n_score_without_differences(n, piece, monkeypatch)
 
     def fwd(h):
         up = x.copy()
