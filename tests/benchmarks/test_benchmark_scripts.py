@@ -3,6 +3,7 @@
 Each runs a script in a subprocess (seconds to minutes of CPU): the whole module is marked
 slow and runs with ``pytest -m slow``."""
 
+import json
 import subprocess
 import sys
 
@@ -260,3 +261,25 @@ def test_family_benchmark_runs_on_one_record():
     ).stdout
     assert "bcls      known law" in out, out
     assert out.count("bcls ") == 4, out
+
+
+def test_family_count_benchmark_runs_on_one_record(tmp_path):
+    out_json = tmp_path / "fits.json"
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(BENCH / "count_fam.py"),
+            "--runs",
+            "1",
+            "--methods",
+            "gaussian",
+            "--json",
+            str(out_json),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout
+    assert "gaussian  SumOfUniformsFamily()" in out, out
+    assert len(json.loads(out_json.read_text())) == 2

@@ -237,3 +237,77 @@ def test_a_family_climbing_faster_than_its_newton_model_is_not_ranked_out():
     assert rank.fit.status is ji.FitStatus.CONVERGED
     assert abs(rank.fit.cost - truth.cost) < 1e-3
     assert abs(rank.fit.jitter_std - truth.jitter_std) < 0.1 * rank.fit.jitter_std_stderr
+
+
+def _mixture_family():
+    return ji.GaussianScaleMixtureFamily(sigma_max=10 * T, sigma_min=1e-9 * T)
+
+
+def _mixture_maximum(y, T_, model, fam, g):
+    """The scale mixture's maximum of ln L: the best of full fits from rho = 0.05, 0.3, 0.6
+    at the Gaussian's std (the referee of the ranking's upper estimate)."""
+    fits = [
+        fit_sine_ml(y, T_, model, fam, np.r_[g.jitter_std, r, g.x[1:]]) for r in (0.05, 0.3, 0.6)
+    ]
+    return max(-0.5 * f.cost for f in fits)
+
+
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow), 4])
+def test_scale_mixture_ranked_from_the_nested_gaussian_is_bounded(seed):
+    """On a Gaussian record, ranked from the Gaussian's maximum (rho = 0: nested=True, as
+    the meter ranks it): given up after at most two passes of the record, its upper
+    estimate at least the mixture's maximum from three other starts (seeds 1 and 4: the
+    record's kurtosis above 3, the maximum 0.18 and 0.37 above the Gaussian's, the upper
+    estimates 0.50 and 0.94; seed 0: the maximum at rho = 0, ranked out at the start)."""
+    y, f = _record("gaussian", 12, seed)
+    model, g = _gaussian_fit(y, f)
+    fam = _mixture_family()
+    start = np.r_[fam.start_for_std(g.jitter_std), g.x[1:]]
+    rank = rank_sine_law(
+        y, T, model, fam, start, rival_loglik=-0.5 * g.cost, rival_n_params=g.x.size, nested=True
+    )
+    assert rank.ranked_out, rank.fit.message
+    assert rank.fit.nfev <= 2
+    assert rank.loglik_upper >= _mixture_maximum(y, T, model, fam, g) - 1e-6
+
+
+def test_scale_mixture_ranked_from_the_nested_gaussian_is_fitted_where_it_wins():
+    """A record whose jitter is a scale mixture (stds 0.6 : 1.28 of the rms, 0.3 rad,
+    N = 1000; ln L 9.2 above the Gaussian's): ranked from the Gaussian's maximum it is not
+    given up, and its search
+    from there ends at the mixture's maximum (the referee: the best of three full fits)."""
+    Ts, F, s = 1e-3, 123.0, 0.3
+    sig = s / (2 * np.pi * F)
+    rng = np.random.default_rng([31, 5, 30, 0])
+    sc = np.where(rng.random(1000) < 0.5, 0.6, 1.28) / math.sqrt((0.36 + 1.28**2) / 2)
+    tau = sig * sc * rng.normal(0, 1, 1000)
+    y = np.sin(2 * np.pi * F * (np.arange(1000) * Ts + tau) + 1.0) + 0.1
+    y = y + 1e-2 * rng.normal(0, 1, 1000)
+    model = SineWave(band_hz=(0.99 * F, 1.01 * F))
+    gfam = ji.GaussianFamily(sigma_max=2 * Ts, sigma_min=1e-9 * Ts)
+    g = fit_sine_ml(y, Ts, model, gfam, np.r_[sig, 1.0, 1.0, F, 0.1, 1e-2])
+    fam = ji.GaussianScaleMixtureFamily(sigma_max=2 * Ts, sigma_min=1e-9 * Ts)
+    best = _mixture_maximum(y, Ts, model, fam, g)
+    assert best > -0.5 * g.cost + 0.5 * math.log(1000)  # its BIC beats the Gaussian's
+    start = np.r_[fam.start_for_std(g.jitter_std), g.x[1:]]
+    rank = rank_sine_law(
+        y, Ts, model, fam, start, rival_loglik=-0.5 * g.cost, rival_n_params=g.x.size, nested=True
+    )
+    assert not rank.ranked_out, rank.fit.message
+    assert rank.fit.status is ji.FitStatus.CONVERGED
+    assert abs(-0.5 * rank.fit.cost - best) < 1e-3
+
+
+def test_a_dual_dirac_is_not_ranked_from_the_nested_gaussian():
+    """nested=True leaves a dual Dirac's ranking as it was (its score at dj = 0 is blind to
+    the shape at a fixed std: sinelik_fit._nested_start): the same fit, bit for bit."""
+    y, f = _record("gaussian", 12, 0)
+    model, g = _gaussian_fit(y, f)
+    fam = _families()["dual-dirac"]
+    start = np.r_[fam.start_for_std(g.jitter_std), g.x[1:]]
+    kw = {"rival_loglik": -0.5 * g.cost, "rival_n_params": g.x.size}
+    a = rank_sine_law(y, T, model, fam, start, nested=True, **kw)
+    b = rank_sine_law(y, T, model, fam, start, **kw)
+    assert a.ranked_out == b.ranked_out
+    assert np.array_equal(a.fit.x, b.fit.x)
+    assert a.loglik_upper == b.loglik_upper

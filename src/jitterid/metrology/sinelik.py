@@ -37,7 +37,14 @@ no standard error; the meter then says the noise is below what the record resolv
 
 from __future__ import annotations
 
-from .sinelik_fit import NUMERIC_FLOOR, RANK_MARGIN_BIC, LawRank, fit_sine_ml, rank_sine_law
+from .sinelik_fit import (
+    NUMERIC_FLOOR,
+    RANK_MARGIN_BIC,
+    LawRank,
+    fit_sine_ml,
+    rank_sine_law,
+    start_subsample,
+)
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
 from .sinelik_rule import TOLERANCE
 
@@ -50,4 +57,5 @@ __all__ = [
     "fit_sine_ml",
     "rank_sine_law",
     "sine_ml_applies",
+    "start_subsample",
 ]

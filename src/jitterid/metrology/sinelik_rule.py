@@ -518,6 +518,7 @@ def _mixture_terms(
     second derivatives, at the nodes; without ``second`` the sigma derivative is left out
     (an empty array: the score takes it at a fixed standard variable, E[D w tau / sigma])."""
     z = (tau / sigma) ** 2
+    S: FloatArray | float
     if rho < _MIX_SERIES:
         u = rho * rho
         m = np.arange(_MIX_C.shape[0], dtype=float)
@@ -530,12 +531,17 @@ def _mixture_terms(
         def dz(c: FloatArray) -> FloatArray:  # the z-derivative's coefficients
             return np.r_[(c * deg)[1:], 0.0]
 
-        coefs = np.stack([c_s, c_u, c_uu, dz(c_s), dz(dz(c_s)), dz(c_u)])
-        zp = np.ones((*z.shape, c_s.size))
-        for k in range(1, c_s.size):
-            zp[..., k] = zp[..., k - 1] * z
-        vals = zp @ coefs.T
-        S, Su, Suu, Sz, Szz, Suz = (vals[..., i] for i in range(6))
+        def poly(c: FloatArray) -> FloatArray:  # sum_k c_k z^k, by Horner's rule
+            acc = np.full(z.shape, c[-1])
+            for ck in c[-2::-1]:
+                acc *= z
+                acc += ck
+            return acc
+
+        # (the score alone needs S and S_u: 2 of the 6 polynomials)
+        S, Su = poly(c_s), poly(c_u)
+        if second:
+            Suu, Sz, Szz, Suz = poly(c_uu), poly(dz(c_s)), poly(dz(dz(c_s))), poly(dz(c_u))
     else:
         # per component r = +-rho (b = 1 + r): ln phi = al + c1 z, d ln phi / dz = c1 =
         # r / (2 b), d ln phi / dr = a1 = z / (2 b^2) - 1 / (2 b), d2 ln phi / dr2 = a2 =
