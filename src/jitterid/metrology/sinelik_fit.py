@@ -248,8 +248,15 @@ def start_subsample(y: ArrayLike, T: float) -> tuple[FloatArray, float]:
         Its sampling interval (s).
     """
     yv = np.asarray(y, dtype=float)
-    s = yv.size // _fit_subsample_size(yv.size)
-    return (yv[::s], s * T) if s >= 4 else (yv, T)
+    return _every(yv, T, _fit_subsample_size(yv.size)) or (yv, T)
+
+
+def _every(y: ArrayLike, T: float, size: int) -> tuple[FloatArray, float] | None:
+    """Every s-th sample of ``y``, a record of its own at s T (s = N // size), where
+    s >= 4; else None (the record is too short for a subsample worth its own fit)."""
+    yv = np.asarray(y, dtype=float)
+    s = yv.size // size
+    return (yv[::s], s * T) if s >= 4 else None
 
 
 def _fit_subsample_size(n: int) -> int:
@@ -273,13 +280,11 @@ def _subsample_start(
     s T), fitted to :data:`SUB_DECREMENT`, where s >= 4 and that fit ends at a maximum
     (CONVERGED, or AT_BOUND: a noise-free record's noise std on its floor); else
     ``start``."""
-    s = int(np.size(y)) // size
-    if s < 4:
+    every = _every(y, T, size)
+    if every is None:
         return start
-    yv = np.asarray(y, dtype=float)
     sub = _search(
-        yv[::s],
-        s * T,
+        *every,
         model,
         family,
         start,
