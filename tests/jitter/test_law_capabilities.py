@@ -212,3 +212,46 @@ def test_a_piecewise_polynomial_law_takes_the_likelihoods_exact_density_route():
     np.testing.assert_allclose(lp_poly, lp_plain, rtol=0, atol=1e-12)
     # the nodes' densities come from 2 values per piece, not from a call at every node
     assert max(poly.calls) < max(plain.calls) / 10
+
+
+@dataclass(frozen=True)
+class Trapezoid(ji.JitterLaw):
+    """A flat top on [-b, b] with linear flanks to [-a, a] (b < a): its density vanishes at
+    its ends, continuously; with b = a it is the uniform (a jump at each end)."""
+
+    a: float
+    b: float
+
+    def pdf(self, tau: ArrayLike) -> FloatArray:
+        t = np.abs(np.asarray(tau, dtype=float))
+        h = 1.0 / (self.a + self.b)
+        flank = h * (self.a - t) / max(self.a - self.b, 1e-300)
+        return np.where(t <= self.b, h, np.where(t <= self.a, flank, 0.0))
+
+    def cf(self, f: ArrayLike) -> NDArray[np.complex128]:
+        x = np.asarray(f, dtype=float)
+        return np.asarray(np.sinc(x * (self.a + self.b)) * np.sinc(x * (self.a - self.b)), complex)
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (-self.a, self.a)
+
+
+@pytest.mark.parametrize(
+    ("law", "hard"),
+    [
+        (ji.Uniform(0.3), True),
+        (ji.SumOfUniforms(0, 0.3), True),
+        (Trapezoid(1.0, 1.0), True),  # the uniform, written from scratch
+        (Trapezoid(1.0, 0.5), False),  # a density falling to 0 at its ends
+        (ji.SumOfUniforms(1, 0.3), False),  # the triangle
+        (ji.Gaussian(0.3), False),  # a finite support where its mass ends (8.5 sigma)
+        (RaisedCosine(0.3), False),
+        (ji.NoJitter(), False),
+    ],
+)
+def test_hard_edges_is_read_off_the_density(law: ji.JitterLaw, hard: bool) -> None:
+    """JitterLaw.hard_edges, from pdf and support alone: whether the density jumps at the
+    support's ends (the likelihood's scale probes and the meter's sharp-edge finding ask
+    for it)."""
+    assert law.hard_edges is hard

@@ -159,19 +159,85 @@ def test_a_uniform_fit_stopped_at_a_local_maximum_in_its_scale_goes_on():
     assert fit.cost < stuck.cost - 150
 
 
+def _probes(monkeypatch, run):
+    """The ln L passes that ``run()`` made at a probe of its fit's scale (x[0] at
+    SCALE_PROBES x the fitted one, the rest as fitted), and the fit."""
+    seen: list[np.ndarray] = []
+    orig = SineLikelihood.loglik
+
+    def counted(self, x, *args, **kw):
+        seen.append(np.array(x, dtype=float))
+        return orig(self, x, *args, **kw)
+
+    monkeypatch.setattr(SineLikelihood, "loglik", counted)
+    fit = run()
+    at = [
+        x
+        for x in seen
+        if any(math.isclose(x[0], k * fit.x[0], rel_tol=1e-12) for k in sf.SCALE_PROBES)
+        and np.array_equal(x[1:], fit.x[1:])
+    ]
+    return at, fit
+
+
 def test_a_gaussian_fit_is_not_probed(monkeypatch):
-    """The scale probes are for laws with hard edges only: a Gaussian fit costs nothing
-    more (one search, the record too short for a subsample start)."""
+    """The scale probes are for laws with hard edges only (JitterLaw.hard_edges): a
+    Gaussian fit costs no pass more. Its law has a finite support too (8.5 sigma, where
+    its mass ends to rounding): the probes had run on every law for that reason, two ln L
+    passes a fit (6 s of 118 at N = 2^20 with the meter's four laws). The positive control:
+    a uniform fit is probed (twice)."""
     y, _, model, fam, start, floor = _noise_free(12, 0)
     assert isinstance(fam, ji.GaussianFamily)
-    calls = []
-    orig = sf._search
-
-    def counted(*args, **kw):
-        calls.append(1)
-        return orig(*args, **kw)
-
-    monkeypatch.setattr(sf, "_search", counted)
-    fit = fit_sine_ml(y, T, model, fam, start, noise_floor=floor)
-    assert len(calls) == 1
+    at, fit = _probes(monkeypatch, lambda: fit_sine_ml(y, T, model, fam, start, noise_floor=floor))
+    assert at == []
     assert "local maximum" not in fit.message
+    Ts, F, N = 1.0, 0.1234, 1000
+    rng = np.random.default_rng(3)
+    tau = ji.Uniform(0.5).sample(N, rng)
+    yu = np.sin(2 * np.pi * F * (np.arange(N) * Ts + tau)) + 1e-2 * rng.standard_normal(N)
+    mu = SineWave(band_hz=(0.9 * F, 1.1 * F))
+    su = np.r_[0.5, 1.0, 0.0, F, 0.0, 1e-2]
+    at, _ = _probes(monkeypatch, lambda: fit_sine_ml(yu, Ts, mu, ji.UniformFamily(), su))
+    assert len(at) == len(sf.SCALE_PROBES)
+
+
+def test_the_covariance_reuses_the_last_pass_where_it_summed_every_chunk(monkeypatch):
+    """The covariance at the end is the last accepted pass's information where that pass
+    summed it over every chunk: on a record of up to FIT_INFO_SAMPLES samples every pass
+    does; on a longer one (here: the steps' information from a quarter of the chunks,
+    info_samples) the pass after a step whose Newton decrement was below FINAL_DECREMENT x
+    the tolerance does. observed_information is then not called. The referee: its inverse
+    at the fitted point, computed afresh, equal to rounding. The control: with no pass
+    predicted final (FINAL_DECREMENT 0) the covariance takes its own pass, once."""
+    y, _, model, fam, start, floor = _noise_free(12, 1)
+    calls: list[int] = []
+    strides: list[int] = []
+    orig = SineLikelihood.observed_information
+    orig_si = SineLikelihood.scores_information
+
+    def counted(self, x):
+        calls.append(1)
+        return orig(self, x)
+
+    def counted_si(self, x, stride=1):
+        strides.append(stride)
+        return orig_si(self, x, stride)
+
+    monkeypatch.setattr(SineLikelihood, "observed_information", counted)
+    monkeypatch.setattr(SineLikelihood, "scores_information", counted_si)
+    fit = sf._search(y, T, model, fam, start, floor, 100, None)[0]
+    strided = sf._search(y, T, model, fam, start, floor, 100, None, info_samples=1024)[0]
+    assert calls == []
+    assert 4 in strides
+    assert strides[-1] == 1
+    for r in (fit, strided):
+        assert _ended(r)
+        H = orig(SineLikelihood(y, T, fam, squared=True), r.x)
+        free = np.isfinite(np.diag(r.cov))
+        assert free.sum() >= 5
+        ref = np.linalg.inv(H[np.ix_(free, free)])
+        np.testing.assert_allclose(r.cov[np.ix_(free, free)], ref, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(strided.x[0], fit.x[0], rtol=1e-3)
+    monkeypatch.setattr(sf, "FINAL_DECREMENT", 0.0)
+    sf._search(y, T, model, fam, start, floor, 100, None, info_samples=1024)
+    assert calls == [1]

@@ -90,6 +90,11 @@ _GRADIENT_DIRECT = 4
 #: Default number of Gauss-Legendre nodes per panel.
 _GL_NODES = 64
 
+#: Where :attr:`JitterLaw.hard_edges` looks at a density, as a fraction of its support's
+#: width inside each end: a uniform's density there is 1 / W, a Gaussian's (8.5 sigma from
+#: its mode) 1e-16 / W, a triangle's (SumOfUniforms, n = 1) 4e-6 / W.
+HARD_EDGE = 1e-6
+
 #: Lower bound on scale parameters (a, sigma) of the families, unless the caller sets one.
 _SCALE_FLOOR = 1e-12
 
@@ -375,6 +380,22 @@ class JitterLaw(abc.ABC):
     def std(self) -> float:
         """Standard deviation ``sqrt(var)``."""
         return math.sqrt(self.var)
+
+    @property
+    def hard_edges(self) -> bool:
+        """Whether the density jumps at both ends of its :attr:`support` (a uniform law's;
+        not a Gaussian's, whose support is only where its mass ends to rounding): at
+        ``HARD_EDGE`` of the width W inside each end it is at least a tenth of the mean
+        density 1 / W. A likelihood can then be multimodal in the law's scale
+        (:func:`jitterid.metrology.sinelik_fit.fit_sine_ml` probes it), and its standard
+        error too small where the record does not resolve the edges
+        (:mod:`jitterid.metrology.edges`)."""
+        lo, hi = (float(v) for v in self.support)
+        if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+            return False
+        w = hi - lo
+        inside = np.asarray(self.pdf(np.array([lo + HARD_EDGE * w, hi - HARD_EDGE * w])), float)
+        return bool(np.all(inside >= 0.1 / w))
 
     def quadrature(
         self, nodes_per_panel: int = _GL_NODES

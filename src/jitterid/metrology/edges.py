@@ -36,8 +36,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..estimation.result import FitResult
 from .adequacy import Finding
 
@@ -52,17 +50,13 @@ EDGE_RATIO = 15.0
 
 
 def _hard_edges(fit: FitResult) -> tuple[float, float] | None:
-    """The fitted law's support (lo, hi) where its density jumps there (at 1e-6 of the
-    width inside each end at least a tenth of the mean density 1 / W), else None."""
+    """The fitted law's support (lo, hi) where its density jumps there
+    (:attr:`jitterid.JitterLaw.hard_edges`), else None."""
     law = fit.jitter_law
-    if law is None:
+    if law is None or not law.hard_edges:
         return None
     lo, hi = (float(v) for v in law.support)
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        return None
-    w = hi - lo
-    inside = np.asarray(law.pdf(np.array([lo + 1e-6 * w, hi - 1e-6 * w])), dtype=float)
-    return (lo, hi) if bool(np.all(inside >= 0.1 / w)) else None
+    return lo, hi
 
 
 def edge_ratio(fit: FitResult, N: int) -> float:

@@ -104,6 +104,13 @@ FIT_INFO_SAMPLES = 1 << 15
 #: start (159 fs for an optimum of 99.9) took 6 passes, 4.3-4.9 s; from the 2^13-sample
 #: optimum 0.65 s and 3 passes, 2.85 s, ending 2e-6 of the std away (its stderr: 6e-3).
 FIT_SUBSAMPLE = 1 << 16
+#: Where the Newton decrement after a step is below this x the search's tolerance, the next
+#: step's gain (about half of it) passes the convergence test, and its pass sums the
+#: information over every chunk: the covariance's, which takes no pass of its own then (on
+#: the 2^16 record of bench_sinelik.py the Gaussian fit's decrement after its first step on
+#: the record was 0.011, then 7e-6: its last pass at stride 1, 1.15 s, instead of one at
+#: stride 2, 0.77 s, and the covariance's, 1.15 s).
+FINAL_DECREMENT = 20.0
 #: The least Levenberg-Marquardt damping (relative to the diagonal): where ln L is rough on
 #: the step's scale (a noise-free record: the samples at the tone's peaks against a noise
 #: std on its floor) an undamped step fails, and each rejection raises the damping by 10.
@@ -194,7 +201,8 @@ def _probe_scale(
     noise_floor: float,
     max_iter: int,
 ) -> FitResult:
-    """``fit`` of a law with hard edges (a bounded support: the uniform) checked for a local
+    """``fit`` of a law with hard edges (:attr:`jitterid.JitterLaw.hard_edges`: the uniform)
+    checked for a local
     maximum in the jitter scale: ln L at the scale times each of :data:`SCALE_PROBES`, the
     rest as fitted (one pass each); where one is higher the search runs again from the best,
     and its end is kept if higher, with the message saying so. Other laws, and a search
@@ -203,7 +211,7 @@ def _probe_scale(
     if (
         k is None
         or fit.status not in (FitStatus.CONVERGED, FitStatus.AT_BOUND)
-        or not np.all(np.isfinite(fit.jitter_law.support))
+        or not fit.jitter_law.hard_edges
     ):
         return fit
     lik = SineLikelihood(y, T, family)
@@ -507,13 +515,21 @@ def _search(
     # the Newton steps' information from about info_samples samples (the gradient from all)
     stride = max(1, (lik.N + info_samples - 1) // info_samples)
 
+    # the observed information in x of the whole record at the point last evaluated, where
+    # that evaluation summed it over every chunk (stride 1: records up to info_samples, and
+    # the pass expected to be the last, FINAL_DECREMENT): the covariance's, without a pass
+    # of its own
+    whole: list[FloatArray | None] = [None]
+    pass_stride = [stride]
+
     def evaluate(xx: FloatArray) -> tuple[float, FloatArray, FloatArray, FloatArray]:
         # a trial point far off (a long step) may overflow: it is then rejected as
         # non-finite, its floating-point warnings are not the caller's
         with np.errstate(all="ignore"):
-            ll_, g_, opg_, info_ = lik.scores_information(xx, stride)
+            ll_, g_, opg_, info_ = lik.scores_information(xx, pass_stride[0])
         if not (np.all(np.isfinite(g_)) and np.all(np.isfinite(opg_))):
             ll_ = -math.inf
+        whole[0] = info_ if pass_stride[0] == 1 else None
         jac = np.where(logs, xx, 1.0)
         # in v: the chain rule (d2 ln L / dv^2 gains g x on the diagonal of a ln scale)
         info_v = info_ * np.outer(jac, jac) - np.diag(np.where(logs, g_ * xx, 0.0))
@@ -529,6 +545,7 @@ def _search(
     v = np.where(logs, np.log(np.maximum(x, 1e-300)), x)
     x = to_x(v)
     ll, g, opg, info = evaluate(x)
+    info_here = whole[0]  # (the whole record's information at x, where evaluated so)
     nfev = 1
     lam = 1e-4
     stalled = 0
@@ -592,6 +609,7 @@ def _search(
                 pred = float(g[free] @ dv - 0.5 * dv @ H @ dv)
                 rho = gain / pred if pred > 0 else 1.0
                 v, x, ll, g, opg, info = vn, xn, lln, gn, opgn, infon
+                info_here = whole[0]  # (the last evaluation was xn's)
                 lam = max(lam * max(0.1, 1.0 - (2.0 * rho - 1.0) ** 3), _LAM_MIN)
                 accepted = True
                 break
@@ -600,6 +618,8 @@ def _search(
             status, why = FitStatus.CONVERGED, "no step raises the likelihood further"
             break
         dec = _decrement(v, vlo, vhi, g, info, opg)
+        if covariance and dec < FINAL_DECREMENT * decrement:
+            pass_stride[0] = 1  # the next step's pass is expected to be the last
         stalled = stalled + 1 if gain < 0.1 * decrement else 0
         # (a step that gained rho > 1 x its prediction: ln L is steeper than the model there)
         steep = max(1.0, rho)
@@ -636,7 +656,7 @@ def _search(
     cov = np.full((P, P), math.nan)
     note = ""
     if status is not FitStatus.NOT_FINITE and not ranked_out and covariance:
-        H = lik.observed_information(x)
+        H = info_here if info_here is not None else lik.observed_information(x)
         Hf = H[np.ix_(free, free)]
         try:
             np.linalg.cholesky(Hf)
