@@ -396,77 +396,97 @@ def _second_group(grp: _Group) -> FloatArray:
     (2 sigma^2) - ln sigma + (the law's, free of x at a fixed standard variable),
     e = y - c - A sin psi, psi = theta_k + w (mu + r xi): d psi / d(scale) = w xi, d psi /
     d dj = w s / 2, d psi / d phi = 1, d psi / d f = 2 pi (kT + tau), d2 psi / d f d(scale)
-    = 2 pi xi, d2 psi / d f d dj = pi s."""
+    = 2 pi xi, d2 psi / d f d dj = pi s.
+
+    On the rows whose node gradient is g = -e de / sigma^2 (the sine's, and the law's where
+    they move psi) g g^T and the first term of d2 ln f = -(de de^T + e d2e) / sigma^2 are
+    one product, de diag(pi (e^2 / sigma^2 - 1) / sigma^2) de^T; e d2e's A sin psi dpsi
+    dpsi^T only on the rows where psi moves (the phase, frequency and, unless at a fixed
+    jitter, the law's); the other rows (the noise std's, the law's at a fixed jitter) by
+    their own thin products."""
     post, psi, yy, th, w = grp.post, grp.psi, grp.yy, grp.th, grp.w
     A, c, sigma, nj = grp.A, grp.c, grp.sigma, grp.nj
     P = nj + 5
     iA, iphi, ifr, ic, isg = nj, nj + 1, nj + 2, nj + 3, nj + 4
     s2 = sigma * sigma
-    M = psi.size
-    sn, co = np.sin(psi).ravel(), np.cos(psi).ravel()
+    sn2 = np.sin(psi)
+    sn, co = sn2.ravel(), np.cos(psi).ravel()
     pw = post.ravel()
-    e = (yy[:, None] - c - A * np.sin(psi)).ravel()
-    tau = ((psi - th[:, None]) / w).ravel()
-    xi = ((psi - th[:, None]) / w - grp.cen[:, None]) / grp.scale[:, None]
-    xi = xi.ravel()
+    e = (yy[:, None] - c - A * sn2).ravel()
+    tau2 = (psi - th[:, None]) / w
+    tau = tau2.ravel()
+    xi = ((tau2 - grp.cen[:, None]) / grp.scale[:, None]).ravel()
     kT = np.repeat(grp.kT, psi.shape[1])
     sg = np.repeat(grp.sgn, psi.shape[1])
     fixed = grp.dj2 or grp.mix is not None  # the law's columns at a fixed jitter
-    dpsi = np.zeros((P, M))  # d psi / dx
-    if not fixed:  # (at a fixed jitter the law's parameters do not move psi)
+    # the rows where psi moves: the law's (unless at a fixed jitter), the phase, the frequency
+    ph = ([] if fixed else list(range(nj))) + [iphi, ifr]
+    dpsi = np.empty((len(ph), psi.size))
+    if not fixed:
         dpsi[0] = w * xi
         if nj == 2:
             dpsi[1] = 0.5 * w * sg
-    dpsi[iphi] = 1.0
-    dpsi[ifr] = 2 * math.pi * (kT + tau)
-    de = -A * co * dpsi  # d e / dx (phase parameters)
-    de[iA] = -sn
-    de[ic] = -1.0
-    de[isg] = 0.0
+    dpsi[-2] = 1.0
+    dpsi[-1] = 2 * math.pi * (kT + tau)
     live = pw > 0  # nodes of empty panels carry no weight (and may be far off)
     pw = np.where(live, pw, 0.0)
     e = np.where(live, e, 0.0)
-    g = -e * de / s2
-    g[isg] = e * e / (s2 * sigma) - 1.0 / sigma
-    law2 = None
-    if fixed:
-        if grp.mix is not None:
-            gl, hl = _mixture_terms(tau, *grp.mix, True)
-        else:
-            gl, hl = _dual_dirac_terms(tau, grp.scale[0], grp.cen, True)
-        g[0], g[1] = np.where(live, gl[0].ravel(), 0.0), np.where(live, gl[1].ravel(), 0.0)
-        assert hl is not None
-        law2 = np.array(
-            [[float(np.sum(np.where(live, pw * h.ravel(), 0.0))) for h in row] for row in hl]
-        )
+    # the rows with g = -e de / sigma^2 (de: d e / dx; 0 on the others)
+    data = [*ph, iA, ic]
+    de = np.empty((len(data), psi.size))
+    de[: len(ph)] = dpsi * (-A * co)
+    de[-2] = -sn
+    de[-1] = -1.0
+    pe = pw * e
+    out = np.zeros((P, P))
     # (BLAS's matmul may raise spurious floating-point flags on these shapes: the sums
     # are checked for finiteness by the caller instead)
     with np.errstate(over="ignore", invalid="ignore"):
-        out = (g * pw) @ g.T
-        # d2 ln f = -(de de^T + e d2e) / sigma^2 (x, x' not sigma)
-        d2 = -((de * pw) @ de.T)
-        pe = pw * e
-        d2 -= (dpsi * (pe * A * sn)) @ dpsi.T  # e d2e: A sin psi dpsi dpsi^T ...
-        cross = -(dpsi * (pe * co)).sum(axis=1)  # ... d2e / dA dpsi = -cos psi dpsi
-        d2[iA, :] -= cross
-        d2[:, iA] -= cross
-        # ... and -A cos psi d2psi: d2psi / df d(scale) = 2 pi xi, d2psi / df ddj = pi s
-        fs = 0.0 if fixed else -A * float(np.sum(pe * co * 2 * math.pi * xi))
-        d2[ifr, 0] -= fs
-        d2[0, ifr] -= fs
-        if nj == 2 and not fixed:
-            fd = -A * float(np.sum(pe * co * math.pi * sg))
-            d2[ifr, 1] -= fd
-            d2[1, ifr] -= fd
-    d2 /= s2
-    # the noise std's row: d2/dsigma^2 = -3 e^2 / sigma^4 + 1 / sigma^2, d2/dsigma dx =
-    # 2 e de / sigma^3
-    d2[isg, :] = 2 * ((de * pe).sum(axis=1)) / (s2 * sigma)
-    d2[:, isg] = d2[isg, :]
-    d2[isg, isg] = float(np.sum(pw * (-3 * e * e / (s2 * s2) + 1 / s2)))
+        out[np.ix_(data, data)] = (de * (pw * (e * e / s2 - 1.0) / s2)) @ de.T
+        # e d2e: A sin psi dpsi dpsi^T ...
+        out[np.ix_(ph, ph)] -= (dpsi * (pe * A * sn)) @ dpsi.T / s2
+        # ... d2e / dA dpsi = -cos psi dpsi (matrix-vector products: no k x M temporaries)
+        pco = pe * co
+        cross = -(dpsi @ pco) / s2
+        out[iA, ph] -= cross
+        out[ph, iA] -= cross
+        if not fixed:  # ... and -A cos psi d2psi: d2psi/df d(scale) = 2 pi xi, /df ddj = pi s
+            fs = -A * 2 * math.pi * float(pco @ xi) / s2
+            out[ifr, 0] -= fs
+            out[0, ifr] -= fs
+            if nj == 2:
+                fd = -A * math.pi * float(pco @ sg) / s2
+                out[ifr, 1] -= fd
+                out[1, ifr] -= fd
+        # the other rows' g: the noise std's (and the law's at a fixed jitter)
+        others = [isg]
+        g_o = [e * e / (s2 * sigma) - 1.0 / sigma]
+        law2 = None
+        if fixed:
+            if grp.mix is not None:
+                gl, hl = _mixture_terms(tau, *grp.mix, True)
+            else:
+                gl, hl = _dual_dirac_terms(tau, grp.scale[0], grp.cen, True)
+            others += [0, 1]
+            g_o += [np.where(live, gl[0].ravel(), 0.0), np.where(live, gl[1].ravel(), 0.0)]
+            assert hl is not None
+            law2 = np.array(
+                [[float(np.sum(np.where(live, pw * h.ravel(), 0.0))) for h in row] for row in hl]
+            )
+        G_o = np.array(g_o) * pw
+        cross_o = (G_o * (-e / s2)) @ de.T  # (others, data) of g g^T
+        out[np.ix_(others, data)] += cross_o
+        out[np.ix_(data, others)] += cross_o.T
+        out[np.ix_(others, others)] += G_o @ np.array(g_o).T
+    # the noise std's row of d2 ln f: d2/dsigma^2 = -3 e^2 / sigma^4 + 1 / sigma^2,
+    # d2/dsigma dx = 2 e de / sigma^3
+    row = 2 * (de @ pe) / (s2 * sigma)
+    out[isg, data] += row
+    out[data, isg] += row
+    out[isg, isg] += float(np.sum(pw * (-3 * e * e / (s2 * s2) + 1 / s2)))
     if law2 is not None:  # the law's own second derivatives (at a fixed jitter)
-        d2[:2, :2] += law2
-    return out + d2
+        out[:2, :2] += law2
+    return out
 
 
 def _mixture_polys(kmax: int) -> list[np.polynomial.Polynomial]:
