@@ -7,18 +7,18 @@ from __future__ import annotations
 import numpy as np
 
 import jitterid as ji
-from jitterid.estimation.checks import _clearly_worse
+from jitterid.estimation.checks import clearly_worse
 
 
-def test_clearly_worse_only_beyond_eight_standard_errors():
+def testclearly_worse_only_beyond_eight_standard_errors():
     rng = np.random.default_rng(0)
     noise = rng.standard_normal(20_000)
-    assert not _clearly_worse(noise)  # no difference: evaluate in full
-    assert not _clearly_worse(noise - 0.01)  # better on average: evaluate in full
-    assert not _clearly_worse(noise + 4 * 141.4 / 20_000)  # ~4 standard errors worse
-    assert _clearly_worse(noise + 9 * 141.4 / 20_000)
-    assert _clearly_worse(np.full(10, 3.0))  # worse everywhere (std 0)
-    assert not _clearly_worse(np.r_[noise, np.nan])
+    assert not clearly_worse(noise)  # no difference: evaluate in full
+    assert not clearly_worse(noise - 0.01)  # better on average: evaluate in full
+    assert not clearly_worse(noise + 4 * 141.4 / 20_000)  # ~4 standard errors worse
+    assert clearly_worse(noise + 9 * 141.4 / 20_000)
+    assert clearly_worse(np.full(10, 3.0))  # worse everywhere (std 0)
+    assert not clearly_worse(np.r_[noise, np.nan])
 
 
 def test_leading_likelihood_is_the_likelihood_of_the_first_samples():

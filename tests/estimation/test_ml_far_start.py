@@ -33,7 +33,7 @@ def _table2_like(n: int, seed: int) -> ji.SampledData:
 @pytest.fixture(scope="module")
 def data() -> ji.SampledData:
     # N = 60, seed 2: the search from FAR alone stops OPTIMISER_FAILED near k0 = 8.1e3,
-    # pr = -98 (as on Table 2's realization 0)
+    # pr = -98 (as on Table 2's realization 0), or ends on the flat stretch there (below)
     return _table2_like(60, 2)
 
 
@@ -58,7 +58,12 @@ def test_ml_from_far_start_reaches_the_default_routes_optimum(
     _same_optimum(far, default)
     # the message says that the given start failed and how the fit got out
     assert "after a restart" in far.message
-    assert "OPTIMISER_FAILED" in far.message
+    # the search from FAR alone either stops (OPTIMISER_FAILED, as when this test was
+    # written) or, with numpy 2.4.6 and scipy 1.17.1 (2026-11-28), "converges" on the flat
+    # stretch there
+    # (stationary in the directions the data determine, k0 ~ 6.4e3, pr ~ -83), where the
+    # criterion is far above its value at a default start: either is restarted, and said
+    assert "OPTIMISER_FAILED" in far.message or "higher than at a default start" in far.message
     assert "bcls fit from that start" in far.message
 
 

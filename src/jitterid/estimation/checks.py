@@ -714,7 +714,7 @@ SCREEN_SAMPLES = 20_000  # the screen's leading samples (PostContext.screen)
 _SCREEN_Z = 8.0  # a start this many standard errors worse on them is not evaluated in full
 
 
-def _clearly_worse(d: FloatArray) -> bool:
+def clearly_worse(d: FloatArray) -> bool:
     """Whether per-sample criterion differences (start minus estimate) over the screen's
     samples say the start is worse by more than ``_SCREEN_Z`` standard errors of their sum:
     a start that beats the estimate over the whole record would do so on a leading part
@@ -733,7 +733,7 @@ def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
     base = None if ctx.screen is None else ctx.screen(ctx.x)
     for x0, label in candidates:
         try:
-            if base is not None and _clearly_worse(ctx.screen(x0) - base):  # type: ignore[misc]
+            if base is not None and clearly_worse(ctx.screen(x0) - base):  # type: ignore[misc]
                 continue
             v = ctx.objective(x0)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError):
