@@ -185,12 +185,23 @@ def test_clean_records_are_not_flagged_small():
 @pytest.mark.parametrize("theta", [0.01, 0.3])
 def test_false_alarm_rate_on_clean_records(law, theta):
     """60 clean records per cell: the checks flag at most 5 % (measured: 2 % at 0.3 rad
-    Gaussian over 200 records)."""
-    flagged = sum(
-        bool(ji.measure_jitter(_clean(900 + s, law, theta=theta), T, method="gaussian").findings)
+    Gaussian over 200 records). A "sharp-edges" finding is not a false alarm: it says that
+    the fitted uniform's edges are sharper than the record resolves, where its interval is
+    measured too narrow (jitterid.metrology.edges); these uniform records at 0.3 rad are in
+    that regime (the noise blurs the edges over 2-4 x the spacing of the jitter values), and
+    every one of them says so (counted as a false alarm, this cell failed 60 / 60 from
+    session 15, when the finding was added, to session 17, when this slow test was run)."""
+    records = [
+        ji.measure_jitter(_clean(900 + s, law, theta=theta), T, method="gaussian")
         for s in range(60)
-    )
+    ]
+    flagged = sum(any(f.kind != "sharp-edges" for f in m.findings) for m in records)
     assert flagged <= 3, flagged
+    edges = sum(any(f.kind == "sharp-edges" for f in m.findings) for m in records)
+    if law == "uniform" and theta == 0.3:
+        assert edges == 60, edges
+    else:
+        assert edges == 0, edges
 
 
 @pytest.mark.slow
