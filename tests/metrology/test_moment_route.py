@@ -15,6 +15,7 @@ import pytest
 import jitterid as ji
 from jitterid.metrology import moments
 from jitterid.metrology.adequacy import quantisation_step
+from jitterid.metrology.meter import DEFAULT_LAWS
 
 FS = 7e9
 T = 1 / FS
@@ -122,7 +123,7 @@ def _coverage(setting, records, N, seed0):
         y, _ = _coherent_record(N, sigma, rng, bits=bits, noise=thermal / 2**bits if bits else 0)
         # beyond ~0.2 rad the law-free route hands the record to the likelihood: the law
         # (the truth's) is given there, to test the moment route itself
-        laws = ["gaussian"] if s >= 0.2 else list(ji.metrology.meter.DEFAULT_LAWS)
+        laws = ["gaussian"] if s >= 0.2 else list(DEFAULT_LAWS)
         m = ji.measure_jitter(y, T, method="gaussian", laws=laws)
         lo, hi = m.interval()
         hits += lo <= sigma <= hi
