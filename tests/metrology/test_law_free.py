@@ -91,10 +91,13 @@ def test_the_kurtosis_is_measured_at_small_spread():
     assert "kurtosis 1.8" in m.message or "kurtosis 1.7" in m.message or "kurtosis 1.9" in m.message
 
 
-_LEFT = {
-    ("uniform", 1.0): "the estimate is right but the Wald interval covers 0.72 over 32 "
-    "records (the law's edges: the estimates spread 1.55 x the observed-information error)",
-}
+#: Cells known to fail, as strict xfails. The uniform at 1 rad was one (the estimate right,
+#: the Wald interval covering 0.72 over 32 records of benchmarks/jitter_meter.py, the law's
+#: edges: the estimates spread 1.55 x the observed-information error); in session 17's
+#: run of this test (the first since session 16's scale probes in fit_sine_ml, numpy 2.4.6,
+#: scipy 1.17.1) it passed both thresholds here (bias within 3 %, 58-63 of 64 covered), so
+#: the strict xfail failed, and it was taken out. The count itself was not recorded.
+_LEFT: dict[tuple[str, float], str] = {}
 
 
 @pytest.mark.slow
