@@ -259,6 +259,8 @@ class OutputErrorRoute:
             if best.status is FitStatus.CONVERGED and self._defaults_apply(problem):
                 lower, n = self._lower_default(problem, best)
                 nfev += n
+                # (none lower: the post-search check need not evaluate them again)
+                compared = lower is None
             if best.status in _STOPPED or lower is not None:
                 problem, best, n = self._restart(problem, best, x0, noise)
                 nfev += n
@@ -508,8 +510,9 @@ class OutputErrorRoute:
 
         def default_starts() -> list[FloatArray]:
             # A search that already ran from every default start (the first stage) has
-            # nothing to compare, nor has a family's second stage, which compared them
-            # itself (_from_lower_default), nor a known system with a known law (no start);
+            # nothing to compare, nor has one whose end was compared with them already (a
+            # family's second stage, _from_lower_default; a given start's search, none
+            # lower), nor a known system with a known law (no start);
             # after a given start or another second stage, the criterion at the default
             # starts must not be lower than at the estimate.
             if (
