@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 
 import jitterid as ji
-from jitterid.estimation.checks import clearly_worse
+from jitterid.estimation.checks import clearly_worse, lowest_below
 
 
-def testclearly_worse_only_beyond_eight_standard_errors():
+def test_clearly_worse_only_beyond_eight_standard_errors():
     rng = np.random.default_rng(0)
     noise = rng.standard_normal(20_000)
     assert not clearly_worse(noise)  # no difference: evaluate in full
@@ -19,6 +19,34 @@ def testclearly_worse_only_beyond_eight_standard_errors():
     assert clearly_worse(noise + 9 * 141.4 / 20_000)
     assert clearly_worse(np.full(10, 3.0))  # worse everywhere (std 0)
     assert not clearly_worse(np.r_[noise, np.nan])
+
+
+def test_lowest_below_picks_the_lowest_clearly_lower_point():
+    """The one comparison of an end with other points: the lowest point below the end by
+    more than 1e-6 relative; points that raise, are not finite, or that the screen shows
+    clearly worse are passed over (the last not evaluated at all)."""
+    evaluated = []
+
+    def objective(z):
+        evaluated.append(float(z[0]))
+        if z[0] == 3.0:
+            raise ValueError("cannot evaluate")
+        return {1.0: 5.0, 2.0: 4.0, 4.0: np.nan, 5.0: 1.0, 6.0: 10.0 * (1 - 1e-7)}[float(z[0])]
+
+    pts = [np.array([v]) for v in (1.0, 2.0, 3.0, 4.0, 6.0)]
+    assert lowest_below(pts, objective, np.array([0.0]), 10.0) == (1, 4.0, 5)
+    # nothing lower by more than 1e-6 relative: None, the end's own cost
+    assert lowest_below(pts[4:], objective, np.array([0.0]), 10.0) == (None, 10.0, 1)
+    # a screen that shows the point 5.0 clearly worse: never evaluated, though lowest
+    evaluated.clear()
+
+    def screen(z):
+        return np.full(50, 3.0) if z[0] == 5.0 else np.zeros(50)
+
+    pts.append(np.array([5.0]))
+    assert lowest_below(pts, objective, np.array([0.0]), 10.0, screen) == (1, 4.0, 5)
+    assert 5.0 not in evaluated
+    assert lowest_below(pts, objective, np.array([0.0]), 10.0) == (5, 1.0, 6)
 
 
 def test_leading_likelihood_is_the_likelihood_of_the_first_samples():

@@ -723,25 +723,52 @@ def clearly_worse(d: FloatArray) -> bool:
     return bool(np.isfinite(total) and total > _SCREEN_Z * np.sqrt(d.size) * float(np.std(d)))
 
 
+def lowest_below(
+    points: Sequence[FloatArray],
+    objective: Callable[[FloatArray], float],
+    x: FloatArray,
+    cost: float,
+    screen: Callable[[FloatArray], FloatArray] | None = None,
+) -> tuple[int | None, float, int]:
+    """The point of ``points`` where ``objective`` is lowest, where that is lower than
+    ``cost`` (the criterion at ``x``) by more than 1e-6 relative: its index (None where no
+    point is), its criterion, and the full evaluations made. A point that ``screen``
+    (per-sample criterion terms over the record's leading samples) shows clearly worse than
+    ``x`` (:func:`clearly_worse`) is not evaluated in full; one where the objective raises
+    or is not finite is passed over. The one comparison of an end with other points: the
+    post-search check below and the second stage's comparison with the default starts
+    (:meth:`jitterid.estimation.oe.OutputErrorRoute.default_starts`)."""
+    base = None if screen is None else screen(x)
+    which: int | None = None
+    best, n = cost, 0
+    for j, x0 in enumerate(points):
+        with np.errstate(all="ignore"):
+            try:
+                if base is not None and screen is not None and clearly_worse(screen(x0) - base):
+                    continue
+                n += 1
+                v = float(objective(x0))
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                continue
+        if np.isfinite(v) and v < best:
+            best, which = v, j
+    if which is None or not best < cost - 1e-6 * max(abs(cost), 1e-300):
+        return None, cost, n
+    return which, best, n
+
+
 def _local_optimum(ctx: PostContext) -> tuple[FitStatus, str] | None:
-    best, which = ctx.cost, ""
     candidates = [
         (x0, f"the default start {np.round(x0, 6).tolist()} (in the search's units)")
         for x0 in ctx.starts()
     ]
     candidates += _structure_starts(ctx)
-    base = None if ctx.screen is None else ctx.screen(ctx.x)
-    for x0, label in candidates:
-        try:
-            if base is not None and clearly_worse(ctx.screen(x0) - base):  # type: ignore[misc]
-                continue
-            v = ctx.objective(x0)
-        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
-            continue
-        if np.isfinite(v) and v < best:
-            best, which = v, label
-    if not which or not best < ctx.cost - 1e-6 * max(abs(ctx.cost), 1e-300):
+    j, best, _ = lowest_below(
+        [x0 for x0, _ in candidates], ctx.objective, ctx.x, ctx.cost, ctx.screen
+    )
+    if j is None:
         return None
+    which = candidates[j][1]
     return FitStatus.LOCAL_OPTIMUM, (
         f"the search stopped at a local optimum: the criterion is lower at {which} than at "
         f"the estimate ({best:.6g} against {ctx.cost:.6g}, with y and u scaled as in the "

@@ -29,7 +29,7 @@ from .checks import (
     Scaling,
     check_data,
     check_method_jitter,
-    clearly_worse,
+    lowest_below,
 )
 from .covariance import covariance, noise_variance_ml
 from .estimators import LS, Estimator
@@ -375,20 +375,11 @@ class OutputErrorRoute:
         """The default start with the lowest criterion where that is lower than at ``best``
         (one evaluation each; on a long record a start clearly worse on its leading samples
         is not evaluated in full), else None; and the evaluations used."""
-        screen = _screen(problem)
-        base = None if screen is None else screen(best.x)
-        lowest: tuple[float, FloatArray] | None = None
-        n = 0
-        for x0 in self.default_starts(problem):
-            if base is not None and screen is not None and clearly_worse(screen(x0) - base):
-                continue
-            v = criterion_or_inf(problem, x0)
-            n += 1
-            if v < best.cost - 1e-6 * max(abs(best.cost), 1e-300) and (
-                lowest is None or v < lowest[0]
-            ):
-                lowest = (v, x0)
-        return lowest, n
+        starts = self.default_starts(problem)
+        j, v, n = lowest_below(
+            starts, lambda z: criterion_or_inf(problem, z), best.x, best.cost, _screen(problem)
+        )
+        return (None if j is None else (v, starts[j])), n
 
     def _from_lower_default(self, problem: Problem, best: Outcome) -> tuple[Outcome, int]:
         """A jitter family's second stage searched from one start (the first stage's
