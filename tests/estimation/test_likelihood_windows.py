@@ -83,6 +83,29 @@ def test_windowed_rule_redesigns_when_the_signal_moves_far():
     np.testing.assert_allclose(moved, fresh.logpdf(far, y), rtol=0, atol=1e-8)
 
 
+def test_a_far_smaller_noise_is_refused_in_a_step_and_redesigned_elsewhere():
+    """Back at an estimate whose noise std lies far below the design's (a comparison with
+    starts far off, at a larger noise std, re-designed the rule after the search: the
+    covariance of a tone with harmonics on a 12-bit record found no error bars then), the
+    rule is re-designed there and ln L equals a fresh rule's; within maximise's steps the
+    same point is refused (the step shortened instead of a rule for a vanishing noise)."""
+    law, theta = ji.Gaussian(0.05), np.array([1.0, 0.0, 0.2, 0.0])
+    y = _record(law, theta, 1e-3)
+    m = ji.SineWave()
+    lik = ExactLikelihood(m, ji.GaussianFamily(), None, T, y.size, None, window=True)
+    x = np.r_[0.05, theta, 1e-3]
+    far = np.r_[0.05, theta, 2e-2]  # 20 x the noise: below 1 / _WINDOW_SIGMA_STEP of it
+    lik.design(far)
+    lik._stepping = True
+    with pytest.raises(ValueError, match=r"below 0\.25 of the windowed rule's design"):
+        lik.loglik(x, y)
+    lik._stepping = False
+    fresh = ExactLikelihood(m, ji.GaussianFamily(), None, T, y.size, None, window=True)
+    fresh.design(x)
+    np.testing.assert_allclose(lik.logpdf(x, y), fresh.logpdf(x, y), rtol=0, atol=1e-8)
+    assert not lik._stepping
+
+
 @pytest.mark.parametrize(
     "family", [ji.GaussianFamily(), ji.UniformFamily()], ids=["gauss", "uniform"]
 )

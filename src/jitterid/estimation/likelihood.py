@@ -1046,6 +1046,7 @@ class ExactLikelihood(CachesAreNotState):
         tuple[tuple[Signal, float] | None, _Held | None, dict[tuple[float, ...], _Rule]]
     ] = cache_field(default_factory=list)  # noqa: RUF009
     _box: tuple[tuple[float, float], ...] | None = cache_field()  # restrict
+    _stepping: bool = cache_field(default=False)  # inside maximise's Newton steps
 
     def __post_init__(self) -> None:
         self.structure = as_structure(self.structure)
@@ -1229,10 +1230,13 @@ class ExactLikelihood(CachesAreNotState):
         more than ``_WINDOW_MARGIN / 2`` noise std's at a piece's midpoint, or the noise std
         ``sigma`` left [0.8, 1.25] of the design's (:func:`_fits`); the last
         ``_SPARE_DESIGNS`` designs are kept and taken back where they fit (a check at a
-        start far off, then back at the estimate, re-designs once, not twice); below
-        ``_WINDOW_SIGMA_STEP`` of it the point is refused (ValueError: the search's step is
-        rejected and shortened), so that one trial step towards noise_std = 0 does not
-        re-design the rule for a vanishing noise."""
+        start far off, then back at the estimate, re-designs once, not twice). Within
+        :meth:`maximise`'s steps a noise std below ``_WINDOW_SIGMA_STEP`` of the design's
+        is refused (ValueError: the search's step is rejected and shortened), so that one
+        trial step towards noise_std = 0 does not re-design the rule for a vanishing noise;
+        any other evaluation there (the covariance at an estimate after a comparison with
+        starts far off, whose larger noise std re-designed the rule) re-designs it, as
+        everywhere else."""
         if self._cuts is None and self._design is None:
             self.design(x)
         if self._design is not None:
@@ -1253,7 +1257,7 @@ class ExactLikelihood(CachesAreNotState):
         if windowed and self._design is not None and sigma is not None:
             assert self._design is not None
             d_sigma = self._design[1]
-            if sigma < _WINDOW_SIGMA_STEP * d_sigma:
+            if self._stepping and sigma < _WINDOW_SIGMA_STEP * d_sigma:
                 raise ValueError(
                     f"noise_std = {sigma:.3g} is below {_WINDOW_SIGMA_STEP:g} of the windowed "
                     f"rule's design ({d_sigma:.3g}); a search takes a shorter step (re-design "
@@ -1872,16 +1876,20 @@ class ExactLikelihood(CachesAreNotState):
                 M = Gc.T @ Gc
             return v, -G.sum(axis=0), M
 
-        x, ok, msg, n = newton_search(
-            evaluator(negloglik),
-            x0,
-            lo,
-            hi,
-            max_evaluations,
-            tol=tol,
-            floor=LIKELIHOOD_FLOOR,
-            names=self.names,
-        )
+        self._stepping = True  # (a step far towards noise_std = 0 is refused: _nodes)
+        try:
+            x, ok, msg, n = newton_search(
+                evaluator(negloglik),
+                x0,
+                lo,
+                hi,
+                max_evaluations,
+                tol=tol,
+                floor=LIKELIHOOD_FLOOR,
+                names=self.names,
+            )
+        finally:
+            self._stepping = False
         loglik = -values[x.tobytes()] if x.tobytes() in values else self.loglik(x, y)
         return x, loglik, ok, msg, n
 

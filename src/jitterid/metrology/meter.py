@@ -57,7 +57,7 @@ from .converter import ConverterFigures, converter_figures  # meterio (issue 26,
 from .edges import sharp_edge_finding
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
-from .reading import summary_extras  # meterio (issue 26, item 5)
+from .reading import LAW_MARGIN_BIC, summary_extras  # meterio (issue 26, item 5)
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
 from .sinelik import (  # issue 26, item 2
     NUMERIC_FLOOR,
@@ -712,6 +712,41 @@ def _check_cost(N: int, H: int, n_fits: int) -> None:
         )
 
 
+def _better_unsettled(
+    cands: Sequence[LawCandidate],
+    chosen: LawCandidate,
+    fitted: dict[str, FitResult],
+    status: FitStatus,
+    message: str,
+) -> tuple[FitStatus, str]:
+    """The measurement's status where a family whose fit did not end at a trusted maximum
+    (not CONVERGED or AT_BOUND, not ranked out) fits the record better than the chosen one
+    by more than :data:`~jitterid.metrology.reading.LAW_MARGIN_BIC` in BIC: that family's
+    status, and a message saying so. The chosen family is then only the best of those that
+    could be trusted, not the record's law: on a 12-bit record with Gaussian jitter the
+    uniform was chosen, 1444 below the Gaussian in ln L, its interval 4 errors off the
+    truth, because the Gaussian's covariance had failed."""
+    better = [
+        c
+        for c in cands
+        if c is not chosen
+        and not c.ranked_out
+        and c.status not in (FitStatus.CONVERGED, FitStatus.AT_BOUND)
+        and math.isfinite(c.bic)
+        and c.bic < chosen.bic - LAW_MARGIN_BIC
+    ]
+    if not better or status not in (FitStatus.CONVERGED, FitStatus.AT_BOUND):
+        return status, message
+    best = min(better, key=lambda c: c.bic)
+    why = fitted[best.name].message
+    return best.status, (
+        f"the {best.name} family fits the record better than the {chosen.name} reported "
+        f"(Delta BIC = {chosen.bic - best.bic:.1f}) but its fit ended {best.status.name} "
+        f"({why}), so neither the law nor the jitter std reported can be trusted: fit with "
+        f"laws=[{best.name!r}] and see its message; the {chosen.name} fit: {message}"
+    )
+
+
 def measure_jitter(
     y: ArrayLike,
     T: float,
@@ -1024,6 +1059,7 @@ def measure_jitter(
     status, message = r.status, r.message
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
+    status, message = _better_unsettled(cands_law, chosen, fitted, status, message)
     status, message = _noise_floor_status(status, message, r, floor, physical, mf)
     f_fit = float(r.params["frequency_hz"])
     aliases = tuple(
