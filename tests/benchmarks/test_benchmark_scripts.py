@@ -283,3 +283,24 @@ def test_family_count_benchmark_runs_on_one_record(tmp_path):
     ).stdout
     assert "gaussian  SumOfUniformsFamily()" in out, out
     assert len(json.loads(out_json.read_text())) == 2
+
+
+def test_meter_records_benchmark_runs_on_two_short_records():
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(BENCH / "meter_records.py"),
+            "uniform-float",
+            "--records",
+            "2",
+            "--n",
+            "1024",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout
+    assert "jitterid meter records, uniform-float, N = 1024" in out, out
+    assert out.count("covers:") == 2, out
+    assert "covered" in out, out
