@@ -14,30 +14,35 @@ from helpers import BENCHMARKS as BENCH
 pytestmark = pytest.mark.slow
 
 
-def test_scale_benchmark_runs_at_small_n():
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "bench_scale.py"),
-            "--sizes",
-            "100",
-            "300",
-            "--methods",
-            "bcls",
-            "gaussian",
-            "ml",
-            "--ratio-sizes",
-            "200",
-            "--ratio-reps",
-            "1",
-            "--paths",
-            "50",
-        ],
+def _script(name: str, *args: str, timeout: int = 600) -> str:
+    """The standard output of ``benchmarks/<name> args`` run in a subprocess (an error if it
+    fails or runs past ``timeout`` seconds)."""
+    return subprocess.run(
+        [sys.executable, str(BENCH / name), *args],
         capture_output=True,
         text=True,
         check=True,
-        timeout=600,
+        timeout=timeout,
     ).stdout
+
+
+def test_scale_benchmark_runs_at_small_n():
+    out = _script(
+        "bench_scale.py",
+        "--sizes",
+        "100",
+        "300",
+        "--methods",
+        "bcls",
+        "gaussian",
+        "ml",
+        "--ratio-sizes",
+        "200",
+        "--ratio-reps",
+        "1",
+        "--paths",
+        "50",
+    )
     assert "FAILED" not in out, out
     assert "NOT CONVERGED" not in out, out
     for method in ("bcls", "gaussian", "ml"):
@@ -49,59 +54,35 @@ def test_scale_benchmark_runs_at_small_n():
 
 def test_scale_benchmark_reports_a_fit_over_its_memory_cap():
     """The cap makes a fit that needs too much memory fail in its own process, reported."""
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "bench_scale.py"),
-            "--sizes",
-            "300",
-            "--methods",
-            "bcls",
-            "--ratio-sizes",
-            "--paths",
-            "--mem-cap-gb",
-            "0.05",
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
+    out = _script(
+        "bench_scale.py",
+        "--sizes",
+        "300",
+        "--methods",
+        "bcls",
+        "--ratio-sizes",
+        "--paths",
+        "--mem-cap-gb",
+        "0.05",
         timeout=300,
-    ).stdout
+    )
     assert "FAILED" in out, out
 
 
 def test_core_benchmark_runs():
-    out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_core.py"), "--runs", "1"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    ).stdout
+    out = _script("bench_core.py", "--runs", "1", timeout=300)
     assert "bcls" in out
     assert "gaussian" in out
 
 
 def test_signal_benchmark_runs():
-    out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_signal.py"), "--runs", "1", "--sizes", "200"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    ).stdout
+    out = _script("bench_signal.py", "--runs", "1", "--sizes", "200", timeout=300)
     assert "   200 ml" in out, out
     assert "1/1" in out, out
 
 
 def test_meter_benchmark_runs():
-    out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_meter.py"), "--runs", "1", "--sizes", "300"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    ).stdout
+    out = _script("bench_meter.py", "--runs", "1", "--sizes", "300", timeout=300)
     assert "    300 ml" in out, out
     assert "    300 gaussian" in out, out
     assert "load" in out
@@ -180,21 +161,7 @@ def test_jitter_meter_adctoolbox_column(tmp_path):
 
 
 def test_multisine_benchmark_runs_at_small_n():
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "bench_multisine.py"),
-            "--sizes",
-            "200",
-            "--methods",
-            "bcls",
-            "ml",
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    ).stdout
+    out = _script("bench_multisine.py", "--sizes", "200", "--methods", "bcls", "ml")
     rows = [line for line in out.splitlines() if line.strip().startswith("200 ")]
     assert [row.split()[1] for row in rows] == ["bcls", "ml"], out
     assert all(row.endswith("CONVERGED / CONVERGED") for row in rows), out
@@ -202,23 +169,16 @@ def test_multisine_benchmark_runs_at_small_n():
 
 def test_reproduce_benchmark_runs_at_one_realization():
     """Table 2 with the paper's three estimators, shared and --no-share, one realization."""
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "bench_reproduce.py"),
-            "--target",
-            "table2-paper",
-            "--runs",
-            "1",
-            "--workers",
-            "1",
-            "--no-share",
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    ).stdout
+    out = _script(
+        "bench_reproduce.py",
+        "--target",
+        "table2-paper",
+        "--runs",
+        "1",
+        "--workers",
+        "1",
+        "--no-share",
+    )
     assert "jitterid run " in out, out
     assert "1 realizations (table2 1 case(s)), 1 worker(s)" in out, out
     assert "estimates identical in both runs; 0 bound rows computed only without sharing" in out
@@ -229,78 +189,31 @@ def test_reproduce_benchmark_runs_at_one_realization():
 
 
 def test_bj_benchmark_runs_at_small_n():
-    out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_bj.py"), "--sizes", "200", "800", "--repeats", "1"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    ).stdout
+    out = _script("bench_bj.py", "--sizes", "200", "800", "--repeats", "1")
     assert "log-log slope" in out
 
 
 def test_ml_benchmark_script_runs():
     """Smoke run of benchmarks/bench_ml.py at one realization, so that it never rots."""
-    out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_ml.py"), "--runs", "1", "--joe-runs", "0"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    ).stdout
+    out = _script("bench_ml.py", "--runs", "1", "--joe-runs", "0", timeout=300)
     assert "fit(method='ml'), end to end" in out
 
 
 def test_family_benchmark_runs_on_one_record():
-    out = subprocess.run(
-        [sys.executable, str(BENCH / "bench_family.py"), "--runs", "1", "--methods", "bcls"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    ).stdout
+    out = _script("bench_family.py", "--runs", "1", "--methods", "bcls")
     assert "bcls      known law" in out, out
     assert out.count("bcls ") == 4, out
 
 
 def test_family_count_benchmark_runs_on_one_record(tmp_path):
     out_json = tmp_path / "fits.json"
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "count_fam.py"),
-            "--runs",
-            "1",
-            "--methods",
-            "gaussian",
-            "--json",
-            str(out_json),
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    ).stdout
+    out = _script("count_fam.py", "--runs", "1", "--methods", "gaussian", "--json", str(out_json))
     assert "gaussian  SumOfUniformsFamily()" in out, out
     assert len(json.loads(out_json.read_text())) == 2
 
 
 def test_meter_records_benchmark_runs_on_two_short_records():
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(BENCH / "meter_records.py"),
-            "uniform-float",
-            "--records",
-            "2",
-            "--n",
-            "1024",
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    ).stdout
+    out = _script("meter_records.py", "uniform-float", "--records", "2", "--n", "1024")
     assert "jitterid meter records, uniform-float, N = 1024" in out, out
     assert out.count("covers:") == 2, out
     assert "covered" in out, out

@@ -376,9 +376,7 @@ class OutputErrorRoute:
         (one evaluation each; on a long record a start clearly worse on its leading samples
         is not evaluated in full), else None; and the evaluations used."""
         starts = self.default_starts(problem)
-        j, v, n = lowest_below(
-            starts, lambda z: criterion_or_inf(problem, z), best.x, best.cost, _screen(problem)
-        )
+        j, v, n = lowest_below(starts, problem.objective, best.x, best.cost, _screen(problem))
         return (None if j is None else (v, starts[j])), n
 
     def _from_lower_default(self, problem: Problem, best: Outcome) -> tuple[Outcome, int]:
