@@ -110,3 +110,28 @@ def tiny_experiment(**changes) -> Experiment:
 def read_csv(path: Path) -> list[dict[str, str]]:
     """The rows of a CSV file as dicts (the stores' exports, ``jitterid reproduce``)."""
     return list(csv.DictReader(path.read_text().splitlines()))
+
+
+def table2_post_context(lab, cov, **kw):
+    """A :class:`jitterid.estimation.checks.PostContext` of Table 2's system at its true
+    parameters over the data ``lab``, with the covariance ``cov``: a criterion of 0
+    everywhere, no default starts, and a model mean that explains y (the checks' unit
+    tests); ``kw`` sets the other fields."""
+    from jitterid.estimation.checks import PostContext
+
+    structure = ji.PolePairGain()
+    return PostContext(
+        data=lab,
+        structure=structure,
+        jitter=ji.Uniform(0.5),
+        names=structure.param_names,
+        bounds=structure.bounds,
+        x=np.array([6.25, -1.5, 2.0]),
+        cost=0.0,
+        cov=cov,
+        objective=lambda v: 0.0,
+        model_mean=lambda v: lab.y - 0.01,  # explains y: significant
+        oe_system=lambda: None,
+        starts=list,
+        **kw,
+    )

@@ -5,10 +5,11 @@ is NaN throughout is never next to CONVERGED."""
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from helpers import table2_post_context
 
 import jitterid as ji
 from jitterid.cli import main
-from jitterid.estimation.checks import PostContext, post_checks
+from jitterid.estimation.checks import post_checks
 from jitterid.estimation.result import FitStatus
 
 
@@ -65,24 +66,7 @@ def test_the_cli_exits_3_with_a_gain_fixed_at_zero(tmp_path):
     assert "explains no significant part" in res.output
 
 
-def _context(lab, cov, **kw):
-    structure = ji.PolePairGain()
-    x = np.array([6.25, -1.5, 2.0])
-    return PostContext(
-        data=lab,
-        structure=structure,
-        jitter=ji.Uniform(0.5),
-        names=structure.param_names,
-        bounds=structure.bounds,
-        x=x,
-        cost=0.0,
-        cov=cov,
-        objective=lambda v: 0.0,
-        model_mean=lambda v: lab.y - 0.01,  # explains y: significant
-        oe_system=lambda: None,
-        starts=list,
-        **kw,
-    )
+_context = table2_post_context
 
 
 def test_a_requested_covariance_that_is_nan_throughout_is_unidentifiable(lab):

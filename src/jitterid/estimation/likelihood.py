@@ -1047,6 +1047,7 @@ class ExactLikelihood(CachesAreNotState):
     ] = cache_field(default_factory=list)  # noqa: RUF009
     _box: tuple[tuple[float, float], ...] | None = cache_field()  # restrict
     _stepping: bool = cache_field(default=False)  # inside maximise's Newton steps
+    _designed_at: FloatArray | None = cache_field()  # noqa: RUF009  (the full rule's: serve)
 
     def __post_init__(self) -> None:
         self.structure = as_structure(self.structure)
@@ -1108,7 +1109,29 @@ class ExactLikelihood(CachesAreNotState):
         """Drop the rule (its design, pieces, nodes and remembered pass: hundreds of MB on a
         long record); the next evaluation designs it afresh."""
         self._cuts = self._design = self._profile = self._window_y = None
+        self._designed_at = None
         self._forget()
+
+    def serve(self, x: ArrayLike) -> None:
+        """Make the rule serve ``x``, a point away from the last evaluations (a check's start
+        far off, the estimate after such starts). A windowed rule re-designs itself wherever
+        it no longer fits; the full rule is frozen where it was designed, so that a search's
+        criterion stays smooth along its path, and does not serve a point far off (its panels
+        were cut for another signal's slopes: measured, -2 ln L 135 off at an estimate after
+        a comparison with far starts, noise std 1e-6): it is designed at ``x`` unless it was
+        designed there.
+
+        Parameters
+        ----------
+        x : array_like
+            Parameter vector, in :attr:`names` order.
+        """
+        x = np.atleast_1d(real_array(x, "x"))
+        if self._design is not None:
+            return
+        if self._designed_at is not None and np.array_equal(self._designed_at, x):
+            return
+        self.design(x)
 
     def _forget(self) -> None:
         """Drop what was made under the current design: the rules, the pieces kept for
@@ -1190,10 +1213,12 @@ class ExactLikelihood(CachesAreNotState):
         span = (lo - width, (self.N - 1) * self.T + hi + width)
         profile = _slope_profile(sig, span)
         self._profile, self._cuts, self._design = profile, None, None
+        self._designed_at = None
         if self._windowed(profile, law, sig, sigma, span):
             self._design = (sig, sigma)
         else:
             self._full_cuts(law, sig, sigma)
+            self._designed_at = np.atleast_1d(np.array(x, dtype=float))
         self._forget()
 
     def _windowed(
@@ -1301,6 +1326,7 @@ class ExactLikelihood(CachesAreNotState):
             # step of a search; the full rule, frozen, keeps the criterion smooth there
             sigma = self._design[1]
             self._design, self._pieces, self._spares, self._memo = None, None, [], None
+            self._designed_at = None  # (not where the search will be: serve re-designs)
             self._full_cuts(law, sig, sigma)
             return _Rule(lambda: self._make_nodes(law, sig), (), budget)
         if self.N >= _TRIM_FROM:  # the build's temporaries: pages back to the system

@@ -376,7 +376,7 @@ class OutputErrorRoute:
         (one evaluation each; on a long record a start clearly worse on its leading samples
         is not evaluated in full), else None; and the evaluations used."""
         starts = self.default_starts(problem)
-        j, v, n = lowest_below(starts, problem.objective, best.x, best.cost, _screen(problem))
+        j, v, n = lowest_below(starts, problem.criterion_at, best.x, best.cost, _screen(problem))
         return (None if j is None else (v, starts[j])), n
 
     def _from_lower_default(self, problem: Problem, best: Outcome) -> tuple[Outcome, int]:
@@ -474,6 +474,7 @@ class OutputErrorRoute:
         problem, x = staged.problem, staged.outcome.x
         noise = staged.noise_std
         staged.extra["cov_requested"] = cov_type != "none"  # an all-NaN one is then a failure
+        staged.extra["cov_type"] = cov_type
         cov = np.full((x.size, x.size), np.nan)
         noise_rec: float | None = None
         try:
@@ -535,7 +536,7 @@ class OutputErrorRoute:
             x=x,
             cost=float(staged.outcome.cost),
             cov=cov,
-            objective=problem.objective,
+            objective=problem.criterion_at,
             model_mean=lambda v: problem.moments(v).mean,
             oe_system=lambda: self.oe()[0],
             starts=default_starts,
@@ -543,6 +544,7 @@ class OutputErrorRoute:
             known_variance=known_variance,
             screen=_screen(problem),
             cov_requested=extra.get("cov_requested"),
+            scores=_scores(problem) if extra.get("cov_type") == "oim" else None,
         )
 
     # ------------------------------------------------------------------ 4. units
@@ -592,6 +594,21 @@ def _release(problem: Problem) -> None:
         problem.likelihood.release()
 
 
+def _scores(problem: Problem) -> Callable[[FloatArray], FloatArray] | None:
+    """The exact likelihood's per-sample scores at a point, shape (N, p), for the check of
+    the information equality (``PostContext.scores``); None for the other criteria."""
+    lik = problem.likelihood
+    if lik is None:
+        return None
+    y = problem.data.y
+
+    def scores(v: FloatArray) -> FloatArray:
+        lik.serve(v)
+        return np.asarray(lik.scores(v, y)[1], dtype=float)
+
+    return scores
+
+
 def _screen(problem: Problem) -> Callable[[FloatArray], FloatArray] | None:
     """The exact likelihood's -2 ln p_k over the first ``SCREEN_SAMPLES`` samples, for the
     checks' first look at far points (``PostContext.screen``), on records of at least four
@@ -601,7 +618,12 @@ def _screen(problem: Problem) -> Callable[[FloatArray], FloatArray] | None:
         return None
     head = lik.leading(SCREEN_SAMPLES)
     y = problem.data.y[:SCREEN_SAMPLES]
-    return lambda v: -2 * head.logpdf(v, y)
+
+    def screen(v: FloatArray) -> FloatArray:
+        head.serve(v)  # (the points screened lie far apart)
+        return -2 * head.logpdf(v, y)
+
+    return screen
 
 
 def _check_prefit(prefit: FitResult, pre: Problem) -> None:

@@ -406,6 +406,14 @@ class Problem(CachesAreNotState):
         """The criterion value V(theta) of the chosen method."""
         return self.estimator.objective(self, np.asarray(x, float))
 
+    def criterion_at(self, x: FloatArray) -> float:
+        """:meth:`objective` at a point away from the last evaluations (a comparison with
+        other starts, the estimate after them): the exact likelihood's rule is made to serve
+        it first (:meth:`~jitterid.estimation.likelihood.ExactLikelihood.serve`)."""
+        if self.likelihood is not None:
+            self.likelihood.serve(x)
+        return self.objective(x)
+
     def grad_y(self, x: FloatArray) -> FloatArray:
         """dV/dy at the data: the input to the delta-method covariance."""
         return np.asarray(self.estimator.grad_y(self, np.asarray(x, float)), dtype=float)

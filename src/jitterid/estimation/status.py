@@ -58,6 +58,13 @@ class FitStatus(enum.Enum):
         "compare orders with select_order"
     )
 
+    IRREGULAR = (
+        "failed: the likelihood is not regular at the estimate (its curvature far exceeds the "
+        "spread of its per-sample scores, see message), so the inverse-information standard "
+        "errors understate the estimate's spread; fit with a moment criterion (bcls, asml) "
+        "or a jitter law without hard edges"
+    )
+
     @property
     def success(self) -> bool:
         return self is FitStatus.CONVERGED
