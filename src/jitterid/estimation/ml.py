@@ -66,20 +66,15 @@ def _candidates(problem: Problem, x0: FloatArray) -> list[FloatArray]:
     std0 = jitter.law(lay.block(x0, "jitter").tolist()).std
     std_r = _residual_std(problem, x0)
 
-    def at_std(params: FloatArray, std: float) -> FloatArray:  # the law is that of a xi
-        out = params.copy()
-        out[scale] *= std / jitter.law(params.tolist()).std
-        return out
-
     if nj == 1:
         for js in defaults:
             add(js)
     else:  # the shapes at x0's std
         for js in defaults:
-            add(at_std(js, std0))
+            add(jitter.at_std(js, std0))
     if std_r > 0 and not 0.5 < std0 / std_r < 2:  # BCLS's std is not that of the residuals
         for js in [lay.block(x0, "jitter"), *defaults]:
-            add(at_std(js, std_r))
+            add(jitter.at_std(js, std_r))
     return out
 
 

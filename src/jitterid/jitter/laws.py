@@ -1507,6 +1507,36 @@ class JitterFamily(abc.ABC):
                 raise ValueError(f"{name} must be finite and lie in [{lo:g}, {hi:g}]; got {v!r}")
         return self._make(tuple(float(v) for v in vals))
 
+    def at_std(self, params: ArrayLike, std: float) -> NDArray[np.float64]:
+        """``params`` with the scale parameter (:attr:`scale_index`) set so that the law's
+        standard deviation is ``std``: the same shape at another spread (the law is that of
+        ``a * xi``). Unchanged for a family without a scale parameter, or a law of zero
+        spread; the result is not clipped to :attr:`bounds`.
+
+        Parameters
+        ----------
+        params : array_like
+            The family's parameters, in :attr:`param_names` order.
+        std : float
+            The standard deviation wanted, in s.
+
+        Examples
+        --------
+        >>> import jitterid as ji
+        >>> fam = ji.SumOfUniformsFamily()
+        >>> p = fam.at_std([0.0, 0.25], 0.1)  # n = 0: the uniform, std a / sqrt(3)
+        >>> round(float(fam.law(p.tolist()).std), 12), p[0]
+        (0.1, np.float64(0.0))
+        """
+        out = np.array(params, dtype=float)
+        k = self.scale_index
+        if k is None:
+            return out
+        now = self.law(out.tolist()).std
+        if now > 0 and np.isfinite(now):
+            out[k] *= float(std) / now
+        return out
+
     def pdf_gradient(self, params: Sequence[float], tau: ArrayLike) -> NDArray[np.float64] | None:
         """``d p(tau) / d params`` at the nodes ``tau``, shape ``(len(params),) + tau.shape``, for a
         family whose density is differentiable in every parameter; ``None`` (the default) when
