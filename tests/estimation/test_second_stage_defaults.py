@@ -25,26 +25,33 @@ from jitterid.systems.structures import as_structure
 HIGHER_MODE = (0.0, 0.25205144778829264)
 
 
-def test_a_lower_default_start_is_searched_from():
+def _gaussian_fit(ci: int, r: int):
+    """Table 1's realization ``r`` of case ``ci``: the ``gaussian`` row of the runner, the
+    jitter family and the criterion's Problem on the same data (the referee)."""
     exp = load_experiment(packaged_path("table1"))
-    ci, r = 2, 25
     rows, _ = runner.realize(exp, ci, r, runner.seed_stream(exp.seed, ci, r))
     g = next(e for e in rows if e.method == "gaussian")
-    assert g.status == "CONVERGED", g.message
-    assert "searched again from the default start [2.0, 0.5]" in g.message
-    # the referee: the criterion at the two modes, on the same data
     case = exp.cases[ci]
     rng = np.random.default_rng(runner.seed_stream(exp.seed, ci, r))
     u = exp.input.build(exp.duration, rng)
     data = simulate(exp.system.true_system(), u, case.law.build(), exp.T, exp.N, exp.noise_std, rng)
+    fam = exp.estimation_jitter(case, "gaussian")
     problem = Problem(
         data,
         as_structure(exp.system.model()),
-        exp.estimation_jitter(case, "gaussian"),
+        fam,
         as_estimator("gaussian"),
         default_frequencies(exp.N, exp.T),
         exp.noise_std,
     )
+    return g, fam, problem
+
+
+def test_a_lower_default_start_is_searched_from():
+    g, _, problem = _gaussian_fit(2, 25)
+    assert g.status == "CONVERGED", g.message
+    assert "searched again from the default start [2.0, 0.5]" in g.message
+    # the referee: the criterion at the two modes, on the same data
     new = problem.objective(np.array([g.params["n"], g.params["a"]]))
     old = problem.objective(np.array(HIGHER_MODE))
     assert new == pytest.approx(g.cost, rel=1e-9)
@@ -59,25 +66,9 @@ def test_a_lower_shape_at_the_ends_std_is_searched_from():
     n = 1.19, a = 0.437; every default start is higher than that end, but n = 0 at the end's
     jitter std (a = 0.295) is 3.5 lower (OutputErrorRoute._shape_starts). The referee: the
     criterion at every integer n at the fit's jitter std is not below the fit's."""
-    exp = load_experiment(packaged_path("table1"))
-    ci, r = 1, 88
-    rows, _ = runner.realize(exp, ci, r, runner.seed_stream(exp.seed, ci, r))
-    g = next(e for e in rows if e.method == "gaussian")
+    g, fam, problem = _gaussian_fit(1, 88)
     assert g.status == "CONVERGED", g.message
     assert "searched again from a default start's shape at its std" in g.message
-    case = exp.cases[ci]
-    rng = np.random.default_rng(runner.seed_stream(exp.seed, ci, r))
-    u = exp.input.build(exp.duration, rng)
-    data = simulate(exp.system.true_system(), u, case.law.build(), exp.T, exp.N, exp.noise_std, rng)
-    fam = exp.estimation_jitter(case, "gaussian")
-    problem = Problem(
-        data,
-        as_structure(exp.system.model()),
-        fam,
-        as_estimator("gaussian"),
-        default_frequencies(exp.N, exp.T),
-        exp.noise_std,
-    )
     end = np.array([g.params["n"], g.params["a"]])
     assert problem.objective(end) == pytest.approx(g.cost, rel=1e-9)
     assert g.cost < problem.objective(np.array([1.1936896755898296, 0.4365306550325942])) - 3.0
