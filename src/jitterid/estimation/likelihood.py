@@ -1170,6 +1170,29 @@ class ExactLikelihood(CachesAreNotState):
             node_budget=self.node_budget,
         )
 
+    def with_noise(self, noise_std: float) -> ExactLikelihood:
+        """The likelihood of the same samples with another known noise std (a continuation
+        from a smoother likelihood: :mod:`jitterid.estimation.ml`), same model and options.
+
+        Parameters
+        ----------
+        noise_std : float
+            The measurement-noise std, > 0.
+        """
+        return ExactLikelihood(
+            self.structure,
+            self.jitter,
+            self.u,
+            self.T,
+            self.N,
+            noise_std,
+            order=self.order,
+            panel=self.panel,
+            window=self.window,
+            noise_floor=self.noise_floor,
+            node_budget=self.node_budget,
+        )
+
     @property
     def n_jitter(self) -> int:
         return count_params(self.jitter)
