@@ -112,18 +112,19 @@ def read_csv(path: Path) -> list[dict[str, str]]:
     return list(csv.DictReader(path.read_text().splitlines()))
 
 
-def table2_post_context(lab, cov, **kw):
+def table2_post_context(lab, cov, jitter=None, **kw):
     """A :class:`jitterid.estimation.checks.PostContext` of Table 2's system at its true
     parameters over the data ``lab``, with the covariance ``cov``: a criterion of 0
     everywhere, no default starts, and a model mean that explains y (the checks' unit
-    tests); ``kw`` sets the other fields."""
+    tests); the jitter law U(-0.5, 0.5) unless ``jitter`` is given; ``kw`` sets the other
+    fields."""
     from jitterid.estimation.checks import PostContext
 
     structure = ji.PolePairGain()
     return PostContext(
         data=lab,
         structure=structure,
-        jitter=ji.Uniform(0.5),
+        jitter=ji.Uniform(0.5) if jitter is None else jitter,
         names=structure.param_names,
         bounds=structure.bounds,
         x=np.array([6.25, -1.5, 2.0]),

@@ -3,6 +3,8 @@ check of the information equality after an ML fit (FitStatus.IRREGULAR, session 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from helpers import table2_post_context
@@ -82,6 +84,27 @@ def test_scores_far_smaller_than_the_curvature_in_every_direction_are_irregular(
         assert f"{1 / max(ratios):.3g} times" in message
         assert "hard edges" in message
         assert "bcls" in message
+
+
+def test_the_message_names_hard_edges_only_where_the_law_has_them():
+    lab = _record(1, 200, 1e-2)
+    cov = np.eye(3)
+    G = np.sqrt(0.01 / 200) * np.ones((200, 3)) * np.eye(3)[np.arange(200) % 3]
+    for law, hard in ((ji.Gaussian(0.2), False), (ji.SumOfUniformsFamily(), True)):
+        ctx = table2_post_context(lab, cov, jitter=law, scores=lambda v: G)
+        if isinstance(law, ji.JitterFamily):  # n = 0: the uniform law, hard edges
+            ctx = dataclasses.replace(
+                ctx,
+                x=np.r_[0.0, 0.5, THETA],
+                cov=np.eye(5),
+                bounds=(*law.bounds, *ctx.bounds),
+                names=(*law.param_names, *ctx.names),
+                scores=lambda v: np.c_[G, G[:, :2]],
+            )
+        status, message = post_checks(ctx, FitStatus.CONVERGED, "ok")
+        assert status is FitStatus.IRREGULAR, message
+        assert ("hard edges" in message) is hard, message
+        assert "a few samples" in message
 
 
 def test_regular_ml_fits_are_not_irregular():

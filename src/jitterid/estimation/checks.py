@@ -917,20 +917,28 @@ def _irregular(ctx: PostContext) -> tuple[FitStatus, str] | None:
     top = float(np.linalg.eigvalsh(Z.T @ Z).max())
     if top >= IRREGULAR_RATIO:
         return None
-    law = ctx.jitter if isinstance(ctx.jitter, JitterLaw) else None
-    edges = (
-        f"the jitter law {law!r} has hard edges, which a noise this small hardly blurs; "
-        if law is not None and law.hard_edges
-        else ""
+    law: JitterLaw | JitterFamily | None = ctx.jitter
+    if isinstance(law, JitterFamily):
+        try:
+            law = law.law(list(ctx.x[: _n_jitter(law)]))
+        except ValueError:
+            law = None
+    hard = isinstance(law, JitterLaw) and law.hard_edges
+    why = (
+        f"the jitter law {law!r} has hard edges, which a noise this small hardly blurs, and "
+        "the estimate sits where a few samples meet them"
+        if hard
+        else "the curvature comes from a few samples the estimate sits next to, as where the "
+        "noise is far below the samples' jitter spread"
     )
     return FitStatus.IRREGULAR, (
         f"the likelihood's curvature at the estimate is at least {1 / top:.3g} times the "
         "spread of its per-sample scores in every direction (a regular likelihood has them "
         f"equal to sampling error; the check flags below {IRREGULAR_RATIO:g}): it is not "
-        f"regular here ({edges}the estimate sits where a few samples meet the edges of their "
-        "densities), so the stated standard errors understate its spread and the search may "
-        "have stopped at one of many nearby maxima. Fit with a moment criterion (method "
-        "'bcls' or 'asml'), whose errors hold there, or a jitter law without hard edges"
+        f"regular here ({why}), so the stated standard errors understate the estimate's "
+        "spread and the search may have stopped at one of many nearby maxima. Fit with a "
+        "moment criterion (method 'bcls' or 'asml'), whose errors hold there"
+        + (", or a jitter law without hard edges" if hard else "")
     )
 
 
