@@ -470,16 +470,22 @@ def _held_jitter(ctx: PostContext) -> str:
     return "; ".join(parts)
 
 
+def _fitted_law(ctx: PostContext) -> JitterLaw | None:
+    """The estimate's jitter law (a family's at its estimate; None where it cannot be made)."""
+    if not isinstance(ctx.jitter, JitterFamily):
+        return ctx.jitter
+    try:
+        return ctx.jitter.law(list(ctx.x[: _n_jitter(ctx.jitter)]))
+    except ValueError:
+        return None
+
+
 def _input_end(ctx: PostContext, margin: float) -> str | None:
     """:func:`input_reach` at the estimate's jitter law (a family's at its estimate)."""
     if ctx.data.u is None or not ctx.structure.uses_input:
         return None
-    nj = _n_jitter(ctx.jitter)
-    try:
-        law = (
-            ctx.jitter.law(list(ctx.x[:nj])) if isinstance(ctx.jitter, JitterFamily) else ctx.jitter
-        )
-    except ValueError:
+    law = _fitted_law(ctx)
+    if law is None:
         return None
     delay = float(ctx.x[ctx.names.index("delay_s")]) if "delay_s" in ctx.names else 0.0
     return input_reach(ctx.data, law, delay, margin)
@@ -917,13 +923,8 @@ def _irregular(ctx: PostContext) -> tuple[FitStatus, str] | None:
     top = float(np.linalg.eigvalsh(Z.T @ Z).max())
     if top >= IRREGULAR_RATIO:
         return None
-    law: JitterLaw | JitterFamily | None = ctx.jitter
-    if isinstance(law, JitterFamily):
-        try:
-            law = law.law(list(ctx.x[: _n_jitter(law)]))
-        except ValueError:
-            law = None
-    hard = isinstance(law, JitterLaw) and law.hard_edges
+    law = _fitted_law(ctx)
+    hard = law is not None and law.hard_edges
     why = (
         f"the jitter law {law!r} has hard edges, which a noise this small hardly blurs, and "
         "the estimate sits where a few samples meet them"
