@@ -543,17 +543,33 @@ def _near(v: float, b: float) -> bool:
     return bool(np.isfinite(b) and abs(v - b) <= 1e-6 * max(1.0, abs(b)))
 
 
+def _difference_reach(x: FloatArray) -> FloatArray:
+    """How far from a bound the covariance holds a parameter fixed (its rows NaN): x +- 2h
+    must lie inside, h at most 1e-4 max(|x|, 1e-2) (``covariance._steps``)."""
+    return 2e-4 * np.maximum(np.abs(x), 1e-2)
+
+
 def _noise_at_floor(ctx: PostContext) -> tuple[FitStatus, str] | None:
     """An estimated noise std on its floor (``SampledData.resolution``, else 1e-12): the
     samples do not resolve the additive noise next to the jitter (the noise-free jittered
     signal explains them at least as well); the other estimates are given it there."""
     if "noise_std" not in ctx.names or ctx.data.resolution is None:
         return None
-    v = float(ctx.x[ctx.names.index("noise_std")])
-    if v > ctx.data.resolution * (1 + 1e-6):
+    i = ctx.names.index("noise_std")
+    v = float(ctx.x[i])
+    floor = ctx.data.resolution
+    # next to it, within the covariance's difference reach: held there by the covariance
+    # (no error bar), as good as on it (a quantised record's noise std 0.4 % above LSB /
+    # sqrt(12), 0.6 of its error: UNIDENTIFIABLE before, "no finite covariance")
+    held = (
+        not np.isfinite(np.asarray(ctx.cov, float)[i, i])
+        and v - floor < _difference_reach(np.array([v]))[0]
+    )
+    if v > floor * (1 + 1e-6) and not held:
         return None
+    where = "on" if v <= floor * (1 + 1e-6) else "next to"
     return FitStatus.AT_BOUND, (
-        f"noise_std = {v:.6g} is on its floor, the data's resolution {ctx.data.resolution:g}: "
+        f"noise_std = {v:.6g} is {where} its floor, the data's resolution {floor:g}: "
         "the samples do not resolve the additive noise next to the jitter (the noise-free "
         "jittered signal explains them as well), so the other estimates are given the noise "
         "at that floor; give the converter's resolution (LSB / sqrt(12)) if it is known"
@@ -642,7 +658,7 @@ def _unidentifiable(ctx: PostContext) -> tuple[FitStatus, str] | None:
     # (x +- 2h inside, h = 1e-4 max(|x|, 1e-2)): held fixed by the covariance too (a = 0.4999
     # of a_max = 0.5: the law's natural limit, not a failure)
     nj = _n_jitter(ctx.jitter) if isinstance(ctx.jitter, JitterFamily) else 0
-    reach = 2e-4 * np.maximum(np.abs(ctx.x[:nj]), 1e-2)
+    reach = _difference_reach(ctx.x[:nj])
     lo_b, hi_b = np.array(ctx.bounds, float).reshape(-1, 2)[:nj].T
     on[:nj] |= (ctx.x[:nj] - reach < lo_b) | (ctx.x[:nj] + reach > hi_b)
     on[list(ctx.exempt)] = True

@@ -126,6 +126,7 @@ __all__ = [
     "DEFAULT_ORDER",
     "DEFAULT_PANEL",
     "ExactLikelihood",
+    "RuleBudgetError",
     "log_density",
 ]
 
@@ -135,6 +136,14 @@ DEFAULT_ORDER = 8  # Gauss-Legendre nodes per panel
 DEFAULT_PANEL = 4.0  # panel length <= DEFAULT_PANEL * sigma_v / local max |s'|
 _SLOPE_SAFETY = 1.25
 _PANEL_BUDGET = 20_000_000  # refuse rules with more panels (memory and time)
+
+
+class RuleBudgetError(ValueError):
+    """The quadrature rule would need more than its budget of panels: the signal is steep
+    relative to the noise std over a long record. A caller with another route (the jitter
+    meter's Gaussian criterion) catches it; a user sees its message, which names the fix."""
+
+
 _CHUNK = 1024  # samples per node chunk (the full rule: fewer where a sample has many nodes,
 #                 so that a chunk holds at most resources.CHUNK_NODES of them)
 NODE_BUDGET = 8_000_000  # nodes kept in memory between evaluations (~0.4 GB); more: streamed
@@ -387,7 +396,7 @@ def _panel_cuts(profile: _SlopeProfile | None, sigma: float, panel: float) -> Fl
         return np.zeros(0)
     cum = profile.cumulative() / (panel * sigma)
     if cum[-1] > _PANEL_BUDGET:
-        raise ValueError(
+        raise RuleBudgetError(
             f"the exact likelihood would need ~{cum[-1]:.3g} quadrature panels (the signal is "
             f"steep relative to noise_std = {sigma:g}); raise `panel` (less accurate) or use "
             "fewer samples"

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import positive, real_array
 from ..data import SampledData
 from ..estimation.fit import fit
-from ..estimation.likelihood import ExactLikelihood
+from ..estimation.likelihood import ExactLikelihood, RuleBudgetError
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import GaussianFamily, JitterFamily, JitterLaw, UniformFamily
 from ..moments.sample import sample_moments
@@ -97,6 +97,19 @@ ALIAS_FITS = 4
 _EVALS_PER_FIT = 30
 _UNITS_PER_SECOND = 2.0e7
 _COST_LIMIT = 120.0
+#: CPU-s per sample of one family's fit by the generic exact likelihood (a tone with
+#: harmonics, or a family the structured likelihood does not integrate): measured on the
+#: 12-bit HD2/HD3 records of ``benchmarks/meter_records.py hd-quant`` at N = 1024-4096
+#: (1-6 ms a sample for the Gaussian, 5-7 for the uniform, 12-19 for the dual Dirac and the
+#: scale mixture); the upper ends. :func:`measure_jitter` measures by the Gaussian criterion
+#: instead where the sum over its families exceeds :data:`_COST_LIMIT`.
+_GENERIC_SECONDS_PER_SAMPLE = {
+    "gaussian": 2e-3,
+    "uniform": 7e-3,
+    "dual-dirac": 2e-2,
+    "scale-mixture": 2e-2,
+    "generalized-normal": 2e-2,
+}
 #: Families tried by default, by name (see measure_jitter, laws).
 DEFAULT_LAWS = ("gaussian", "uniform", "dual-dirac", "scale-mixture")
 
@@ -501,7 +514,20 @@ def _fit_one(
     if gauss is None:
         # (a start for the likelihood: a budget, not the 2000 evaluations of a fit; its end
         # where the budget ran out is a start as good, scored by the likelihood below)
-        gauss = fit(data, model, family, method="gaussian", start=x0, max_nfev=START_NFEV)
+        # as the answer (method="gaussian"), its interval the Huber-White sandwich: the
+        # criterion's information assumes Gaussian jitter, and the std's error scales with
+        # the jitter's kurtosis (a scale mixture of kurtosis 5.4 at N = 4096: the
+        # information's error 0.59 of the estimates' spread, the sandwich's 0.87)
+        cov_type = "robust" if method == "gaussian" else None
+        gauss = fit(
+            data,
+            model,
+            family,
+            method="gaussian",
+            start=x0,
+            max_nfev=START_NFEV,
+            cov_type=cov_type,
+        )
     if method == "gaussian":
         return gauss
     xg = np.asarray(gauss.x, dtype=float).copy()
@@ -796,7 +822,12 @@ def measure_jitter(
     harmonics : int
         Harmonics of the sine model (1: a pure sine; more for a distorted source). Only
         those up to the highest one significant in the record are fitted (the message says
-        so); a fit whose cost would exceed about a minute is refused with its estimate.
+        so). The exact likelihood with harmonics is the generic quadrature: where its
+        predicted cost exceeds about two minutes (N times about 2 ms a sample for the
+        Gaussian family, up to 20 ms for the others, summed over ``laws``: beyond N = 2048
+        with the four default laws), or its rule would exceed its budget, the record is
+        measured by the Gaussian criterion instead and the message says so. A Gaussian
+        criterion whose cost would exceed about two minutes is refused with its estimate.
     method : {"ml", "gaussian"}
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound. For a pure tone
         with Gaussian, uniform, dual-Dirac or scale-mixture families it is
@@ -813,7 +844,9 @@ def measure_jitter(
         law's shape and the shape moves the std, it measures with the exact likelihood
         over the laws (as ``"ml"``; the message says so). With one law it assumes that law
         (gaussian or uniform) at any spread. With harmonics, the exact Gaussian criterion on
-        the closed-form moments of the first law.
+        the closed-form moments of the first law, its interval the Huber-White sandwich
+        (right whatever the law's shape at a small phase spread: the information's was 0.6 of
+        the spread for a heavy-tailed law).
     resolution : float, optional
         The smallest noise std the record can have (the converter's LSB / sqrt(12)), in
         units of y. Default: the record's own quantisation step over sqrt(12) where its
@@ -848,6 +881,24 @@ def measure_jitter(
     >>> bool(abs(m.jitter_std - 50e-6) < 4 * m.jitter_std_stderr)
     True
     """
+    return _measure(y, T, frequency, laws, band_hz, harmonics, method, resolution, fallback=True)
+
+
+def _measure(
+    y: ArrayLike,
+    T: float,
+    frequency: float | None,
+    laws: Sequence[str],
+    band_hz: tuple[float, float] | None,
+    harmonics: int,
+    method: str,
+    resolution: float | None,
+    *,
+    fallback: bool,
+) -> JitterMeasurement:
+    """:func:`measure_jitter`; ``fallback``: where the exact likelihood is out of reach
+    (the generic quadrature on a long record), measure by the Gaussian criterion and say so
+    (False: refuse, naming the cost; the Gaussian criterion's own call)."""
     yv = _record(y)
     T = positive(T, "T")
     if method not in ("ml", "gaussian"):
@@ -872,11 +923,7 @@ def measure_jitter(
         # value does not rank laws (measured: Gaussian records at 2 pi f sigma = 0.5 and 1
         # came out as 'uniform', 8 % and 25 % low). With the law not given, the moment route
         # measures the std law-free (the shape from the fourth moment)
-        notes.append(
-            "method='gaussian' does not rank laws: with several laws given, the std is "
-            "measured law-free (the law's shape from the fourth moment, its uncertainty in "
-            "the interval); give one law to assume it"
-        )
+        notes.append(_LAW_FREE_NOTE)
         laws = ("gaussian",)
         law_free = True
     known = _families(T)
@@ -934,6 +981,23 @@ def measure_jitter(
         )
     fam_names = laws[:1] if hopeless else laws
     route = "gaussian" if hopeless else method
+    if law_free and H > 1:  # the moment route's law-free std is a pure tone's
+        notes[notes.index(_LAW_FREE_NOTE)] = _HARMONICS_GAUSSIAN_NOTE
+    tone_1 = SineWave(band_hz=band)
+    if route == "ml" and (H > 1 or not all(sine_ml_applies(tone_1, known[n]) for n in fam_names)):
+        seconds = N * sum(_GENERIC_SECONDS_PER_SAMPLE[n] for n in fam_names)
+        if seconds > _COST_LIMIT and not fallback:
+            raise ValueError(
+                f"the exact likelihood with {H} harmonic(s) (the generic quadrature) would "
+                f"cost about {seconds:.3g} CPU-s on N = {N} samples with the families "
+                f"{list(fam_names)}: give one law (laws=[...]), or a shorter record"
+            )
+        if seconds > _COST_LIMIT:
+            return _by_gaussian_criterion(
+                (yv, T, frequency, asked, band_hz, harmonics, resolution),
+                f"the exact likelihood with {H} harmonics (the generic quadrature) would cost "
+                f"about {seconds:.3g} CPU-s here ({len(fam_names)} families, N = {N})",
+            )
     try:
         same = base_fit if (fc == f_start and base_fit is not None) else None
         mf_start: MomentFit | None = None
@@ -963,15 +1027,16 @@ def measure_jitter(
             # beyond ~0.2 rad of phase spread the law's shape moves the std and the moments
             # cannot tell it (the law-free interval spans the shapes; its middle is 15-26 %
             # off for a uniform or dual Dirac at 0.6-1 rad): the likelihood chooses the law
-            out = measure_jitter(
+            out = _measure(
                 yv,
                 T,
                 frequency,
-                laws=asked,
-                band_hz=band_hz,
-                harmonics=harmonics,
-                method="ml",
-                resolution=resolution,
+                asked,
+                band_hz,
+                harmonics,
+                "ml",
+                resolution,
+                fallback=False,
             )
             spread = 2 * math.pi * out.frequency * out.jitter_std
             note = (
@@ -996,47 +1061,59 @@ def measure_jitter(
     fast_done = route == "gaussian" and gauss_first is not None
     if not fast_done:
         _check_cost(N, H, len(fam_names))
-    if gauss_first is not None and fast_done:
-        best = gauss_first
-    else:
-        best = _fit_one(data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first)
-    # the other families at the chosen alias: from its IEEE starts and from the first
-    # family's fit, the better end kept
-    fitted: dict[str, FitResult] = {first_family: best}
-    sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
-    other = (sine, best.jitter_std, float(best.x[-1]))
-    ranked: dict[str, float] = {}  # the ranked-out families' upper estimates of ln L
-    # the first family's fit is a Gaussian's maximum: a scale mixture, which nests it, is
-    # ranked from there (rank_sine_law's nested)
-    nests_gaussian = first_family == "gaussian" and best.status in (
-        FitStatus.CONVERGED,
-        FitStatus.AT_BOUND,
-    )
-    for name in fam_names[1:]:
-        alt = None
-        if route == "ml" and structured:
-            # rank before the full fit: from the first family's fit (the full route's
-            # second start), given up where it cannot come within the margin of the lead
-            rival_ll, rival_p = _rival(fitted, N)
-            rank = rank_sine_law(
-                yv,
-                T,
-                model,
-                known[name],
-                _other_start(data, known[name], other),
-                rival_loglik=rival_ll,
-                rival_n_params=rival_p,
-                noise_floor=floor,
-                nested=nests_gaussian,
+    try:
+        if gauss_first is not None and fast_done:
+            best = gauss_first
+        else:
+            best = _fit_one(
+                data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first
             )
-            if rank.ranked_out:
-                fitted[name] = rank.fit
-                ranked[name] = rank.loglik_upper
-                continue
-            alt = rank.fit
-        fitted[name] = _fit_one(
-            data, model, known[name], theta_h, sj, sv, route, other=other, alt=alt
+        # the other families at the chosen alias: from its IEEE starts and from the first
+        # family's fit, the better end kept
+        fitted: dict[str, FitResult] = {first_family: best}
+        sine = np.asarray(best.x[best.layout.slice("system")], dtype=float)
+        other = (sine, best.jitter_std, float(best.x[-1]))
+        ranked: dict[str, float] = {}  # the ranked-out families' upper estimates of ln L
+        # the first family's fit is a Gaussian's maximum: a scale mixture, which nests it, is
+        # ranked from there (rank_sine_law's nested)
+        nests_gaussian = first_family == "gaussian" and best.status in (
+            FitStatus.CONVERGED,
+            FitStatus.AT_BOUND,
         )
+        for name in fam_names[1:]:
+            alt = None
+            if route == "ml" and structured:
+                # rank before the full fit: from the first family's fit (the full route's
+                # second start), given up where it cannot come within the margin of the lead
+                rival_ll, rival_p = _rival(fitted, N)
+                rank = rank_sine_law(
+                    yv,
+                    T,
+                    model,
+                    known[name],
+                    _other_start(data, known[name], other),
+                    rival_loglik=rival_ll,
+                    rival_n_params=rival_p,
+                    noise_floor=floor,
+                    nested=nests_gaussian,
+                )
+                if rank.ranked_out:
+                    fitted[name] = rank.fit
+                    ranked[name] = rank.loglik_upper
+                    continue
+                alt = rank.fit
+            fitted[name] = _fit_one(
+                data, model, known[name], theta_h, sj, sv, route, other=other, alt=alt
+            )
+    except RuleBudgetError as exc:
+        # a long record with harmonics: the generic rule cannot resolve the noise
+        if not fallback:
+            raise
+        return _by_gaussian_criterion(
+            (yv, T, frequency, asked, band_hz, harmonics, resolution),
+            f"the exact likelihood's quadrature exceeded its budget ({exc})",
+        )
+
     cands_law = []
     for name, r in fitted.items():
         p = r.x.size
@@ -1155,6 +1232,45 @@ def measure_jitter(
     )
 
 
+_LAW_FREE_NOTE = (
+    "method='gaussian' does not rank laws: with several laws given, the std is measured "
+    "law-free (the law's shape from the fourth moment, its uncertainty in the interval); "
+    "give one law to assume it"
+)
+_HARMONICS_GAUSSIAN_NOTE = (
+    "method='gaussian' does not rank laws: with harmonics the std is measured by the "
+    "Gaussian criterion (the jitter through its variance), its interval the robust "
+    "sandwich, which holds whatever the law's shape at a small phase spread"
+)
+
+
+def _by_gaussian_criterion(
+    call: tuple[
+        FloatArray,
+        float,
+        float | None,
+        Sequence[str],
+        tuple[float, float] | None,
+        int,
+        float | None,
+    ],
+    reason: str,
+) -> JitterMeasurement:
+    """:func:`measure_jitter` of ``call`` (y, T, frequency, laws, band_hz, harmonics,
+    resolution) with ``method="gaussian"``, where the exact likelihood is out of reach:
+    ``reason`` and what was done instead in its message."""
+    y, T, frequency, laws, band_hz, harmonics, resolution = call
+    out = _measure(
+        y, T, frequency, laws, band_hz, harmonics, "gaussian", resolution, fallback=False
+    )
+    note = (
+        f"method='ml': {reason}; measured by the Gaussian criterion instead "
+        "(method='gaussian': the law's shape is not chosen; for the likelihood give one law, "
+        "laws=['gaussian'], or fewer samples)"
+    )
+    return replace(out, message=f"{out.message}; {note}")
+
+
 def _rival(fitted: dict[str, FitResult], N: int) -> tuple[float, int]:
     """The ranking's rival: the lowest-BIC family among those fitted to their maximum
     (none: ln L -inf, nothing is ranked out)."""
@@ -1263,7 +1379,11 @@ def _noise_floor_status(
     if status is not FitStatus.AT_BOUND or "noise_std" not in r.params:
         return status, message
     v = float(r.params["noise_std"])
-    if v > floor * (1 + 1e-6):
+    # on it, or next to it with no error bar: held there by the covariance, whose difference
+    # steps would cross the floor (the fit's AT_BOUND says "next to its floor"; its reach
+    # is under 1 % of a floor)
+    held = not math.isfinite(_stderr(r, "noise_std")) and v <= floor * 1.01
+    if v > floor * (1 + 1e-6) and not held:
         return status, message
     if mf is not None and math.isfinite(mf.jitter_var_stderr):
         lo, hi = std_interval(mf.jitter_var, mf.jitter_var_stderr, 0.99)
