@@ -1,6 +1,7 @@
 """The meter's Gaussian criterion with harmonics (``method="gaussian"``, and the route the
 exact likelihood falls back to on a long record): its interval holds whatever the jitter
-law's shape, and a long record is measured in seconds rather than refused after minutes."""
+law's shape, and a long record is measured in seconds rather than refused after minutes.
+Also the pure-tone call on such a record: the distortion is named, not taken for jitter."""
 
 from __future__ import annotations
 
@@ -89,6 +90,20 @@ def test_long_record_with_harmonics_is_measured_by_the_gaussian_criterion():
     one = ji.measure_jitter(y, TS, harmonics=3, laws=["gaussian"])
     assert "instead" not in one.message
     assert abs(one.jitter_std - SJ) < 4 * one.jitter_std_stderr
+
+
+def test_distortion_is_not_taken_for_periodic_jitter():
+    """The default call (a pure tone) on a record with HD2 and HD3. Before: the phase
+    error's line at the tone's own frequency was taken for periodic jitter, the harmonics'
+    lines for its sidebands, and the measurement CONVERGED at 1.53 x the truth (N = 2048;
+    the same at 4096, on three seeds). A phase error periodic with the tone's period is a
+    function of the phase: distortion, and the meter must say to fit harmonics."""
+    m = ji.measure_jitter(_record(500, 2048), TS)
+    kinds = {f.kind for f in m.findings}
+    assert "periodic-jitter" not in kinds
+    assert "lines" in kinds
+    assert m.status is ji.FitStatus.LACK_OF_FIT
+    assert "fit harmonics=3" in m.message
 
 
 def test_rule_over_budget_is_its_own_error():
