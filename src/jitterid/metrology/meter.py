@@ -824,10 +824,11 @@ def measure_jitter(
         those up to the highest one significant in the record are fitted (the message says
         so). The exact likelihood with harmonics is the generic quadrature: where its
         predicted cost exceeds about two minutes (N times about 2 ms a sample for the
-        Gaussian family, up to 20 ms for the others, summed over ``laws``: beyond N = 2048
-        with the four default laws), or its rule would exceed its budget, the record is
-        measured by the Gaussian criterion instead and the message says so. A Gaussian
-        criterion whose cost would exceed about two minutes is refused with its estimate.
+        Gaussian family, up to 20 ms for the others, summed over ``laws``: beyond N of
+        about 2400 with the four default laws), or its rule would exceed its budget, the
+        record is measured by the Gaussian criterion instead and the message says so. A
+        Gaussian criterion whose cost would exceed about two minutes is refused with its
+        estimate.
     method : {"ml", "gaussian"}
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound. For a pure tone
         with Gaussian, uniform, dual-Dirac or scale-mixture families it is
