@@ -106,6 +106,26 @@ def test_distortion_is_not_taken_for_periodic_jitter():
     assert "fit harmonics=3" in m.message
 
 
+def test_noise_next_to_its_floor_is_at_bound_not_unidentifiable():
+    """A quantised record whose noise std ends 0.4 % above LSB / sqrt(12), 0.6 of its own
+    error: the covariance's difference steps would cross the floor, so it has no error bar.
+    Before: UNIDENTIFIABLE ("no finite covariance for noise_std"), and the meter reported
+    the measurement so. Now AT_BOUND next to its floor (the message in the data's units, not
+    the search's y / 4), which the meter reads as noise below what the record resolves."""
+    y = _record(715, 2048)
+    m = ji.measure_jitter(y, TS, harmonics=3, method="gaussian")
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert "below what the record resolves" in m.message
+    lsb = 2.0**-12
+    r = m.fit
+    data = SampledData(y, TS, None, resolution=lsb / np.sqrt(12))
+    g = ji.fit(data, r.structure, r.jitter_model, method="gaussian", start=r.x)
+    assert g.status is ji.FitStatus.AT_BOUND, g.message
+    assert "next to its floor" in g.message
+    assert f"resolution {lsb / np.sqrt(12):g}" in g.message
+    assert 0 < g.noise_std / (lsb / np.sqrt(12)) - 1 < 0.01
+
+
 def test_rule_over_budget_is_its_own_error():
     """The generic full rule refuses a record it cannot resolve with a ValueError subclass
     that the meter catches (its message: the panels it would need)."""

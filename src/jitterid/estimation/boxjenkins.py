@@ -442,6 +442,7 @@ class BoxJenkinsRoute:
         problem = staged.problem
         return PostContext(
             data=self.data,
+            y_scale=self.scaling.sy,
             structure=self.structure,
             jitter=self.jitter,
             names=problem.names,

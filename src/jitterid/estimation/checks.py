@@ -355,6 +355,9 @@ class PostContext:
     # likelihood's -2 ln p_k over its first SCREEN_SAMPLES samples), for a cheap first look
     # at points far from the estimate on a long record (None: every point in full)
     screen: Callable[[FloatArray], FloatArray] | None = None
+    # the search's y is the data's divided by this (:class:`Scaling`): a message that quotes a
+    # value in y's units multiplies it back
+    y_scale: float = 1.0
     # whether a covariance was asked for (cov_type other than "none"): then a covariance
     # that is NaN throughout is a failure (a singular information matrix), not "not
     # computed". None: not said (an all-NaN covariance is then taken as not computed)
@@ -568,8 +571,9 @@ def _noise_at_floor(ctx: PostContext) -> tuple[FitStatus, str] | None:
     if v > floor * (1 + 1e-6) and not held:
         return None
     where = "on" if v <= floor * (1 + 1e-6) else "next to"
+    sy = ctx.y_scale  # the message in the data's units
     return FitStatus.AT_BOUND, (
-        f"noise_std = {v:.6g} is {where} its floor, the data's resolution {floor:g}: "
+        f"noise_std = {v * sy:.6g} is {where} its floor, the data's resolution {floor * sy:g}: "
         "the samples do not resolve the additive noise next to the jitter (the noise-free "
         "jittered signal explains them as well), so the other estimates are given the noise "
         "at that floor; give the converter's resolution (LSB / sqrt(12)) if it is known"

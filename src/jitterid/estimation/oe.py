@@ -559,6 +559,7 @@ class OutputErrorRoute:
 
         return PostContext(
             data=self.data,
+            y_scale=self.scaling.sy,
             structure=structure,
             jitter=self.jitter,
             names=problem.names,
