@@ -1164,9 +1164,12 @@ def _measure(
     # a coloured jitter's interval is widened to its Newey-West value)
     decomposition: JitterDecomposition | None = None
     info: list[Finding] = []
-    if not hopeless and H == 1:
-        decomposition, info, widened = _phase_findings(yv, T, r, resid, sd, jstd, mf)
-        if widened is not None and mf is not None:
+    if not hopeless:
+        # with harmonics, the moment route's Newey-West ratio on the fitted model's residuals
+        # (its variance profile is the fundamental's: the harmonics' slopes are 1e-3 of it)
+        nw_base = mf if H == 1 else moment_route(yv, T, replace(fit4, residuals=resid), "gaussian")
+        decomposition, info, widened = _phase_findings(yv, T, r, resid, sd, jstd, nw_base)
+        if widened is not None and nw_base is not None:
             if on_route:
                 jstd, jse, jvar, jvar_se = (
                     widened.jitter_std,
@@ -1174,10 +1177,10 @@ def _measure(
                     widened.jitter_var,
                     widened.jitter_var_stderr,
                 )
-            elif mf.jitter_var_stderr > 0:
-                # the likelihood assumes independent samples: widen its standard error by
-                # the moment route's Newey-West / independent-sample ratio
-                jse *= max(widened.jitter_var_stderr / mf.jitter_var_stderr, 1.0)
+            elif nw_base.jitter_var_stderr > 0:
+                # the fit assumes independent samples: widen its standard error by the
+                # moment route's Newey-West / independent-sample ratio
+                jse *= max(widened.jitter_var_stderr / nw_base.jitter_var_stderr, 1.0)
     if route == "ml" and structured and not on_route:
         # a law's hard edges sharper than the record resolves: the interval is too narrow
         edge = sharp_edge_finding(r, N)
