@@ -984,21 +984,22 @@ def _measure(
     route = "gaussian" if hopeless else method
     if law_free and H > 1:  # the moment route's law-free std is a pure tone's
         notes[notes.index(_LAW_FREE_NOTE)] = _HARMONICS_GAUSSIAN_NOTE
-    tone_1 = SineWave(band_hz=band)
-    if route == "ml" and (H > 1 or not all(sine_ml_applies(tone_1, known[n]) for n in fam_names)):
-        seconds = N * sum(_GENERIC_SECONDS_PER_SAMPLE[n] for n in fam_names)
-        if seconds > _COST_LIMIT and not fallback:
+    model = SineWave(band_hz=band, harmonics=H)
+    # the structured likelihood (a pure tone, its laws), else the generic quadrature
+    structured = all(sine_ml_applies(model, known[name]) for name in fam_names)
+    seconds = N * sum(_GENERIC_SECONDS_PER_SAMPLE[n] for n in fam_names)
+    if route == "ml" and not structured and seconds > _COST_LIMIT:
+        if not fallback:
             raise ValueError(
                 f"the exact likelihood with {H} harmonic(s) (the generic quadrature) would "
                 f"cost about {seconds:.3g} CPU-s on N = {N} samples with the families "
                 f"{list(fam_names)}: give one law (laws=[...]), or a shorter record"
             )
-        if seconds > _COST_LIMIT:
-            return _by_gaussian_criterion(
-                (yv, T, frequency, asked, band_hz, harmonics, resolution),
-                f"the exact likelihood with {H} harmonics (the generic quadrature) would cost "
-                f"about {seconds:.3g} CPU-s here ({len(fam_names)} families, N = {N})",
-            )
+        return _by_gaussian_criterion(
+            (yv, T, frequency, asked, band_hz, harmonics, resolution),
+            f"the exact likelihood with {H} harmonics (the generic quadrature) would cost "
+            f"about {seconds:.3g} CPU-s here ({len(fam_names)} families, N = {N})",
+        )
     try:
         same = base_fit if (fc == f_start and base_fit is not None) else None
         mf_start: MomentFit | None = None
@@ -1014,7 +1015,6 @@ def _measure(
             f"a sine that can be fitted: {exc}); check that the test signal reaches the "
             "converter, or give frequency= if the tone is known"
         ) from None
-    model = SineWave(band_hz=band, harmonics=H)
     # the moment route (a few passes, law-free variance profile) for a pure tone: the
     # answer of method="gaussian", the likelihood's start and its numeric noise floor
     mf: MomentFit | None = None
@@ -1047,7 +1047,6 @@ def _measure(
                 "moment route)"
             )
             return replace(out, message=f"{out.message}; {note}")
-    structured = all(sine_ml_applies(model, known[name]) for name in fam_names)
     floor = _ml_floor(physical, mf, float(fit4.amplitude), structured)
     data = SampledData(yv, T, None, resolution=floor)
     theta_h = _harmonic_start(model, yv, T, theta)
