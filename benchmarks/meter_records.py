@@ -79,7 +79,9 @@ def main() -> None:
     c0 = time.process_time()
     for r in range(args.records):
         y, sj, kw = record(args.setting, 500 + r, args.n)
+        c1 = time.process_time()
         m = ji.measure_jitter(y, TS, **kw)
+        cpu = time.process_time() - c1
         lo, hi = m.interval()
         hit = lo <= sj <= hi
         hits += hit
@@ -88,7 +90,7 @@ def main() -> None:
         statuses[m.status.name] += 1
         print(
             f"{r:3d} {m.status.name:<15} {m.family:<14} {m.jitter_std * 1e12:.4f} ps "
-            f"+- {m.jitter_std_stderr * 1e15:.2f} fs  covers: {hit}",
+            f"+- {m.jitter_std_stderr * 1e15:.2f} fs  covers: {hit}  {cpu:.1f} CPU-s",
             flush=True,
         )
     ratio = np.asarray(est) / np.asarray(truth)

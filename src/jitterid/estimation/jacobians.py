@@ -200,6 +200,10 @@ class _PdfDerivative(JitterLaw):
         return self._law.var
 
     @property
+    def mass(self) -> float:
+        return 0.0  # d(total mass)/dtheta
+
+    @property
     def support(self) -> tuple[float, float]:
         return self._law.support
 

@@ -377,6 +377,14 @@ class JitterLaw(abc.ABC):
         return 0.0
 
     @property
+    def mass(self) -> float:
+        """The measure's total mass: 1 for a law. A derivative ``dp/dtheta`` of a family's
+        density posing as a law, for the moment passes of a shape parameter
+        (``jitterid.estimation.jacobians``), has mass 0: a closed form of the moments that
+        takes the mass for 1 (a constant's moment, a variance's centring) asks for it."""
+        return 1.0
+
+    @property
     def std(self) -> float:
         """Standard deviation ``sqrt(var)``."""
         return math.sqrt(self.var)

@@ -268,6 +268,12 @@ class ToneSignal(Signal):
 
         if higher:
             return None
+        # a signed measure (a density's derivative, mass 0: jitterid.estimation.jacobians)
+        # has the moments of moment_pass's sums, sum w s and sum w (s - m)^2, with its mass
+        # where a law's is 1; its derivatives are not asked for (the node route if they are)
+        mass = float(jitter.mass)
+        if mass != 1.0 and (gradient or scale is not None):
+            return None
         tn = self.tones
         H = tn.w.size
         t = np.arange(N, dtype=float) * T
@@ -280,8 +286,8 @@ class ToneSignal(Signal):
         cp, cpd = chi[H + H * H :].reshape(H, H), dchi[H + H * H :].reshape(H, H)
         z = self._phasors(t)  # (H, N)
         E = z * c1[:, None]  # e^{i w t} chi(w)
-        dev = np.imag(tn.a @ E)  # m - c
-        mean = tn.c + dev
+        dev = np.imag(tn.a @ E)  # m - c (sum w (s - c))
+        mean = tn.c * mass + dev
         var = dmean = dvar = scale_mean = scale_var = None
         aa_m = tn.a[:, None] * np.conj(tn.a)[None, :]
         aa_p = tn.a[:, None] * tn.a[None, :]
@@ -292,7 +298,10 @@ class ToneSignal(Signal):
             second = 0.5 * np.real(
                 np.einsum("hg,hgn->n", aa_m, Pm) - np.einsum("hg,hgn->n", aa_p, Pp)
             )
-            var = np.maximum(second - dev**2, 0.0)
+            if mass == 1.0:
+                var = np.maximum(second - dev**2, 0.0)
+            else:  # sum w s^2 - 2 m sum w s + m^2 mass, sum w s^2 = c^2 mass + 2 c dev + second
+                var = second + 2 * tn.c * dev + tn.c**2 * mass - mean**2 * (2 - mass)
         if gradient:
             # dE_h = dw_h (i t E_h + z_h chi'(w_h)); dP = (dw_h -+ dw_g)(i t P + z.. chi'(.))
             dEw = 1j * t[None, :] * E + z * c1d[:, None]  # per unit dw_h, (H, N)
