@@ -44,15 +44,12 @@ def _tone(harmonics: int) -> tuple[ji.SineWave, np.ndarray]:
     return ji.SineWave(harmonics=harmonics), np.array([*theta, 0.23, 0.3])
 
 
-@fam_param
-@pytest.mark.parametrize("harmonics", [1, 3])
-def test_moment_derivatives_in_the_shape_against_differences(family, jp, harmonics):
-    model, theta = _tone(harmonics)
-    data = ji.SampledData(np.linspace(-1.0, 1.0, N), T, None)
-    prob = Problem(data, model, family, "gaussian", ji.default_frequencies(N, T), 0.05)
-    x = np.r_[jp, theta]
+def _check_jitter_derivatives(prob: Problem, x: np.ndarray, nj: int) -> None:
+    """dm, dVar in the first ``nj`` (jitter) parameters against central differences of the
+    moments. The shape's effect is second order in the phase spread: the scale of the check
+    is the derivative itself, not the moments (the defect put the offset 0.3 into dm)."""
     _, _, dm, dw = prob.derivatives(x)
-    for i in range(len(jp)):
+    for i in range(nj):
         h = 1e-5 * abs(x[i])
         up, down = x.copy(), x.copy()
         up[i] += h
@@ -60,10 +57,18 @@ def test_moment_derivatives_in_the_shape_against_differences(family, jp, harmoni
         mu, md = prob.moments(up), prob.moments(down)
         fd_m = (mu.mean - md.mean) / (2 * h)
         fd_w = (mu.var - md.var) / (2 * h)
-        # the shape's effect is second order in the phase spread: the scale of the check is
-        # the derivative itself, not the moments (the defect put the offset 0.3 into dm)
         np.testing.assert_allclose(dm[i], fd_m, rtol=0, atol=1e-4 * np.abs(fd_m).max() + 1e-9)
         np.testing.assert_allclose(dw[i], fd_w, rtol=0, atol=1e-4 * np.abs(fd_w).max() + 1e-9)
+
+
+@fam_param
+@pytest.mark.parametrize("harmonics", [1, 3])
+def test_moment_derivatives_in_the_shape_against_differences(family, jp, harmonics):
+    model, theta = _tone(harmonics)
+    data = ji.SampledData(np.linspace(-1.0, 1.0, N), T, None)
+    prob = Problem(data, model, family, "gaussian", ji.default_frequencies(N, T), 0.05)
+    x = np.r_[jp, theta]
+    _check_jitter_derivatives(prob, x, len(jp))
 
 
 @fam_param
@@ -119,14 +124,4 @@ def test_a_steady_state_multisine_response_too(family, jp):
     data = ji.SampledData(np.linspace(-1.0, 1.0, N), T, u)
     prob = Problem(data, ji.PolePairGain(), family, "gaussian", ji.default_frequencies(N, T), 0.05)
     x = np.r_[jp, 5.0, -1.0, 2.0]
-    _, _, dm, dw = prob.derivatives(x)
-    for i in range(len(jp)):
-        h = 1e-5 * abs(x[i])
-        up, down = x.copy(), x.copy()
-        up[i] += h
-        down[i] -= h
-        mu, md = prob.moments(up), prob.moments(down)
-        fd_m = (mu.mean - md.mean) / (2 * h)
-        fd_w = (mu.var - md.var) / (2 * h)
-        np.testing.assert_allclose(dm[i], fd_m, rtol=0, atol=1e-4 * np.abs(fd_m).max() + 1e-9)
-        np.testing.assert_allclose(dw[i], fd_w, rtol=0, atol=1e-4 * np.abs(fd_w).max() + 1e-9)
+    _check_jitter_derivatives(prob, x, len(jp))
