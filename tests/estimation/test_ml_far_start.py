@@ -56,15 +56,18 @@ def test_ml_from_far_start_reaches_the_default_routes_optimum(
     far = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR)
     assert far.status is FitStatus.CONVERGED, far.message
     _same_optimum(far, default)
-    # the message says that the given start failed and how the fit got out
-    assert "after a restart" in far.message
-    # the search from FAR alone either stops (OPTIMISER_FAILED, as when this test was
-    # written) or, with numpy 2.4.6 and scipy 1.17.1 (2026-11-28), "converges" on the flat
-    # stretch there
-    # (stationary in the directions the data determine, k0 ~ 6.4e3, pr ~ -83), where the
-    # criterion is far above its value at a default start: either is restarted, and said
-    assert "OPTIMISER_FAILED" in far.message or "higher than at a default start" in far.message
-    assert "bcls fit from that start" in far.message
+    # the message says that the given start failed and how the fit got out. The search from
+    # FAR alone either stops (OPTIMISER_FAILED, as when this test was written: restarted
+    # from the bcls fit from that start) or, with numpy 2.4.6 and scipy 1.17.1 (2026-11-28),
+    # "converges" on the flat stretch there (stationary in the directions the data
+    # determine, k0 ~ 6.4e3, pr ~ -83), where the criterion is far above its value at a
+    # default start: it is searched again from that start (session 21: first, before the
+    # first stage's restart)
+    restarted = "after a restart" in far.message and "bcls fit from that start" in far.message
+    again = "searched again from the default start" in far.message
+    assert restarted or again, far.message
+    if again:
+        assert "the search from the given start" in far.message
 
 
 def test_budget_used_up_is_restarted(data: ji.SampledData, default: ji.FitResult) -> None:

@@ -86,8 +86,9 @@ def test_interval_scales_with_the_jitter_kurtosis(law, kurtosis):
 def test_long_record_with_harmonics_is_measured_by_the_gaussian_criterion():
     """Before: method='ml' on N = 2^16 ran 135 CPU-s and then raised that the quadrature
     would need 2.4e7 panels, naming an argument (`panel`) that measure_jitter does not
-    have. Now the predicted cost sends it to the Gaussian criterion at once, and says so."""
-    y = _record(500, 4096)
+    have. Now the predicted cost sends it to the Gaussian criterion at once, and says so
+    (the four default laws: beyond N of about 6300)."""
+    y = _record(500, 8192)
     m = ji.measure_jitter(y, TS, harmonics=3)
     g = ji.measure_jitter(y, TS, harmonics=3, method="gaussian")
     assert "measured by the Gaussian criterion instead" in m.message
@@ -97,8 +98,8 @@ def test_long_record_with_harmonics_is_measured_by_the_gaussian_criterion():
     assert m.jitter_std_stderr == g.jitter_std_stderr
     lo, hi = m.interval()
     assert lo <= SJ <= hi
-    # one law is within the budget at this length: the exact likelihood runs
-    one = ji.measure_jitter(y, TS, harmonics=3, laws=["gaussian"])
+    # one law is within the budget: the exact likelihood runs (a shorter record: its cost)
+    one = ji.measure_jitter(_record(500, 4096), TS, harmonics=3, laws=["gaussian"])
     assert "instead" not in one.message
     assert abs(one.jitter_std - SJ) < 4 * one.jitter_std_stderr
 
@@ -198,3 +199,19 @@ def test_heavy_tailed_jitter_with_harmonics_coverage():
         lo, hi = m.interval()
         hits += lo <= SJ <= hi
     assert 0.88 <= hits / R <= 0.99, hits
+
+
+def test_a_likelihood_stationary_at_rho_zero_is_searched_again_from_the_lower_shape():
+    """The generic likelihood is even in the scale mixture's rho, so rho = 0 is a stationary
+    point whatever the data: the search from the Gaussian criterion's start ended there,
+    CONVERGED, below the likelihood at a default start's shape. That was restarted from the
+    first stage (bcls), which collapses a tone's jitter, and the likelihood's next step went
+    to the scale's upper bound: over 7 CPU-min and 3 GB on this record. Now the search is
+    run again from the lower point first (8 CPU-s). The referee: the truth (2 ps)."""
+    y = _record(506, 1024)
+    m = ji.measure_jitter(y, TS, harmonics=3, laws=["scale-mixture"])
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert m.fit.x[1] > 0.05  # rho off the stationary point
+    assert "bcls" not in m.fit.message
+    lo, hi = m.interval()
+    assert lo <= SJ <= hi

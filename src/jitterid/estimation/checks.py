@@ -448,11 +448,20 @@ def _held_jitter(ctx: PostContext) -> str:
             "method 'gaussian' or 'ml' for the jitter's own variance)"
         )
     kink, flat = _kinked(ctx)[:nj], _flat_shapes(ctx)[:nj] & ~_kinked(ctx)[:nj]
+    lo, hi = np.array(fam.bounds, dtype=float).T
+    on = [_near(v, a) or _near(v, b) for v, a, b in zip(ctx.x[:nj], lo, hi, strict=True)]
+    bound = flat & np.array(on, dtype=bool)
+    flat &= ~bound
     parts = []
     for i in np.flatnonzero(kink):
         parts.append(
             f"{ctx.names[i]} = {ctx.x[i]:g} is at a kink of the family (no second derivative): "
             "held fixed for the error bars"
+        )
+    for i in np.flatnonzero(bound):
+        parts.append(
+            f"{ctx.names[i]} = {ctx.x[i]:g} is on its bound: held fixed for the error bars, "
+            "which are conditional on it"
         )
     if flat.any():
         which = ", ".join(ctx.names[i] for i in np.flatnonzero(flat))
@@ -462,15 +471,26 @@ def _held_jitter(ctx: PostContext) -> str:
         )
     if not parts:
         return ""
+    std, se = _std_stderr(ctx)
+    if np.isfinite(se) and std > 0:
+        parts.append(f"the jitter std is identified to {100 * se / std:.2g} % (1 standard error)")
+    return "; ".join(parts)
+
+
+def _std_stderr(ctx: PostContext) -> tuple[float, float]:
+    """The estimate's jitter std and its standard error by the delta method over the family's
+    parameters with an error bar (NaN where none has one)."""
+    fam = ctx.jitter
+    assert isinstance(fam, JitterFamily)
+    nj = len(fam.param_names)
     theta = ctx.x[:nj]
     C = np.asarray(ctx.cov, float)[:nj, :nj]
     fin = np.isfinite(np.diag(C))
     std = float(fam.law(theta.tolist()).std)
-    if fin.any() and std > 0:
-        g = fam.std_gradient(theta)[fin]
-        se = float(np.sqrt(max(float(g @ C[np.ix_(fin, fin)] @ g), 0.0)))
-        parts.append(f"the jitter std is identified to {100 * se / std:.2g} % (1 standard error)")
-    return "; ".join(parts)
+    if not fin.any():
+        return std, float("nan")
+    g = fam.std_gradient(theta)[fin]
+    return std, float(np.sqrt(max(float(g @ C[np.ix_(fin, fin)] @ g), 0.0)))
 
 
 def _fitted_law(ctx: PostContext) -> JitterLaw | None:

@@ -261,6 +261,17 @@ class OutputErrorRoute:
                 nfev += n
                 # (none lower: the post-search check need not evaluate them again)
                 compared = lower is None
+                if lower is not None:
+                    # the search again from the lower point first: a stationary point that
+                    # is not a maximum (a scale mixture's rho = 0, where the likelihood,
+                    # even in rho, has no slope) is left from there, where the restart's
+                    # first stage may have nothing to tell (a tone's bcls collapses its
+                    # jitter, and the likelihood's step from there went to the scale's
+                    # bound: 3 GB and over 7 CPU-min on a 1024-sample record)
+                    again, n = self._from_lower_default(problem, best, "the given start")
+                    nfev += n
+                    if again.status is FitStatus.CONVERGED and again.cost < best.cost:
+                        best, lower = again, None
             if best.status in _STOPPED or lower is not None:
                 problem, best, n = self._restart(problem, best, x0, noise)
                 nfev += n
@@ -409,7 +420,9 @@ class OutputErrorRoute:
         label = "the default start" if j < len(starts) else "a default start's shape at its std"
         return (v, points[j], label), n
 
-    def _from_lower_default(self, problem: Problem, best: Outcome) -> tuple[Outcome, int]:
+    def _from_lower_default(
+        self, problem: Problem, best: Outcome, origin: str = "the first stage's estimate"
+    ) -> tuple[Outcome, int]:
         """A jitter family's second stage searched from one start (the first stage's
         estimate): where the criterion at a default start (:meth:`_lower_default`) is lower
         than at the search's end, the search again from the lowest, its end kept where lower
@@ -417,7 +430,8 @@ class OutputErrorRoute:
         different jitter stds (Table 1, the exact Gaussian criterion: n = 2.3 with a on its
         bound T/2 against n = 0 at a std 9 % lower, -2 ln L 3.6 apart) has modes that the
         walk's scan at a fixed std does not connect: the default starts are the multi-start
-        that the first stage ran. Returns the outcome and the evaluations used."""
+        that the first stage ran. ``origin``: where the search started, for the message.
+        Returns the outcome and the evaluations used."""
         lowest, n = self._lower_default(problem, best)
         if lowest is None:
             return best, n
@@ -430,7 +444,7 @@ class OutputErrorRoute:
             message=(
                 f"{again.message} (searched again from {lowest[2]} {start}, in the "
                 f"search's units, where the criterion was lower than at the end of the search "
-                f"from the first stage's estimate: {best.cost:.6g} there)"
+                f"from {origin}: {best.cost:.6g} there, {best.message})"
             )
         ), n
 
