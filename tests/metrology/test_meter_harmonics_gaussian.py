@@ -87,7 +87,7 @@ def test_long_record_with_harmonics_is_measured_by_the_gaussian_criterion():
     """Before: method='ml' on N = 2^16 ran 135 CPU-s and then raised that the quadrature
     would need 2.4e7 panels, naming an argument (`panel`) that measure_jitter does not
     have. Now the predicted cost sends it to the Gaussian criterion at once, and says so
-    (the four default laws: beyond N of about 6300)."""
+    (the four default laws: beyond N of about 5200)."""
     y = _record(500, 8192)
     m = ji.measure_jitter(y, TS, harmonics=3)
     g = ji.measure_jitter(y, TS, harmonics=3, method="gaussian")

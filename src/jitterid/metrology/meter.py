@@ -102,14 +102,15 @@ _COST_LIMIT = 120.0
 #: 12-bit HD2/HD3 records of ``benchmarks/meter_records.py hd-quant`` at N = 2048 and 4096
 #: (session 21, after the shape families' moment derivatives were mended: 0.9-1.7 ms a
 #: sample for the Gaussian, 1.2-2.3 for the uniform, 3.1-6.3 for the dual Dirac, 2.8-4.5 for
-#: the scale mixture, 10-15 for the generalized normal at 2048); the upper ends, with room.
+#: the scale mixture, 10-15 for the generalized normal at 2048); the upper ends, with room
+#: (eight records at 4096 with the four default laws took 46-164 CPU-s, mean 84).
 #: :func:`measure_jitter` measures by the Gaussian criterion instead where the sum over its
-#: families exceeds :data:`_COST_LIMIT` (the four default laws: beyond N of about 6300).
+#: families exceeds :data:`_COST_LIMIT` (the four default laws: beyond N of about 5200).
 _GENERIC_SECONDS_PER_SAMPLE = {
     "gaussian": 2e-3,
     "uniform": 3e-3,
-    "dual-dirac": 8e-3,
-    "scale-mixture": 6e-3,
+    "dual-dirac": 1e-2,
+    "scale-mixture": 8e-3,
     "generalized-normal": 2e-2,
 }
 #: Families tried by default, by name (see measure_jitter, laws).
@@ -826,8 +827,8 @@ def measure_jitter(
         those up to the highest one significant in the record are fitted (the message says
         so). The exact likelihood with harmonics is the generic quadrature: where its
         predicted cost exceeds about two minutes (N times about 2 ms a sample for the
-        Gaussian family, 3-8 ms for the other default laws and 20 ms for the generalized
-        normal, summed over ``laws``: beyond N of about 6300 with the four default laws),
+        Gaussian family, 3-10 ms for the other default laws and 20 ms for the generalized
+        normal, summed over ``laws``: beyond N of about 5200 with the four default laws),
         or its rule would exceed its budget, the
         record is measured by the Gaussian criterion instead and the message says so. A
         Gaussian criterion whose cost would exceed about two minutes is refused with its
