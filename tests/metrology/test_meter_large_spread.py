@@ -116,3 +116,25 @@ def test_heavy_tailed_jitter_at_1_rad_is_measured_in_its_family():
     assert abs(m.jitter_std - sig) < 3 * m.jitter_std_stderr
     ll = {c.name: c.loglik for c in m.laws}
     assert ll["scale-mixture"] - ll["gaussian"] > 0.5 * math.log(1000)
+
+
+def test_every_start_on_the_floor_gets_a_noisy_one():
+    """A scale mixture (rho = 0.7) at 0.22 rad, noise 0.05 of a 1.5 amplitude, N = 400, a
+    float record: the slope regression read no noise, so every start had its noise on the
+    floor, and the likelihood stayed in the floor's maximum (noise 2e-4, the amplitude 8 %
+    high), ln L 120 below the maximum, reported LACK_OF_FIT with advice to fit harmonics.
+    The referee: the generic exact likelihood (jitterid.fit, method="ml") on the record."""
+    rng = np.random.default_rng(1000)
+    n = 400
+    tau = 0.15 * np.where(rng.random(n) < 0.5, np.sqrt(0.3), np.sqrt(1.7)) * rng.standard_normal(n)
+    y = 1.5 * np.sin(2 * np.pi * 0.23 * (np.arange(n) + tau) + 0.4) + 0.3
+    y = y + 0.05 * rng.standard_normal(n)
+    fam = ji.GaussianScaleMixtureFamily()
+    m = ji.measure_jitter(y, 1.0, laws=["scale-mixture"])
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    ref = ji.fit(ji.SampledData(y, 1.0, None), ji.SineWave(), fam, "ml")
+    assert ref.status is ji.FitStatus.CONVERGED, ref.message
+    # the same maximum: ln L (the criterion -ln L here, -2 ln L there) and the estimates
+    assert abs(m.noise_std - 0.05) < 0.01
+    assert m.jitter_std == pytest.approx(ref.jitter_std, rel=2e-3)
+    assert m.noise_std == pytest.approx(ref.x[-1], rel=2e-3)
