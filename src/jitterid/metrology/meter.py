@@ -837,8 +837,8 @@ def measure_jitter(
         predicted cost exceeds about two minutes (N times about 2 ms a sample for the
         Gaussian family, 3-10 ms for the other default laws and 20 ms for the generalized
         normal, summed over ``laws``: beyond N of about 5200 with the four default laws),
-        or its rule would exceed its budget, the
-        record is measured by the Gaussian criterion instead and the message says so. A
+        or its rule would exceed its budget, the record is measured by the Gaussian
+        criterion instead and the message says so. A
         Gaussian criterion whose cost would exceed about two minutes is refused with its
         estimate.
     method : {"ml", "gaussian"}
