@@ -82,7 +82,9 @@ def fit(
         is restarted: the first stage (BCLS) from that vector, then the method from its
         estimate (each search with its own ``max_nfev``); the lower criterion is kept and the
         message says so (or, where the restart finds nothing lower, that it was tried and
-        what to do).
+        what to do). One that converges where the criterion is lower at a default start is
+        searched again from that start first, and restarted so only where that does not
+        lower it.
     freqs : array_like, optional
         Frequency set in Hz. Default (24): f_k = k/(NT), k = 0..floor(N/2)-1.
     noise_std : float, optional
