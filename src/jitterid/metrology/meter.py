@@ -579,26 +579,22 @@ def _fit_one(
     # ln L -657 against -311 at the maximum from the noisy start). An end within a decade
     # of the floor there is searched again from the best-scored start with the noise above
     # it (a dual Dirac at 1 rad ended at 2.2 x the floor, ln L -405 against -54).
-    noisy = [c for _, _, c in sorted(scored, key=lambda t: t[:2]) if c[-1] > 10 * lo_noise]
     spread = 2 * math.pi * float(theta[2]) * sj
-    if not noisy and lo_noise > 0:
-        # every start on the floor (the slope regression, whose noise is the start's, reads
-        # none where the jitter's curvature terms dominate: a scale mixture at 0.22 rad,
-        # N = 400, noise 0.05 of a 1.5 amplitude, ended at the floor's maximum, ln L 120
-        # below the one from here, LACK_OF_FIT): one at a third of the residual's rms
-        rms = float(np.std(data.y - model.signal(theta, None)(data.t_nominal)))
-        if rms > 30 * lo_noise:
-            noisy = [np.r_[best[:-1], rms / 3]]
-    if (
-        lo_noise > 0
-        and spread >= FLOOR_TRAP_SPREAD_RAD
-        and out.x[-1] <= 10 * lo_noise
-        and noisy
-        and not np.array_equal(noisy[0], best)
-    ):
-        again = ml(noisy[0])
-        if np.isfinite(again.cost) and (not np.isfinite(out.cost) or again.cost < out.cost):
-            out = again
+    if lo_noise > 0 and spread >= FLOOR_TRAP_SPREAD_RAD and out.x[-1] <= 10 * lo_noise:
+        noisy = [c for _, _, c in sorted(scored, key=lambda t: t[:2]) if c[-1] > 10 * lo_noise]
+        if not noisy:
+            # every start on the floor (the slope regression, whose noise is the start's,
+            # reads none where the jitter's curvature terms dominate: a scale mixture at
+            # 0.22 rad, N = 400, noise 0.05 of a 1.5 amplitude, ended at the floor's
+            # maximum, ln L 120 below the one from here, LACK_OF_FIT): one at a third of the
+            # residual's rms
+            rms = float(np.std(data.y - model.signal(theta, None)(data.t_nominal)))
+            if rms > 30 * lo_noise:
+                noisy = [np.r_[best[:-1], rms / 3]]
+        if noisy and not np.array_equal(noisy[0], best):
+            again = ml(noisy[0])
+            if np.isfinite(again.cost) and (not np.isfinite(out.cost) or again.cost < out.cost):
+                out = again
     if alt is None and other is not None:
         alt = ml(_other_start(data, family, other))
     if (
