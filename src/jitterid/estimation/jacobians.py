@@ -29,9 +29,12 @@ so one pass that returns m, w and their derivatives dm, dw (P x N) feeds them al
   pass each and smooth in theta. ``n`` on an integer at the bottom of the searched piece
   (a kink, or the bound 0) is, to first order from above, a move of the scale
   (:meth:`JitterFamily.scale_equivalent`): dm_n = -a / (2 (n + 1)) dm_a, no pass at all
-  (:func:`_from_above_as_scale`). Otherwise (``n`` at an integer elsewhere, or less than
-  1e-9 below one) central differences of the moments, second-order one-sided at a piece's
-  end (:func:`_differenced`), two extra evaluations each.
+  (:func:`_from_above_as_scale`). At the top of the searched piece (a kink, or the bound
+  n_max) the derivative from below is a combination of laws
+  (:meth:`JitterFamily.below_kink`: -(m - m_L) / 2, L the sum of n - 1 of the n + 1
+  uniforms), one pass under L (:func:`_from_below_as_laws`). Otherwise (``n`` on an integer
+  inside the searched box, or less than 1e-9 below one) central differences of the moments,
+  second-order one-sided at a piece's end (:func:`_differenced`), two extra evaluations each.
 - the noise std: dw/dsigma_v = 2 sigma_v.
 
 The criteria turn dm, dw into their own derivatives (one module each in
@@ -265,6 +268,57 @@ def _from_above_as_scale(problem: Problem, x: FloatArray, i: int) -> float | Non
     return fam.scale_equivalent(problem.layout.block(x, "jitter").tolist(), i)
 
 
+def _from_below_as_laws(
+    problem: Problem,
+    x: FloatArray,
+    sig: Signal,
+    i: int,
+    mom: SampleMoments,
+    need_var: bool,
+) -> tuple[FloatArray, FloatArray | None] | None:
+    """dm_k and dVar_k in jitter parameter ``i`` from below where it sits on the upper end of
+    the searched box (a kink that ends the piece, or the bound) and the family gives its
+    derivative there as a combination of laws (:meth:`JitterFamily.below_kink`,
+    ``dp = c0 p + sum c_j p_j``, sum c = 0): dm = c0 m + sum c_j m_j and dVar = sum c_j
+    E_j[(s - m)^2] = c0 Var + sum c_j (Var_j + (m_j - m)^2), one moment pass a law
+    ``L_j`` on its own nodes, exact, where :func:`_differenced` would take two one-sided
+    with new nodes (and converge like the square root of its step: the law's widths move
+    like the square root of the distance below an integer). None elsewhere, and for a
+    delayed model (its law at the nodes is the family's shifted)."""
+    fam = problem.jitter
+    if (
+        not isinstance(fam, JitterFamily)
+        or x[i] != problem.bounds[i][1]
+        or getattr(problem.structure, "delay_index", None) is not None
+    ):
+        return None
+    combo = fam.below_kink(problem.layout.block(x, "jitter").tolist(), i)
+    if combo is None:
+        return None
+    c0, terms = combo
+    d = problem.data
+    dm = c0 * mom.mean
+    dv = c0 * mom.var if need_var else None
+    seg = sig.modal_segments
+    for c, other in terms:
+        if seg is not None:
+            assert isinstance(d.u, PiecewiseConstant)
+            p = seg.system.modal.poles
+            rate = float(np.max(np.abs(p))) if p.size else 0.0
+            plan = SegmentPlan(other, d.T, d.N, d.u, rate, poles=p)
+            mj, vj, _, _ = modal_moments(
+                plan, tables(seg.system, d.u), keep=False, variance=need_var
+            )
+        else:
+            mp = moment_pass(sig, other, d.T, d.N, variance=need_var)
+            mj, vj = mp.mean, mp.var
+        dm = dm + c * mj
+        if dv is not None:
+            assert vj is not None
+            dv = dv + c * (vj + (mj - mom.mean) ** 2)
+    return dm, dv
+
+
 def _differenced(
     problem: Problem, x: FloatArray, i: int, *, variance: bool, shape: bool = False
 ) -> tuple[FloatArray, FloatArray | None]:
@@ -384,6 +438,12 @@ def moment_derivatives(
             dm[i] = r * dm[scale]
             if need_var:
                 dv[i] = r * dv[scale]
+            continue
+        below = _from_below_as_laws(problem, x, sig, i, mom, need_var)
+        if below is not None:  # on a kink at its piece's top: a combination of laws (exact)
+            dm[i] = below[0]
+            if below[1] is not None:
+                dv[i] = below[1]
             continue
         # other jitter parameters move the nodes: differences of the moments, central (or
         # second-order one-sided at a bound, e.g. a piece's end: finite_diff), O(h^2). A

@@ -933,12 +933,15 @@ class SumOfUniforms(JitterLaw):
         (``K = 2``) to 3e-9 (``K = 50``) at ``1e-9`` below the integer, 1.3e-8 (``K = 50``) at
         ``1e-10``.
 
-        ``None`` (the callers then difference the moments and the likelihood, one-sided at a
-        piece's end: :mod:`jitterid.finite_diff`):
+        ``None`` (the callers then take the one-sided forms of
+        :meth:`SumOfUniformsFamily.scale_equivalent` and
+        :meth:`SumOfUniformsFamily.below_kink`, or difference the moments and the likelihood,
+        one-sided at a piece's end: :mod:`jitterid.finite_diff`):
 
         * at an integer ``n`` (within ``1e-12``, where the law is stored as ``n + 1`` equal
           uniforms): the law has a kink in ``n`` there (``db/dn`` is finite above and
-          infinite below), so its derivative is one-sided and depends on the side;
+          infinite below, though the law's own derivative from below is finite), so its
+          derivative is one-sided and depends on the side;
         * less than ``1e-9`` below an integer: the cancellation above would cost more than
           a relative 3e-9 (and grows without bound as the distance goes to 0).
 
@@ -1590,6 +1593,27 @@ class JitterFamily(abc.ABC):
         """
         return None
 
+    def below_kink(
+        self, params: Sequence[float], index: int
+    ) -> tuple[float, tuple[tuple[float, JitterLaw], ...]] | None:
+        """Where :meth:`pdf_gradient` gives none because ``params[index]`` sits on a kink
+        (or an upper bound) of the family, the law's derivative in that parameter *from
+        below* as a combination of laws: ``(c0, ((c1, L1), ...))`` with ``dp/dtheta_index (-)
+        = c0 p + c1 p_L1 + ...`` (``p`` the law at ``params``; the coefficients sum to 0), as
+        measures (a law ``L_j`` may be a point mass). The moments' derivatives from below are
+        then ``c0 m + sum c_j m_j``: one moment pass a law, where a one-sided difference would
+        take two with new nodes, and exact. ``None`` (the default) where the family gives no
+        such combination.
+
+        Parameters
+        ----------
+        params : sequence of float
+            The family's parameters, in :attr:`param_names` order.
+        index : int
+            The parameter, an index into :attr:`param_names`.
+        """
+        return None
+
     @property
     def kinks(self) -> tuple[tuple[float, ...], ...]:
         """Where the law is not differentiable in each parameter: one tuple per parameter (in
@@ -1796,6 +1820,15 @@ class GaussianFamily(JitterFamily):
         return [(top / 6.0,), (top * 0.4,), (top,)]
 
 
+def _on_integer(params: Sequence[float], index: int) -> tuple[int, float] | None:
+    """``(round(n), a)`` of the family (26)'s ``params`` where ``index`` is n's (0) and n is
+    an integer within ``_INTEGER_TOL`` (its kinks and the bound 0), else None."""
+    n, a = float(params[0]), float(params[1])
+    if index != 0 or abs(n - round(n)) > _INTEGER_TOL:
+        return None
+    return round(n), a
+
+
 @dataclass(frozen=True)
 class SumOfUniformsFamily(JitterFamily):
     """The paper's family (26) with unknown ``(n, a)``, ``n`` real (see :class:`SumOfUniforms`).
@@ -1872,7 +1905,7 @@ class SumOfUniformsFamily(JitterFamily):
         window mean of a smooth integrand). To first order in ``eps`` the law is therefore
         that of ``nu`` equal uniforms of total half-width ``a (1 - eps / (2 nu))``, the
         family at the same ``n`` with its scale moved: ``dp/dn (+) = -a / (2 nu) dp/da``.
-        (From below ``db/dn`` is infinite: no factor, the callers difference.)
+        (From below ``db/dn`` is infinite: no factor; see :meth:`below_kink`.)
         Measured on the characteristic function (26): the forward differences in ``n``,
         Richardson-extrapolated, agree with ``-a / (2 nu)`` times the central ones in ``a``
         to 1e-9 at n = 0, 1, 2, 5 (tests/jitter/test_sum_of_uniforms_gradient.py).
@@ -1884,12 +1917,44 @@ class SumOfUniformsFamily(JitterFamily):
         index : int
             0 (``n``); ``a`` is the scale (``None``).
         """
-        if index != 0:
+        on = _on_integer(params, index)
+        return None if on is None else -on[1] / (2.0 * (on[0] + 1.0))
+
+    def below_kink(
+        self, params: Sequence[float], index: int
+    ) -> tuple[float, tuple[tuple[float, JitterLaw], ...]] | None:
+        """``(-1/2, ((1/2, L),))`` for ``n`` at an integer ``M - 1 >= 1`` (within ``1e-12``),
+        ``L`` the sum of ``M - 2`` uniforms ``U(-a/M, a/M)`` (``SumOfUniforms(M - 3, (M - 2)
+        a / M)``; for ``M = 2`` the point mass at 0, :class:`NoJitter`); else ``None``.
+
+        Just below the integer, ``K = M - 1`` uniforms of half-width ``b`` and one of ``c``
+        make the law, ``b, c`` leaving ``b0 = a / M`` by ``delta_i`` of order
+        ``sqrt(eps)`` (``eps`` the distance) with ``sum delta_i = 0`` (the support) and
+        ``sum delta_i^2 = a^2 eps / M^2`` (the variance). With ``h(w) = sinc(2 f w)``,
+        ``phi = prod h(w_i)``: the first order cancels and the second is
+        ``(1/2) sum delta_i^2 g''(b0) phi``, ``g = log h``, where ``g''(b0) phi = (phi_M -
+        phi_{M-2}) / b0^2`` (``1 / sin^2 x = 1 / (x^2 sinc^2 x)``, ``x = 2 pi f b0``;
+        ``phi_{M-2}`` the characteristic function of ``M - 2`` of the uniforms). So ``phi(n)
+        = phi_M - (eps / 2) (phi_M - phi_{M-2}) + O(eps^(3/2))``, and the derivative from
+        below is ``dp/dn (-) = -(p - p_L) / 2``: finite, although the density's own widths
+        move like ``sqrt(eps)`` (at ``M = 2`` the triangle's peak falls like
+        ``sqrt(eps)`` over a width ``sqrt(eps)``: a moment moves like ``eps``). Backward
+        differences of (26) converge to it like ``sqrt(h)`` (``O(eps^(3/2))`` next term):
+        measured in tests/jitter/test_sum_of_uniforms_gradient.py.
+
+        Parameters
+        ----------
+        params : sequence of float
+            ``(n, a)``.
+        index : int
+            0 (``n``); ``a`` is the scale (``None``).
+        """
+        on = _on_integer(params, index)
+        if on is None or on[0] < 1:
             return None
-        n, a = float(params[0]), float(params[1])
-        if abs(n - round(n)) > _INTEGER_TOL:
-            return None
-        return -a / (2.0 * (round(n) + 1.0))
+        m, a = on[0] + 1, on[1]
+        other: JitterLaw = NoJitter() if m == 2 else SumOfUniforms(m - 3, (m - 2) * a / m)
+        return -0.5, ((0.5, other),)
 
     def _starts(self, T: float) -> list[tuple[float, ...]]:
         top = min(T / 2.0, _upper(self.a_max, "a_max"))
