@@ -47,6 +47,7 @@ from .adequacy import (
     ALPHA_TONE,
     Finding,
     SpectralLine,
+    dither_finding,
     folding_check,
     quantisation_step,
     rail_check,
@@ -1193,6 +1194,10 @@ def _measure(
         edge = sharp_edge_finding(r, N)
         if edge is not None:
             info = [*info, edge]
+    if not hopeless:
+        undithered = dither_finding(step, float(r.params["noise_std"]))
+        if undithered is not None:
+            info = [*info, undithered]
     lsb = step if step else (physical * math.sqrt(12.0) if physical else None)
     pj_f = decomposition.pj_frequency_hz if decomposition and decomposition.periodic else None
     findings = _adequacy(
