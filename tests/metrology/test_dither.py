@@ -57,18 +57,37 @@ def test_the_meter_says_a_record_is_not_dithered(thermal, flagged):
     assert m.quantisation_step == pytest.approx(STEP)
 
 
+@pytest.mark.parametrize(("thermal", "bins"), [(0.2, True), (3.0, False)])
+def test_the_likelihood_measures_an_undithered_record_by_its_bins(thermal, bins):
+    """The default route (the structured likelihood of a pure tone) on a 12-bit record of
+    4096 samples: with 0.2 steps of noise before the quantiser each sample is the
+    probability of its bin, the fit's noise std is the noise before the quantiser and the
+    reported one the record's, sqrt(sigma^2 + q^2 / 12); no "undithered" finding. With 3
+    steps (dithered) the Gaussian noise of the record's std, as before."""
+    y, _ = _record(11, 4096, thermal)
+    m = ji.measure_jitter(y, 1 / FS, laws=["gaussian"])
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert "undithered" not in {f.kind for f in m.findings}
+    fitted = float(m.fit.params["noise_std"])
+    if bins:
+        assert fitted / STEP == pytest.approx(thermal, rel=0.3)
+        assert m.noise_std == pytest.approx(math.sqrt(fitted**2 + STEP**2 / 12), rel=1e-12)
+    else:
+        assert m.noise_std == fitted
+
+
 @pytest.mark.slow
-def test_the_bias_the_finding_states():
-    """The measured basis of the finding's figure (about 3 CPU-min): 16 records of 2^16
-    samples with 0.2 steps of noise before the quantiser, the meter's defaults. The jitter's
-    error against each record's realised std, in stated errors, averages -1.3 (measured
-    -1.28, 8 of 16 intervals covering the truth); with the same total noise in floating
-    point, -0.07 (dither_finding's doc). Fails when the quantiser is modelled (the bin
-    likelihood): then the finding is to go."""
+def test_the_bins_remove_the_bias():
+    """16 records of 2^16 samples with 0.2 steps of noise before the quantiser, the meter's
+    defaults (about 8 CPU-min): the jitter's error against each record's realised std, in
+    stated errors, averages within +-0.5 (measured +0.05, sd 0.6, with the bins modelled;
+    -1.28, 8 of 16 intervals covering the truth, with Gaussian noise before session 22) and
+    spreads less than 1.2 (the stated error holds the realised std's own spread too)."""
     z = []
     for s in range(100, 116):
         y, real = _record(s, 1 << 16, 0.2)
         m = ji.measure_jitter(y, 1 / FS)
-        assert "undithered" in {f.kind for f in m.findings}
+        assert "undithered" not in {f.kind for f in m.findings}
         z.append((m.jitter_std - real) / m.jitter_std_stderr)
-    assert -2.0 < np.mean(z) < -0.7, z
+    assert abs(np.mean(z)) < 0.5, z
+    assert np.std(z) < 1.2, z

@@ -89,18 +89,21 @@ DITHER_STEPS = 0.5
 
 def dither_finding(step: float | None, noise_std: float) -> Finding | None:
     """A finding (kind ``"undithered"``) where a quantised record's noise before its
-    quantiser, ``sqrt(noise_std^2 - step^2 / 12)``, is below :data:`DITHER_STEPS` of a step:
-    there the quantiser's error is a uniform-like function of the signal, not the Gaussian
-    noise the meter's fits model, and the jitter comes out biased by an amount that does
-    not shrink with the record's length while the stated error does. None for a float
+    quantiser, ``sqrt(noise_std^2 - step^2 / 12)``, is below :data:`DITHER_STEPS` of a step
+    and the fit modelled the quantiser's error as Gaussian noise (the moment route, and the
+    generic likelihood of a tone with harmonics; the structured likelihood of a pure tone
+    models the bins: :mod:`jitterid.metrology.sinelik_kernel`): the error is then a
+    uniform-like function of the signal, and the jitter comes out biased by an amount that
+    does not shrink with the record's length while the stated error does. None for a float
     record (``step`` None) and above that dither.
 
     Measured (plain numpy records, 1 GS/s, a 97.1 MHz tone at 0.95 of full scale, 2 ps
-    Gaussian jitter, 12 bits, ``measure_jitter`` with its defaults, N = 2^16; the error
-    against each record's realised jitter): with 0.2 steps of thermal noise -0.43 % (1.3
-    stated errors; 8 of 16 intervals covering the truth); with 0.6 steps, or the same total
-    noise as Gaussian in floating point, none resolved (0.1 and -0.07 stated errors). At
-    14 bits the same jitter is 4 x more steps and the effect was not resolved.
+    Gaussian jitter, 12 bits, 0.2 steps of noise before the quantiser, N = 2^16, 16
+    records; the error against each record's realised jitter, in stated errors): the
+    moment route (``method="gaussian"``) -0.23 (-0.08 %, 13 of 16 intervals covering the
+    truth); the likelihood with Gaussian noise -1.28 (-0.43 %, 8 of 16); with the bins
+    modelled -0.1 (session 22). With 0.6 steps, or the same total noise as Gaussian in
+    floating point, none resolved.
 
     Parameters
     ----------
@@ -118,11 +121,13 @@ def dither_finding(step: float | None, noise_std: float) -> Finding | None:
         "undithered",
         math.nan,
         f"the record is quantised (step {step:.4g}) with about {round(thermal, 2):g} steps of "
-        f"noise before its quantiser, below {DITHER_STEPS:g}: its error is then not the Gaussian "
-        "noise the fit models, which biases the jitter by an amount that does not shrink "
-        "with the record's length (12-bit records at 2 ps with 0.2 steps, N = 2^16: 0.4 % "
-        "low, 1.3 stated errors), so read the interval as too narrow; more dither (0.5 "
-        "steps of noise or more) removes it",
+        f"noise before its quantiser, below {DITHER_STEPS:g}: its error is then not the "
+        "Gaussian noise this fit models, which biases the jitter by an amount that does not "
+        "shrink with the record's length (12-bit records at 2 ps with 0.2 steps, N = 2^16: "
+        "the moment route 0.2 stated errors low, a Gaussian-noise likelihood 1.3), so read "
+        "the interval as too narrow; the exact likelihood of a pure tone (method='ml', no "
+        "harmonics) models the bins, and more dither (0.5 steps of noise or more) removes "
+        "the bias",
     )
 
 

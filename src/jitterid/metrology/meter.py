@@ -230,7 +230,10 @@ class JitterMeasurement:
         The jitter's standard deviation and its standard error (delta method through the
         chosen family, from the fit's covariance).
     noise_std, noise_std_stderr : float
-        The additive noise std (units of y) and its standard error.
+        The additive noise std (units of y) and its standard error: the record's, a
+        quantiser's error included (where the bins were modelled, sqrt(sigma^2 + q^2 / 12)
+        of the noise before the quantiser sigma, ``fit.params["noise_std"]``, and the step
+        q).
     frequency, frequency_stderr : float
         The sine's frequency and its standard error.
     amplitude, phase_rad, offset : float
@@ -505,6 +508,7 @@ def _fit_one(
     other: tuple[FloatArray, float, float] | None = None,
     gauss: FitResult | None = None,
     alt: FitResult | None = None,
+    q_step: float | None = None,
 ) -> FitResult:
     """The Gaussian criterion from the IEEE starts, then (``method="ml"``) the exact
     likelihood from the better of its end and the IEEE start (by the likelihood itself:
@@ -513,7 +517,10 @@ def _fit_one(
     the likelihood is also maximised from there, and the better end kept: a law far from
     the other's can have a local optimum in phase and frequency near it. ``gauss``: the
     Gaussian route's fit where it is already known (the moment route's); ``alt``: the fit
-    from ``other``'s start where it is already known (the law ranking's)."""
+    from ``other``'s start where it is already known (the law ranking's). ``q_step``: a
+    quantised record's step, for the structured likelihood's bin kernel (its noise std is
+    then the noise before the quantiser: the moment starts' noise, the quantiser's
+    included, less q^2 / 12)."""
     x0 = np.r_[family.start_for_std(sj), theta, sv]
     if gauss is None:
         # (a start for the likelihood: a budget, not the 2000 evaluations of a fit; its end
@@ -544,6 +551,8 @@ def _fit_one(
         x0 = np.r_[x0[:-1], max(float(x0[-1]), lo_noise)]
         cands = [x0]
         cands.insert(0, xg)
+    if q_step and sine_ml_applies(model, family):
+        cands = [np.r_[c[:-1], _before_quantiser(float(c[-1]), q_step, lo_noise)] for c in cands]
     # a pure tone under a Gaussian, uniform, dual-Dirac or scale-mixture law: the structured
     # likelihood (jitterid.metrology.sinelik, O(N)); else the generic one
     if sine_ml_applies(model, family):
@@ -551,11 +560,13 @@ def _fit_one(
         tone = model
         # the starts scored where fit_sine_ml fits its start (every s-th sample of a long
         # record: 1/s of a pass each, three full passes were 4 % of a 2^16 measurement)
-        slik = SineLikelihood(*start_subsample(data.y, data.T), family)
+        slik = SineLikelihood(*start_subsample(data.y, data.T), family, quantisation_step=q_step)
         neg_ll: Callable[[FloatArray], float] = lambda c: -slik.loglik(c)
 
         def ml(x: FloatArray) -> FitResult:
-            return fit_sine_ml(data.y, data.T, tone, family, x, noise_floor=lo_noise)
+            return fit_sine_ml(
+                data.y, data.T, tone, family, x, noise_floor=lo_noise, quantisation_step=q_step
+            )
 
         if lo_noise > 0:  # a noise-free record: its noise std starts on the floor
             cands.append(np.r_[cands[0][:-1], lo_noise])
@@ -618,6 +629,24 @@ START_NFEV = 100
 #: peaks lie outside the noise-free support), and a noise-free instrument record is not fitted
 #: twice.
 FLOOR_TRAP_SPREAD_RAD = 0.1
+
+
+def _before_quantiser(total: float, step: float, floor: float) -> float:
+    """The noise std before a quantiser of step ``step`` whose output's noise std (the
+    quantiser's error included) is ``total``: sqrt(total^2 - step^2 / 12), at least
+    ``floor``."""
+    return max(math.sqrt(max(total * total - step * step / 12.0, 0.0)), floor)
+
+
+#: The noise before the quantiser (in steps, from the moment route's noise) from which a
+#: quantised record is measured with Gaussian noise instead of the bin kernel: its error is
+#: then Gaussian to the fit (the uniform's excess kurtosis, -1.2, diluted by (q^2 / 12)^2 /
+#: (sigma^2 + q^2 / 12)^2 < 5e-4), and the bin kernel's pass costs 2-3x the Gaussian's.
+BIN_DITHER = 2.0
+#: The bin kernel's noise floor, in quantisation steps (the noise before the quantiser of a
+#: quantised record measured by the structured likelihood; its rule resolves the bin's edges
+#: down to 2e-3 steps: tests/metrology/test_sinelik_kernel.py).
+BIN_NOISE_FLOOR = 0.01
 
 
 def _other_start(
@@ -866,7 +895,12 @@ def measure_jitter(
         spread with the structured likelihood of a pure tone, 3 % with the generic one:
         the status stays CONVERGED and the message says the noise is below what the record
         resolves). AT_BOUND only where a bound
-        changes the jitter estimate.
+        changes the jitter estimate. A quantised record (no ``resolution`` given) whose
+        noise before its quantiser is below 2 steps is measured by the structured
+        likelihood with each sample the probability of its bin
+        (:mod:`jitterid.metrology.sinelik_kernel`; its noise std then searched down to 0.01
+        of a step): the quantiser's error is not Gaussian there, and modelled as Gaussian it
+        biased the jitter by up to 1.3 stated errors at N = 2^16 (12 bits, 0.2 steps).
 
     Returns
     -------
@@ -1057,6 +1091,18 @@ def _measure(
             )
             return replace(out, message=f"{out.message}; {note}")
     floor = _ml_floor(physical, mf, float(fit4.amplitude), structured)
+    # a quantised record under the structured likelihood: each sample the probability of its
+    # bin (the noise std searched is the noise before the quantiser, down to a fraction of a
+    # step); the Gaussian criterion and the generic likelihood model the quantiser's error
+    # as Gaussian noise (dither_finding says when that is not so)
+    bin_step = step if (step and route == "ml" and structured) else None
+    if bin_step:
+        total = math.sqrt(mf.noise_var) if mf is not None and mf.noise_var > 0 else sv
+        if _before_quantiser(total, bin_step, 0.0) >= BIN_DITHER * bin_step:
+            bin_step = None  # dithered: the bin is Gaussian to the fit (and 2-3x cheaper)
+    if bin_step:
+        numeric = _ml_floor(None, mf, float(fit4.amplitude), structured)
+        floor = max(numeric, BIN_NOISE_FLOOR * bin_step)
     data = SampledData(yv, T, None, resolution=floor)
     theta_h = _harmonic_start(model, yv, T, theta)
     first_family = fam_names[0]
@@ -1075,7 +1121,15 @@ def _measure(
             best = gauss_first
         else:
             best = _fit_one(
-                data, model, known[first_family], theta_h, sj, sv, route, gauss=gauss_first
+                data,
+                model,
+                known[first_family],
+                theta_h,
+                sj,
+                sv,
+                route,
+                gauss=gauss_first,
+                q_step=bin_step,
             )
         # the other families at the chosen alias: from its IEEE starts and from the first
         # family's fit, the better end kept
@@ -1105,6 +1159,7 @@ def _measure(
                     rival_n_params=rival_p,
                     noise_floor=floor,
                     nested=nests_gaussian,
+                    quantisation_step=bin_step,
                 )
                 if rank.ranked_out:
                     fitted[name] = rank.fit
@@ -1112,7 +1167,16 @@ def _measure(
                     continue
                 alt = rank.fit
             fitted[name] = _fit_one(
-                data, model, known[name], theta_h, sj, sv, route, other=other, alt=alt
+                data,
+                model,
+                known[name],
+                theta_h,
+                sj,
+                sv,
+                route,
+                other=other,
+                alt=alt,
+                q_step=bin_step,
             )
     except RuleBudgetError as exc:
         # a long record with harmonics: the generic rule cannot resolve the noise
@@ -1146,7 +1210,9 @@ def _measure(
     if not ok:
         message = f"no family's fit converged; the lowest BIC is reported: {message}"
     status, message = _better_unsettled(cands_law, chosen, fitted, status, message)
-    status, message = _noise_floor_status(status, message, r, floor, physical, mf)
+    status, message = _noise_floor_status(
+        status, message, r, floor, None if bin_step else physical, mf
+    )
     f_fit = float(r.params["frequency_hz"])
     aliases = tuple(
         AliasCandidate(f_fit + (f - fc), -0.5 * r.cost, r.jitter_std * f_fit / (f_fit + f - fc))
@@ -1194,8 +1260,12 @@ def _measure(
         edge = sharp_edge_finding(r, N)
         if edge is not None:
             info = [*info, edge]
-    if not hopeless:
-        undithered = dither_finding(step, float(r.params["noise_std"]))
+    noise, noise_se = float(r.params["noise_std"]), _stderr(r, "noise_std")
+    if bin_step:  # the noise before the quantiser: the record's, its error included
+        total = math.sqrt(noise * noise + bin_step * bin_step / 12.0)
+        noise, noise_se = total, noise_se * noise / total
+    if not hopeless and not bin_step:
+        undithered = dither_finding(step, noise)
         if undithered is not None:
             info = [*info, undithered]
     lsb = step if step else (physical * math.sqrt(12.0) if physical else None)
@@ -1221,8 +1291,8 @@ def _measure(
     return JitterMeasurement(
         jitter_std=jstd,
         jitter_std_stderr=jse,
-        noise_std=float(r.params["noise_std"]),
-        noise_std_stderr=_stderr(r, "noise_std"),
+        noise_std=noise,
+        noise_std_stderr=noise_se,
         frequency=f_fit,
         frequency_stderr=_stderr(r, "frequency_hz"),
         amplitude=float(r.params["amplitude"]),

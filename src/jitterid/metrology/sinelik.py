@@ -7,7 +7,10 @@ integral over the sampling phase
 
     p(y_k) = int N(y_k - c - A sin psi; sigma^2) p_u(psi - theta_k) dpsi,               (S1)
 
-p_u the law of the phase jitter u = w tau. The generic route
+p_u the law of the phase jitter u = w tau. A quantised record (step q) takes each sample's
+bin probability over q in place of the Gaussian, sigma then the noise before the quantiser
+(``SineLikelihood(..., quantisation_step=q)``; the kernel: :mod:`jitterid.metrology.
+sinelik_kernel`). The generic route
 (:class:`jitterid.estimation.likelihood.ExactLikelihood`) integrates over tau with panels
 sized for any signal; here the integrand's structure is used. The rule (branches, Laplace
 windows, Gauss-Legendre panels; its error and derivatives) is

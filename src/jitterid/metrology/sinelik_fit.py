@@ -158,6 +158,7 @@ def fit_sine_ml(
     *,
     noise_floor: float = 0.0,
     max_iter: int = 100,
+    quantisation_step: float | None = None,
 ) -> FitResult:
     """Maximise :class:`SineLikelihood` from a start: damped Newton steps on the observed
     information (module doc), in ln of the jitter scale and the noise std, inside the
@@ -179,6 +180,9 @@ def fit_sine_ml(
         The smallest noise std searched (see the module doc: noise-free records).
     max_iter : int
         The most steps.
+    quantisation_step : float or None
+        The record's quantisation step: each sample is then the probability of its bin,
+        with ``noise_std`` the noise before the quantiser (:class:`SineLikelihood`).
 
     Returns
     -------
@@ -187,9 +191,10 @@ def fit_sine_ml(
         on its bound (no standard error then), MAX_EVALUATIONS where the steps ran out.
     """
     size = _fit_subsample_size(int(np.size(y)))
-    start = _subsample_start(y, T, model, family, start, noise_floor, max_iter, size)
-    fit = _search(y, T, model, family, start, noise_floor, max_iter, None)[0]
-    return _probe_scale(y, T, model, family, fit, noise_floor, max_iter)
+    q = quantisation_step
+    start = _subsample_start(y, T, model, family, start, noise_floor, max_iter, size, q_step=q)
+    fit = _search(y, T, model, family, start, noise_floor, max_iter, None, q_step=q)[0]
+    return _probe_scale(y, T, model, family, fit, noise_floor, max_iter, q_step=q)
 
 
 def _probe_scale(
@@ -200,6 +205,8 @@ def _probe_scale(
     fit: FitResult,
     noise_floor: float,
     max_iter: int,
+    *,
+    q_step: float | None = None,
 ) -> FitResult:
     """``fit`` of a law with hard edges (:attr:`jitterid.JitterLaw.hard_edges`: the uniform)
     checked for a local
@@ -214,7 +221,7 @@ def _probe_scale(
         or not fit.jitter_law.hard_edges
     ):
         return fit
-    lik = SineLikelihood(y, T, family)
+    lik = SineLikelihood(y, T, family, quantisation_step=q_step)
     lo, hi = lik.bounds(noise_floor, model.band_hz)
     ll0 = -0.5 * fit.cost
     tol = 1e-9 * max(1.0, abs(ll0))
@@ -228,7 +235,7 @@ def _probe_scale(
             best = (ll, x, factor)
     if best is None:
         return fit
-    again = _search(y, T, model, family, best[1], noise_floor, max_iter, None)[0]
+    again = _search(y, T, model, family, best[1], noise_floor, max_iter, None, q_step=q_step)[0]
     if not again.cost < fit.cost - 2 * tol:
         return fit
     return replace(
@@ -283,6 +290,8 @@ def _subsample_start(
     noise_floor: float,
     max_iter: int,
     size: int,
+    *,
+    q_step: float | None = None,
 ) -> ArrayLike:
     """The family's optimum on every s-th sample (s = N // size, a record of its own at
     s T), fitted to :data:`SUB_DECREMENT`, where s >= 4 and that fit ends at a maximum
@@ -301,6 +310,7 @@ def _subsample_start(
         None,
         decrement=SUB_DECREMENT,
         covariance=False,
+        q_step=q_step,
     )[0]
     ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)  # the noise on its floor
     return sub.x if ended and np.all(np.isfinite(sub.x)) else start
@@ -363,6 +373,7 @@ def rank_sine_law(
     noise_floor: float = 0.0,
     max_iter: int = 100,
     nested: bool = False,
+    quantisation_step: float | None = None,
 ) -> LawRank:
     """:func:`fit_sine_ml` that gives up on a family that cannot win: the search stops
     (after ``RANK_MIN_STEPS`` steps at least) once the upper estimate of the family's
@@ -404,6 +415,8 @@ def rank_sine_law(
         score in the even parameter's square alone, and the Newton model's predicted gain
         the score test's statistic / 2, so the family may be ranked out at once (after
         one pass of the record) and after any step.
+    quantisation_step : float or None
+        The record's quantisation step (:func:`fit_sine_ml`).
 
     Returns
     -------
@@ -430,6 +443,7 @@ def rank_sine_law(
                 give_up,
                 min_steps=0,
                 info_samples=RANK_INFO_SAMPLES,
+                q_step=quantisation_step,
             )
         )
     if isinstance(family, DualDiracFamily):  # the variance re-split (RANK_DJ_SHARE)
@@ -441,7 +455,9 @@ def rank_sine_law(
     elif isinstance(family, GaussianScaleMixtureFamily):  # near the nested Gaussian too
         start = np.asarray(start, dtype=float).copy()
         start[1] = min(math.sqrt(RANK_DJ_SHARE), family.bounds[1][1])
-    sub = _subsample_start(y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE)
+    sub = _subsample_start(
+        y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE, q_step=quantisation_step
+    )
     min_steps = 1 if sub is not start else RANK_MIN_STEPS
     return LawRank(
         *_search(
@@ -455,6 +471,7 @@ def rank_sine_law(
             give_up,
             min_steps,
             info_samples=RANK_INFO_SAMPLES,
+            q_step=quantisation_step,
         )
     )
 
@@ -472,6 +489,7 @@ def _search(
     decrement: float = 1e-3,
     info_samples: int = FIT_INFO_SAMPLES,
     covariance: bool = True,
+    q_step: float | None = None,
 ) -> tuple[FitResult, bool, float]:
     """:func:`fit_sine_ml`'s search, whether it gave up, and the upper estimate of the
     maximum of ln L (ln L + ``RANK_SAFETY`` x the predicted gain, at the last step). With
@@ -481,7 +499,8 @@ def _search(
     where the Newton decrement is below ``decrement`` (the steps then below sqrt(decrement)
     standard errors); the Newton steps' information is summed over about ``info_samples``
     samples (every n-th chunk, scaled; the gradient is the whole record's). Without
-    ``covariance`` the covariance is not computed (NaN: a start's fit)."""
+    ``covariance`` the covariance is not computed (NaN: a start's fit). ``q_step``: the
+    record's quantisation step (the bin kernel, :class:`SineLikelihood`)."""
     if not sine_ml_applies(model, family):
         raise TypeError(
             "model must be a pure-tone SineWave (one harmonic, polar, frequency estimated) and "
@@ -491,7 +510,7 @@ def _search(
     # a family's even parameter (a dual Dirac's dj, a scale mixture's rho) is searched in
     # its square: ln L is even in it, so flat at 0 (a dual Dirac's quartic there), where
     # Newton steps in it crawl or stall; in its square ln L is a regular quadratic there
-    lik = SineLikelihood(y, T, family, squared=True)
+    lik = SineLikelihood(y, T, family, squared=True, quantisation_step=q_step)
     sq = lik.squared
     x0 = np.asarray(start, dtype=float).copy()
     if sq is not None:

@@ -60,6 +60,11 @@ class SineLikelihood:
         and its score and information are in it: ln L is even in it, so flat at 0 in it but
         a regular quadratic in its square (the search's coordinate,
         :func:`jitterid.metrology.sinelik_fit.fit_sine_ml`). Other families: no effect.
+    quantisation_step : float or None
+        The record's quantisation step q (its values lie on a grid of step q): each sample's
+        density is then the probability of its bin over q, with ``noise_std`` the noise
+        before the quantiser (:mod:`jitterid.metrology.sinelik_kernel`). None: Gaussian
+        noise of std ``noise_std``.
 
     Notes
     -----
@@ -84,7 +89,13 @@ class SineLikelihood:
     """
 
     def __init__(
-        self, y: ArrayLike, T: float, family: JitterFamily, *, squared: bool = False
+        self,
+        y: ArrayLike,
+        T: float,
+        family: JitterFamily,
+        *,
+        squared: bool = False,
+        quantisation_step: float | None = None,
     ) -> None:
         self.y = real_array(y, "y", ndim=1)
         if not np.all(np.isfinite(self.y)):
@@ -98,6 +109,12 @@ class SineLikelihood:
                 "use jitterid.estimation.likelihood.ExactLikelihood for other laws"
             )
         self.family = family
+        #: half the quantisation step (0: Gaussian noise)
+        self.half = (
+            0.0
+            if quantisation_step is None
+            else 0.5 * positive(quantisation_step, "quantisation_step")
+        )
         self.nj = len(family.param_names)
         #: the index of the parameter whose square x holds (None: none)
         self.squared: int | None = family.even_index if squared else None
@@ -245,6 +262,7 @@ class SineLikelihood:
                 with_info,
                 dj2,
                 mix,
+                self.half,
             )
             if flip and ch.score is not None:
                 ch.score[:, self.nj] *= -1.0
