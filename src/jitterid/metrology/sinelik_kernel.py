@@ -72,15 +72,16 @@ class Kernel:
         return math.sqrt(self.sigma**2 + self.half**2 / 3.0)
 
     def _bin(
-        self, e: FloatArray
+        self, e: FloatArray, ln_rel: FloatArray | None = None
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """(a, b, ln D, R_b, R_a - R_b) of the module doc at the errors ``e``: R_a - R_b =
         R_b expm1(-2 h e / sigma^2) for e > 0 and -R_a expm1(2 h e / sigma^2) else (the edge
-        nearer 0 carries the ratio, the exponent is <= 0: no overflow)."""
+        nearer 0 carries the ratio, the exponent is <= 0: no overflow). ``ln_rel``: its
+        :meth:`log_rel` at ``e`` where already made (ln D then costs nothing)."""
         s, h = self.sigma, self.half
         a, b = (e + h) / s, (e - h) / s
         pos = e > 0
-        ln_d = self._ln_d(e)
+        ln_d = self._ln_d(e) if ln_rel is None else ln_rel + (math.log(2.0 * h) + self.const)
         r_b = np.exp(-0.5 * b * b - _LN_SQRT_2PI - ln_d)
         r_a = np.exp(-0.5 * a * a - _LN_SQRT_2PI - ln_d)
         x = -2.0 * h * e / (s * s)
@@ -119,25 +120,29 @@ class Kernel:
         ln_d = self._ln_d(e)
         return np.asarray(ln_d - math.log(2.0 * self.half) - self.const, dtype=float)
 
-    def first(self, e: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def first(
+        self, e: FloatArray, ln_rel: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """(k1, ks): d ln K / de and d ln K / d sigma.
 
         Parameters
         ----------
         e : ndarray
             The errors y - s.
+        ln_rel : ndarray, optional
+            :meth:`log_rel` at ``e``, where already made (not computed again).
         """
         s = self.sigma
         if self.half == 0.0:
             return -e / (s * s), e * e / (s * s * s) - 1.0 / s
-        a, _, _, r_b, diff = self._bin(e)
+        a, _, _, r_b, diff = self._bin(e, ln_rel)
         k1 = diff / s
         # b R_b - a R_a = (b - a) R_b - a (R_a - R_b), R_a - R_b = sigma k1: no cancellation
         ks = (-(2.0 * self.half / s) * r_b - a * s * k1) / s
         return k1, ks
 
     def second(
-        self, e: FloatArray
+        self, e: FloatArray, ln_rel: FloatArray | None = None
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """(k2, kss, k1s, k1, ks): d2 ln K / de2, d2 ln K / d sigma2, d2 ln K / de d sigma,
         d ln K / de and d ln K / d sigma.
@@ -146,6 +151,8 @@ class Kernel:
         ----------
         e : ndarray
             The errors y - s.
+        ln_rel : ndarray, optional
+            :meth:`log_rel` at ``e``, where already made (not computed again).
         """
         s = self.sigma
         s2 = s * s
@@ -157,7 +164,7 @@ class Kernel:
                 -e / s2,
                 e * e / (s2 * s) - 1.0 / s,
             )
-        a, b, _, r_b, sk1 = self._bin(e)  # (sk1 = R_a - R_b)
+        a, b, _, r_b, sk1 = self._bin(e, ln_rel)  # (sk1 = R_a - R_b)
         d = 2.0 * self.half / s  # a - b
         k1 = sk1 / s
         ks = (-d * r_b - a * sk1) / s

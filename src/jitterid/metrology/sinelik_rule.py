@@ -123,7 +123,8 @@ class _Group:
     sample in the chunk ``gidx``, the sample ``yy``, nominal phase ``th``, nominal instant
     ``kT`` and its component's centre ``cen`` (s), scale (s) and dual-Dirac sign ``sgn``;
     the tone's ``w`` (rad/s), ``A``, ``c``, the noise kernel ``kern``
-    (:class:`~jitterid.metrology.sinelik_kernel.Kernel`); ``nj`` jitter parameters."""
+    (:class:`~jitterid.metrology.sinelik_kernel.Kernel`) and its ln K at the nodes ``kr``
+    (relative to its constant; None: recomputed); ``nj`` jitter parameters."""
 
     post: FloatArray
     psi: FloatArray
@@ -138,6 +139,7 @@ class _Group:
     A: float
     c: float
     kern: Kernel
+    kr: FloatArray | None
     nj: int
     dj2: bool = False
     mix: tuple[float, float, bool] | None = None
@@ -264,8 +266,12 @@ def _chunk(
     # more than _AGREE, a third time on _FINE equal panels over both windows. A bin kernel's
     # panels are cut at the bin's edges too (where it falls off over sigma: a step as sigma
     # goes to 0).
+    # (a bin kernel's ln K at the nodes kept for the score, which reads its derivatives:
+    # its two normal CDFs a node are most of a pass)
+    keep_k = score and kern.half > 0.0
+    krs: list[FloatArray | None] = []
     psi, lw = _nodes(m, reach, lo, hi, cuts)
-    ln = _log_integrand(psi, lw, yy, c, A, kern, cc, cs, uni, cw)
+    ln, kr1 = _log_integrand(psi, lw, yy, c, A, kern, cc, cs, uni, cw, keep_k)
     del lw
     rmax, pn, psum = _piece_terms(ln)
     del ln
@@ -278,7 +284,7 @@ def _chunk(
     if j.size:
         cj = cuts[j] if cuts is not None else None
         psi2, lw2 = _nodes(mean[j], _WINDOW * std[j], lo[j], hi[j], cj)
-        ln2 = _log_integrand(psi2, lw2, yy[j], c, A, kern, cc[j], cs[j], uni[j], cw[j])
+        ln2, kr2 = _log_integrand(psi2, lw2, yy[j], c, A, kern, cc[j], cs[j], uni[j], cw[j], keep_k)
         r2, p2, s2sum = _piece_terms(ln2)
         with np.errstate(divide="ignore", invalid="ignore"):
             i1 = rmax[j] + np.log(psum[j])
@@ -286,6 +292,7 @@ def _chunk(
             agree = np.abs(i1 - i2) <= _AGREE
         ja, jd = j[agree], j[~agree]
         groups.append((ja, psi2[agree], r2[agree], p2[agree], s2sum[agree]))
+        krs.append(kr2[agree] if kr2 is not None else None)
         if jd.size:
             reach_lo = np.maximum(
                 lo[jd], np.minimum(m[jd] - reach[jd], mean[jd] - _WINDOW * std[jd])
@@ -294,13 +301,18 @@ def _chunk(
                 hi[jd], np.maximum(m[jd] + reach[jd], mean[jd] + _WINDOW * std[jd])
             )
             psi3, lw3 = _even_nodes(reach_lo, reach_hi, cuts[jd] if cuts is not None else None)
-            ln3 = _log_integrand(psi3, lw3, yy[jd], c, A, kern, cc[jd], cs[jd], uni[jd], cw[jd])
+            ln3, kr3 = _log_integrand(
+                psi3, lw3, yy[jd], c, A, kern, cc[jd], cs[jd], uni[jd], cw[jd], keep_k
+            )
             groups.append((jd, psi3, *_piece_terms(ln3)))
+            krs.append(kr3)
     keep1 = np.flatnonzero(~off)
     if keep1.size == idx.size:
         groups.insert(0, (keep1, psi, rmax, pn, psum))
+        krs.insert(0, kr1)
     else:
         groups.insert(0, (keep1, psi[keep1], rmax[keep1], pn[keep1], psum[keep1]))
+        krs.insert(0, kr1[keep1] if kr1 is not None else None)
     top = np.full(n, -np.inf)
     with np.errstate(divide="ignore"):
         for g_j, _, g_r, _, g_s in groups:
@@ -324,7 +336,7 @@ def _chunk(
     scale_all = np.array([cp.scale_s for cp in comps])[ci]
     sgn_all = np.array([cp.sign for cp in comps])[ci]
     second = np.zeros((nj + 5, nj + 5)) if info else None
-    for (g_j, g_psi, _, g_p, _), sc in zip(groups, scales, strict=True):
+    for (g_j, g_psi, _, g_p, _), sc, g_kr in zip(groups, scales, krs, strict=True):
         if g_j.size:
             gi = idx[g_j]
             grp = _Group(
@@ -341,6 +353,7 @@ def _chunk(
                 A=A,
                 c=c,
                 kern=kern,
+                kr=g_kr,
                 nj=nj,
                 dj2=dj2 and nj == 2 and mix is None,
                 mix=mix,
@@ -382,7 +395,7 @@ def _score_group(S: FloatArray, grp: _Group, full: bool = False) -> tuple[FloatA
     sum_p = post.sum(axis=1)
     # pk = post x (-d ln K / de) (e / sigma^2 for Gaussian noise); the noise std's column
     # E[d ln K / d sigma]
-    terms = kern.second(e) if full else None
+    terms = kern.second(e, grp.kr) if full else None
     if terms is not None:
         k1, ks = terms[3], terms[4]
         pk = -post * k1
@@ -393,7 +406,7 @@ def _score_group(S: FloatArray, grp: _Group, full: bool = False) -> tuple[FloatA
         pk /= sigma * sigma
         sig_col = np.einsum("ij,ij->i", pk, e) / sigma - sum_p / sigma
     else:
-        k1, ks = kern.first(e)
+        k1, ks = kern.first(e, grp.kr)
         pk = -post * k1
         sig_col = np.einsum("ij,ij->i", post, ks)
     pd = np.cos(psi)
@@ -794,16 +807,20 @@ def _log_integrand(
     cs: FloatArray,
     uni: FloatArray,
     cw: FloatArray,
-) -> FloatArray:
+    keep: bool = False,
+) -> tuple[FloatArray, FloatArray | None]:
     """ln(weight x integrand of (S1) without the kernel's constant ``kern.const``) at the
-    nodes; -inf at the nodes of empty panels."""
+    nodes (-inf at the nodes of empty panels), and with ``keep`` a bin kernel's ln K there
+    (:meth:`~jitterid.metrology.sinelik_kernel.Kernel.log_rel`; else None)."""
     e = A * np.sin(psi)
     np.subtract(yy[:, None] - c, e, out=e)
+    kr = None
     if kern.half == 0.0:
         ln = e * e
         ln *= -0.5 / kern.sigma**2
     else:
         ln = kern.log_rel(e)
+        kr = ln.copy() if keep else None
     q = np.where(uni, 0.0, 0.5 / cs**2)
     const = np.log(cw) + np.where(uni, -np.log(2 * cs), -np.log(cs) - _LN_SQRT_2PI)
     u = psi - cc[:, None]
@@ -812,7 +829,7 @@ def _log_integrand(
     ln -= u
     ln += lw
     ln += const[:, None]
-    return ln
+    return ln, kr
 
 
 def _piece_terms(ln: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
