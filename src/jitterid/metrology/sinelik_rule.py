@@ -42,8 +42,10 @@ with its scale, so this is exact, boundary terms included)::
 
 (s = +-1 the dual Dirac's component; a dual Dirac's dj^2 and a scale mixture's rho^2 at a
 fixed jitter instead, by their laws' own derivatives: :func:`_dual_dirac_terms`,
-:func:`_mixture_terms`). The observed information follows from the same
-nodes by Louis' identity, -d^2 ln p_k = -E_k[d2 ln f] - Var_k[d ln f] (f the node's
+:func:`_mixture_terms`). These are Gaussian noise's; a quantised record's bin kernel
+(:mod:`jitterid.metrology.sinelik_kernel`) has -k1 = -d ln K / de in place of e / sigma^2
+and E[ks] = E[d ln K / d sigma] for the noise std's. The observed information follows from
+the same nodes by Louis' identity, -d^2 ln p_k = -E_k[d2 ln f] - Var_k[d ln f] (f the node's
 integrand at a fixed standard jitter variable; test: against central differences of the
 score). The record's sums are :class:`jitterid.metrology.sinelik_loglik.SineLikelihood`'s,
 its maximum :func:`jitterid.metrology.sinelik_fit.fit_sine_ml`'s.
