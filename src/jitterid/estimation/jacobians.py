@@ -236,23 +236,37 @@ def _law_derivative(
     fam = problem.jitter
     assert isinstance(fam, JitterFamily)
     dlaw = _PdfDerivative(fam, problem.layout.block(x, "jitter").tolist(), law, i)
-    d = problem.data
     seg = sig.modal_segments
-    if seg is not None:
-        assert isinstance(d.u, PiecewiseConstant)
-        p = seg.system.modal.poles
-        rate = float(np.max(np.abs(p))) if p.size else 0.0
-        kept = _plan(problem, x, law, seg.system).reweighted(dlaw)
-        plan = kept if kept is not None else SegmentPlan(dlaw, d.T, d.N, d.u, rate, poles=p)
-        dmean, dvar, _, _ = modal_moments(
-            plan, tables(seg.system, d.u), keep=False, variance=need_var
-        )
-    else:
-        mp = moment_pass(sig, dlaw, d.T, d.N, variance=need_var)
-        dmean, dvar = mp.mean, mp.var
+    kept = _plan(problem, x, law, seg.system).reweighted(dlaw) if seg is not None else None
+    dmean, dvar = _pass_under(problem, sig, dlaw, need_var, kept)
     if dvar is None:
         return dmean, None
     return dmean, dvar + 2 * dmean * (dmean - mean)
+
+
+def _pass_under(
+    problem: Problem,
+    sig: Signal,
+    measure: JitterLaw,
+    need_var: bool,
+    plan: SegmentPlan | None = None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """The sums sum_j w_j s(t_j) and sum_j w_j (s(t_j) - m_j)^2 of one pass under another
+    measure than the problem's law (a signed dp/dtheta, or a law of its own) at the
+    signal ``sig``: along the modal path over ``plan`` (a kept plan reweighted) or nodes laid
+    out for ``measure``, streamed (``keep=False``); else through the model protocol."""
+    d = problem.data
+    seg = sig.modal_segments
+    if seg is None:
+        mp = moment_pass(sig, measure, d.T, d.N, variance=need_var)
+        return mp.mean, mp.var
+    assert isinstance(d.u, PiecewiseConstant)
+    if plan is None:
+        p = seg.system.modal.poles
+        rate = float(np.max(np.abs(p))) if p.size else 0.0
+        plan = SegmentPlan(measure, d.T, d.N, d.u, rate, poles=p)
+    mean, var, _, _ = modal_moments(plan, tables(seg.system, d.u), keep=False, variance=need_var)
+    return mean, var
 
 
 def _from_above_as_scale(problem: Problem, x: FloatArray, i: int) -> float | None:
@@ -296,22 +310,10 @@ def _from_below_as_laws(
     if combo is None:
         return None
     c0, terms = combo
-    d = problem.data
     dm = c0 * mom.mean
     dv = c0 * mom.var if need_var else None
-    seg = sig.modal_segments
     for c, other in terms:
-        if seg is not None:
-            assert isinstance(d.u, PiecewiseConstant)
-            p = seg.system.modal.poles
-            rate = float(np.max(np.abs(p))) if p.size else 0.0
-            plan = SegmentPlan(other, d.T, d.N, d.u, rate, poles=p)
-            mj, vj, _, _ = modal_moments(
-                plan, tables(seg.system, d.u), keep=False, variance=need_var
-            )
-        else:
-            mp = moment_pass(sig, other, d.T, d.N, variance=need_var)
-            mj, vj = mp.mean, mp.var
+        mj, vj = _pass_under(problem, sig, other, need_var)
         dm = dm + c * mj
         if dv is not None:
             assert vj is not None

@@ -135,11 +135,16 @@ class Kernel:
         s = self.sigma
         if self.half == 0.0:
             return -e / (s * s), e * e / (s * s * s) - 1.0 / s
-        a, _, _, r_b, diff = self._bin(e, ln_rel)
-        k1 = diff / s
-        # b R_b - a R_a = (b - a) R_b - a (R_a - R_b), R_a - R_b = sigma k1: no cancellation
-        ks = (-(2.0 * self.half / s) * r_b - a * s * k1) / s
-        return k1, ks
+        return self._first_bin(e, ln_rel)[4:]
+
+    def _first_bin(
+        self, e: FloatArray, ln_rel: FloatArray | None
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(a, b, R_b, R_a - R_b, k1, ks) of the bin kernel at ``e``."""
+        a, b, _, r_b, sk1 = self._bin(e, ln_rel)
+        # b R_b - a R_a = (b - a) R_b - a (R_a - R_b): no cancellation
+        ks = (-(2.0 * self.half / self.sigma) * r_b - a * sk1) / self.sigma
+        return a, b, r_b, sk1, sk1 / self.sigma, ks
 
     def second(
         self, e: FloatArray, ln_rel: FloatArray | None = None
@@ -164,10 +169,8 @@ class Kernel:
                 -e / s2,
                 e * e / (s2 * s) - 1.0 / s,
             )
-        a, b, _, r_b, sk1 = self._bin(e, ln_rel)  # (sk1 = R_a - R_b)
+        a, b, r_b, sk1, k1, ks = self._first_bin(e, ln_rel)  # (sk1 = R_a - R_b)
         d = 2.0 * self.half / s  # a - b
-        k1 = sk1 / s
-        ks = (-d * r_b - a * sk1) / s
         k2 = ks / s - k1 * k1
         # g(a) R_a - g(b) R_b = g(a) (R_a - R_b) + (g(a) - g(b)) R_b, g(x) = x (1 - x^2)
         ga = a * (1.0 - a * a)
