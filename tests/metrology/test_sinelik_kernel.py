@@ -71,6 +71,31 @@ def test_the_bin_kernel_against_quadrature_and_differences(sigma, half):
             assert abs(got - ref) <= 1e-6 * max(abs(ref), 1.0 / scale**2), (name, ei, got, ref)
 
 
+def test_the_bin_kernel_deep_inside_its_bin_is_the_full_formula(monkeypatch):
+    """More than INSIDE sigma inside the bin's edges the kernel skips the CDFs (ln K = -ln q,
+    the derivatives 0): on a 2-d grid of errors through that threshold and both edges, the
+    same values as the full formulas (INSIDE set beyond the bin), within 1e-13 of each
+    term's scale (1/sigma, 1/sigma^2). Can fail: a value scattered to the wrong place, an
+    odd term's sign lost, a threshold too shallow (Phi(-3) = 1e-3 there)."""
+    from jitterid.metrology import sinelik_kernel
+
+    sigma, half = 0.01, 0.5
+    e = np.linspace(-0.75, 0.75, 3003).reshape(3, -1)
+    k = Kernel(sigma, half)
+    fast = (k.log_rel(e), *k.first(e), *k.second(e))
+    assert k._near(np.abs(e)) is not None  # (the threshold is in use)
+    for ei in (0.0, 0.2, -0.35, 0.45, 0.5, -0.53):  # ln K against quadrature
+        got = float(k.log_rel(np.array([ei]))[0] + k.const)
+        assert got == pytest.approx(_quad_ln_k(ei, sigma, half), abs=1e-12)
+    monkeypatch.setattr(sinelik_kernel, "INSIDE", 1e9)
+    assert k._near(np.abs(e)) is None
+    full = (k.log_rel(e), *k.first(e), *k.second(e))
+    scales = (1.0, 1 / sigma, 1 / sigma, *[1 / sigma**2] * 3, 1 / sigma, 1 / sigma)
+    for got, ref, sc in zip(fast, full, scales, strict=True):
+        assert got.shape == e.shape
+        np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-13 * sc)
+
+
 def test_the_bin_kernel_far_past_its_bin_and_the_gaussian_limit():
     """Far past the bin (60 sigma: Phi underflows, the log form takes over) ln K is finite
     and continuous with the near form, its derivatives finite; with no bin (half = 0) the
