@@ -115,6 +115,15 @@ FINAL_DECREMENT = 20.0
 #: the step's scale (a noise-free record: the samples at the tone's peaks against a noise
 #: std on its floor) an undamped step fails, and each rejection raises the damping by 10.
 _LAM_MIN = 1e-3
+#: A step whose Newton trial (the undamped one) failed to raise ln L and whose damped step
+#: then gained less than ROUGH_GAIN is a rough step: ln L is rough on the Newton step's
+#: scale, and its quadratic model, whose predicted gain stays put, says nothing of the
+#: gain left. After ROUGH_STEPS rough steps in a row the search ends there (CONVERGED, the
+#: message says so). On a noise-free 12-bit record of 2^16 samples (2 ps at 97 MHz, 1 GS/s)
+#: a dual Dirac's ranking made 40 such steps, each gaining 1.1e-3 against a predicted 5.1,
+#: 183 CPU-s, its jitter moving by 1e-5 of itself.
+ROUGH_GAIN = 1e-2
+ROUGH_STEPS = 3
 
 
 def _positive(H: FloatArray, opg: FloatArray) -> FloatArray:
@@ -568,6 +577,8 @@ def _search(
     nfev = 1
     lam = 1e-4
     stalled = 0
+    rough, rough_gain = 0, 0.0
+    damped = False  # (the last step's Newton trial failed: try the next by ln L alone)
     upper = math.inf
     ranked_out = False
     status, why = FitStatus.MAX_EVALUATIONS, f"the {max_iter} steps ran out"
@@ -610,7 +621,7 @@ def _search(
             if xn[lik.nj + 2] <= 0:  # frequency stays positive
                 lam *= 10
                 continue
-            if _try == 0:
+            if _try == 0 and not damped:
                 lln, gn, opgn, infon = evaluate(xn)
             else:  # after a rejection: ln L first, the rest where it is accepted
                 lln = trial(xn)
@@ -630,7 +641,7 @@ def _search(
                 v, x, ll, g, opg, info = vn, xn, lln, gn, opgn, infon
                 info_here = whole[0]  # (the last evaluation was xn's)
                 lam = max(lam * max(0.1, 1.0 - (2.0 * rho - 1.0) ** 3), _LAM_MIN)
-                accepted = True
+                accepted, damped = True, _try > 0
                 break
             lam *= 10.0
         if not accepted:
@@ -640,6 +651,10 @@ def _search(
         if covariance and dec < FINAL_DECREMENT * decrement:
             pass_stride[0] = 1  # the next step's pass is expected to be the last
         stalled = stalled + 1 if gain < 0.1 * decrement else 0
+        if damped and gain < ROUGH_GAIN:
+            rough, rough_gain = rough + 1, rough_gain + gain
+        else:
+            rough, rough_gain = 0, 0.0
         # (a step that gained rho > 1 x its prediction: ln L is steeper than the model there)
         steep = max(1.0, rho)
         upper = ll + RANK_SAFETY * steep * 0.5 * dec
@@ -658,6 +673,28 @@ def _search(
             why = (
                 f"the predicted gain in ln L is below {decrement:g} (steps below "
                 f"{100 * math.sqrt(decrement):.0f} % of the standard errors)"
+            )
+            break
+        if rough >= ROUGH_STEPS:
+            # the quadratic model's gain is not the gain left here: the realised one is
+            if give_up_below is not None and step + 1 >= min_steps:
+                upper = ll + RANK_SAFETY * rough_gain
+                if upper < give_up_below:
+                    ranked_out = True
+                    why = (
+                        f"ranked out after {step + 1} steps, the last {rough} rough (ln L "
+                        f"rose by {rough_gain:.3g} in them, each after its Newton step "
+                        f"failed): ln L = {ll:.6g}, and at most {upper:.6g} by "
+                        f"{RANK_SAFETY:g} x that gain again, below {give_up_below:.6g} (this "
+                        "family cannot win by the ranking margin); not fitted to its maximum"
+                    )
+                    break
+            status = FitStatus.CONVERGED
+            why = (
+                f"ln L rose by less than {ROUGH_GAIN:g} in each of {rough} steps, each after "
+                "the Newton step failed to raise it: ln L is rough on the Newton step's scale "
+                "(a quantised record's bins against a noise std on its floor), and the search "
+                "ends where its steps stall"
             )
             break
         if stalled >= 3:
