@@ -605,18 +605,20 @@ def _fit_one(
                 noisy = [np.r_[best[:-1], rms / 3]]
         if noisy and not np.array_equal(noisy[0], best):
             again = ml(noisy[0])
-            if np.isfinite(again.cost) and (not np.isfinite(out.cost) or again.cost < out.cost):
+            if _higher(again, out):
                 out = again
     out = _off_zero_jitter(out, scored, family, ml)
     if alt is None and other is not None:
         alt = ml(_other_start(data, family, other))
-    if (
-        alt is not None
-        and np.isfinite(alt.cost)
-        and (not np.isfinite(out.cost) or alt.cost < out.cost)
-    ):
+    if alt is not None and _higher(alt, out):
         out = alt
     return out
+
+
+def _higher(new: FitResult, old: FitResult) -> bool:
+    """Whether ``new`` ends higher in ln L than ``old`` (a finite cost beats a non-finite
+    one)."""
+    return bool(np.isfinite(new.cost) and (not np.isfinite(old.cost) or new.cost < old.cost))
 
 
 def _off_zero_jitter(
@@ -645,7 +647,7 @@ def _off_zero_jitter(
         return out
     start = next(c for sd, c in stds if sd >= ZERO_JITTER * top)
     again = ml(start)
-    if not (np.isfinite(again.cost) and (not np.isfinite(out.cost) or again.cost < out.cost)):
+    if not _higher(again, out):
         return out
     return replace(
         again,

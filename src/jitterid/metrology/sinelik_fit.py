@@ -623,7 +623,7 @@ def _search(
                 continue
             if _try == 0 and not damped:
                 lln, gn, opgn, infon = evaluate(xn)
-            else:  # after a rejection: ln L first, the rest where it is accepted
+            else:  # after a rejection (here or the last step's): ln L first, the rest if accepted
                 lln = trial(xn)
                 if math.isfinite(lln) and lln >= ll - 1e-12 * abs(ll):
                     lln, gn, opgn, infon = evaluate(xn)
