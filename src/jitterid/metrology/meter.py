@@ -563,9 +563,16 @@ def _fit_one(
         slik = SineLikelihood(*start_subsample(data.y, data.T), family, quantisation_step=q_step)
         neg_ll: Callable[[FloatArray], float] = lambda c: -slik.loglik(c)
 
-        def ml(x: FloatArray) -> FitResult:
+        def ml(x: FloatArray, found: FitResult | None = None) -> FitResult:
             return fit_sine_ml(
-                data.y, data.T, tone, family, x, noise_floor=lo_noise, quantisation_step=q_step
+                data.y,
+                data.T,
+                tone,
+                family,
+                x,
+                noise_floor=lo_noise,
+                quantisation_step=q_step,
+                found=found,
             )
 
         if lo_noise > 0:  # a noise-free record: its noise std starts on the floor
@@ -574,7 +581,7 @@ def _fit_one(
         lik = ExactLikelihood(model, family, None, data.T, data.N, noise_floor=data.resolution)
         neg_ll = lambda c: -lik.loglik(c, data.y)
 
-        def ml(x: FloatArray) -> FitResult:
+        def ml(x: FloatArray, found: FitResult | None = None) -> FitResult:
             return fit(data, model, family, method="ml", start=x)
 
     scored: list[tuple[float, int, FloatArray]] = []
@@ -584,7 +591,9 @@ def _fit_one(
         except ValueError:
             continue
     best = min(scored)[2] if scored else xg
-    out = ml(best)
+    # (the ranking's fit to this family's maximum, from the other family's: where the search
+    # from here meets it, not run again, fit_sine_ml's found)
+    out = ml(best, alt if alt is not None and alt.status is FitStatus.CONVERGED else None)
     # A large phase spread lets the jitter alone explain the samples: ln L has a local
     # maximum with the noise on its floor, which a start there never leaves, and which
     # can score above a noisy start at that start (a 1 rad uniform record, noise 1e-2:

@@ -1,0 +1,143 @@
+"""A search that meets a maximum already found (jitterid.metrology.sinelik_fit.fit_sine_ml's
+``found``): the search on the whole record is skipped only where the subsample optimum from
+the start lies in one quadratic bowl with that maximum; the referee is the same search run
+without ``found``."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import jitterid as ji
+from jitterid.metrology import sinelik_fit
+from jitterid.metrology.sinelik import fit_sine_ml, rank_sine_law
+from jitterid.metrology.sinelik_loglik import SineLikelihood
+from jitterid.systems.tones import SineWave
+
+T = 1 / 7e9
+JITTER = 2e-12  # 2 pi f sigma = 1.3e-2 rad at 1 GHz
+NOISE = 1e-3
+N = 1 << 15  # the shortest record fit_sine_ml starts on a subsample (every 4th sample)
+
+
+def _record(seed: int) -> tuple[np.ndarray, float]:
+    """A coherent ~1 GHz tone at 7 GS/s, amplitude 0.49, uniform jitter of std JITTER."""
+    cyc = round(1e9 * N * T)
+    cyc += 1 - cyc % 2
+    f = cyc / (N * T)
+    rng = np.random.default_rng(seed)
+    tau = JITTER * math.sqrt(3.0) * rng.uniform(-1.0, 1.0, N)
+    y = 0.49 * np.sin(2 * np.pi * f * (np.arange(N) * T + tau) + 0.4)
+    return y + NOISE * rng.standard_normal(N), f
+
+
+def _setting(seed: int):
+    y, f = _record(seed)
+    model = SineWave(band_hz=(0.99 * f, 1.01 * f))
+    fam = ji.UniformFamily(a_max=20 * T, a_min=1e-9 * T)
+    here = np.r_[fam.start_for_std(JITTER), 0.49, 0.4, f, 0.0, NOISE]
+    there = np.r_[fam.start_for_std(1.3 * JITTER), 0.4905, 0.4003, f, 1e-4, 1.4 * NOISE]
+    return y, model, fam, here, there
+
+
+class _Passes:
+    """Counts the whole record's passes (score passes of N samples)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.n = 0
+        inner = SineLikelihood.scores_information
+
+        def counted(lik, x, stride=1):
+            if lik.N == N:
+                self.n += 1
+            return inner(lik, x, stride)
+
+        monkeypatch.setattr(SineLikelihood, "scores_information", counted)
+
+
+def test_a_search_that_meets_a_maximum_is_not_run_again(monkeypatch):
+    """From a second start, with the first start's maximum as ``found``: that maximum,
+    the message saying the search met it, no score pass of the whole record; the search
+    without ``found`` ends within 0.01 standard errors of it, after score passes of the
+    whole record."""
+    y, model, fam, here, there = _setting(1)
+    first = fit_sine_ml(y, T, model, fam, here)
+    assert first.status is ji.FitStatus.CONVERGED
+    passes = _Passes(monkeypatch)
+    alone = fit_sine_ml(y, T, model, fam, there)
+    searched = passes.n
+    passes.n = 0
+    met = fit_sine_ml(y, T, model, fam, there, found=first)
+    assert searched >= 2
+    assert passes.n == 0
+    assert "met this maximum" in met.message
+    assert np.array_equal(met.x, first.x)
+    assert met.cost == first.cost
+    se = np.sqrt(np.diag(first.cov))
+    assert np.all(np.abs(alone.x - first.x) <= 0.01 * se)
+
+
+def test_a_maximum_elsewhere_is_not_met(monkeypatch):
+    """``found`` moved by 40 of its standard errors in the phase (a maximum that is not
+    the one the start climbs to): not met; the search runs on the whole record and ends at
+    the maximum, not at ``found``."""
+    y, model, fam, here, there = _setting(3)
+    first = fit_sine_ml(y, T, model, fam, here)
+    k = first.names.index("phase_rad")
+    x = first.x.copy()
+    x[k] += 40.0 * math.sqrt(first.cov[k, k])
+    elsewhere = replace(first, x=x)
+    passes = _Passes(monkeypatch)
+    got = fit_sine_ml(y, T, model, fam, there, found=elsewhere)
+    assert passes.n >= 2
+    assert "met this maximum" not in got.message
+    assert abs(got.x[k] - first.x[k]) <= 0.01 * math.sqrt(first.cov[k, k])
+
+
+def test_the_bowl_test_reads_the_quadratic_model(monkeypatch):
+    """The test itself: the maximum meets its own subsample optimum; a point on the segment
+    beyond the chi^2 radius does not; and with MEET_QUADRATIC and MEET_SLACK at 0 a point
+    inside the radius is refused unless ln L falls exactly as the quadratic model says (it
+    never does to the last digit)."""
+    y, model, fam, here, _ = _setting(4)
+    first = fit_sine_ml(y, T, model, fam, here)
+    size = sinelik_fit._fit_subsample_size(N)
+    sub = sinelik_fit._subsample_start(y, T, model, fam, here, 0.0, 100, size)
+    assert sinelik_fit._meets(y, T, fam, sub, first, size, None) is not None
+    far = np.asarray(sub) + 30.0 * (first.x - np.asarray(sub))
+    assert sinelik_fit._meets(y, T, fam, sub, replace(first, x=far), size, None) is None
+    not_converged = replace(first, status=ji.FitStatus.MAX_EVALUATIONS)
+    assert sinelik_fit._meets(y, T, fam, sub, not_converged, size, None) is None
+    monkeypatch.setattr(sinelik_fit, "MEET_QUADRATIC", 0.0)
+    monkeypatch.setattr(sinelik_fit, "MEET_SLACK", 0.0)
+    assert sinelik_fit._meets(y, T, fam, sub, first, size, None) is None
+
+
+def test_a_ranking_past_its_give_up_line_takes_the_fit_s_information(monkeypatch):
+    """A ranking whose ln L is above its give-up line (the family leads its rival by 50)
+    cannot be ranked out: after its first step its passes take their information as
+    fit_sine_ml's do (every chunk at 2^15 samples, not every RANK_INFO_SAMPLES-th), and it
+    ends at fit_sine_ml's maximum (within 0.01 standard errors)."""
+    y, model, fam, here, _ = _setting(5)
+    full = fit_sine_ml(y, T, model, fam, here)
+    strides: list[int] = []
+    inner = SineLikelihood.scores_information
+
+    def recorded(lik, x, stride=1):
+        if lik.N == N:
+            strides.append(stride)
+        return inner(lik, x, stride)
+
+    monkeypatch.setattr(SineLikelihood, "scores_information", recorded)
+    rank = rank_sine_law(
+        y, T, model, fam, here, rival_loglik=-0.5 * full.cost - 50.0, rival_n_params=full.x.size
+    )
+    assert not rank.ranked_out
+    assert strides[0] == N // sinelik_fit.RANK_INFO_SAMPLES
+    assert len(strides) >= 2
+    assert set(strides[1:]) == {1}
+    se = np.sqrt(np.diag(full.cov))
+    assert np.all(np.abs(rank.fit.x - full.x) <= 0.01 * se)
