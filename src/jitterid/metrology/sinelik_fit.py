@@ -279,11 +279,9 @@ def _meets(
     return replace(
         found,
         message=(
-            f"{found.message}; the search from the family's own start met this maximum, "
-            f"found from another start: its optimum on every {s}-th sample lies in one "
-            f"quadratic bowl of that subsample's ln L with it (squared distance {m2:.3g} in "
-            f"its standard errors, ln L {drop:.3g} lower there), so the search on the whole "
-            "record was not run again"
+            f"{found.message}; the search from the family's own start met this maximum (its "
+            f"optimum on every {s}th sample in one quadratic bowl with it: squared distance "
+            f"{m2:.3g} in standard errors) and was not run on the whole record"
         ),
         nfev=found.nfev + 2,
     )
