@@ -90,6 +90,25 @@ def test_restart_that_finds_nothing_lower_keeps_the_status(data: ji.SampledData)
     assert "larger max_nfev" in far.message
 
 
+def test_without_restart_the_fit_ends_where_the_search_from_the_start_stopped(
+    data: ji.SampledData,
+) -> None:
+    """``restart=False`` (a budgeted start for another search): the search from FAR with
+    40 evaluations alone, its status MAX_EVALUATIONS (the restart would have converged,
+    test_budget_used_up_is_restarted), no restart in the message, and its evaluations
+    fewer than the restarted fit's; a non-bool is refused, naming the argument."""
+    alone = ji.fit(
+        data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=40, restart=False
+    )
+    assert alone.status is FitStatus.MAX_EVALUATIONS, alone.message
+    assert "restart" not in alone.message
+    restarted = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=40)
+    assert "MAX_EVALUATIONS" in restarted.message
+    assert alone.nfev < restarted.nfev
+    with pytest.raises(TypeError, match="restart"):
+        ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, restart="no")  # type: ignore[arg-type]
+
+
 def test_good_start_is_not_restarted(data: ji.SampledData) -> None:
     near = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=TRUTH)
     assert near.status is FitStatus.CONVERGED

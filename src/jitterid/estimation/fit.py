@@ -51,6 +51,7 @@ def fit(
     max_nfev: int = 2000,
     noise: NoiseStructure | NoiseModel | None = None,
     cov_type: str | None = None,
+    restart: bool = True,
 ) -> FitResult:
     """Estimate a continuous-time model from jittered samples.
 
@@ -105,6 +106,12 @@ def fit(
         measurement noise), ``"robust"`` (Huber-White; default for ``ls``; use it when the
         jitter law may be misspecified), ``"oim"`` (inverse observed information; default
         for ``ml``, also for ``gaussian``) or ``"none"`` (not computed).
+    restart : bool
+        On the white-noise route, a search from a given ``start`` that stops without
+        converging, or converges where a default start is lower, is restarted as ``start``
+        says (default True). False returns where the search from ``start`` stopped, with its
+        status: a budgeted start for another search (with a small ``max_nfev``), not an
+        estimate to trust without reading ``status``.
 
     Returns
     -------
@@ -161,6 +168,7 @@ def fit(
             max_nfev=max_nfev,
             noise=noise,
             cov_type=cov_type,
+            restart=restart,
         )
 
 
@@ -176,10 +184,13 @@ def _drive(
     max_nfev: int,
     noise: NoiseStructure | NoiseModel | None,
     cov_type: str | None,
+    restart: bool = True,
 ) -> FitResult:
     """The one sequence (module docstring)."""
     cov_type = est.check_cov_type(cov_type)
     noise_std, max_nfev = check_arguments(noise_std, max_nfev)
+    if not isinstance(restart, bool):
+        raise TypeError(f"restart must be True or False; got {restart!r}")
     if not isinstance(data, SampledData):
         raise TypeError(
             f"data must be a SampledData (see jitterid.simulate); got {type(data).__name__}"
@@ -199,6 +210,7 @@ def _drive(
             freqs=freqs,
             noise_std=noise_std,
             max_nfev=max_nfev,
+            restart=restart,
         )
     else:
 

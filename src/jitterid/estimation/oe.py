@@ -160,8 +160,10 @@ class OutputErrorRoute:
         freqs: ArrayLike | None,
         noise_std: float | None,
         max_nfev: int,
+        restart: bool = True,
     ) -> None:
         est = estimator
+        self.restart = restart
         check_method_jitter(est.ignores_jitter, est.name, jitter)
         if est.ignores_jitter and not structure.param_names:
             raise ValueError(f"method {est.name!r} with a known system has nothing to estimate")
@@ -256,7 +258,9 @@ class OutputErrorRoute:
             problem, best = run_search(problem, x0, max_nfev)
             nfev = best.nfev
             lower = None
-            if best.status is FitStatus.CONVERGED and self._defaults_apply(problem):
+            if not self.restart:  # (fit's restart=False: where this search stopped)
+                pass
+            elif best.status is FitStatus.CONVERGED and self._defaults_apply(problem):
                 lower, n = self._lower_default(problem, best)
                 nfev += n
                 # (none lower: the post-search check need not evaluate them again)
@@ -272,7 +276,7 @@ class OutputErrorRoute:
                     nfev += n
                     if again.status is FitStatus.CONVERGED and again.cost < best.cost:
                         best, lower = again, None
-            if best.status in _STOPPED or lower is not None:
+            if self.restart and (best.status in _STOPPED or lower is not None):
                 problem, best, n = self._restart(problem, best, x0, noise)
                 nfev += n
         else:
