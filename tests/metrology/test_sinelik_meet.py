@@ -13,7 +13,7 @@ import pytest
 
 import jitterid as ji
 from jitterid.metrology import sinelik_fit
-from jitterid.metrology.sinelik import fit_sine_ml, rank_sine_law
+from jitterid.metrology.sinelik import RankStart, fit_sine_ml, rank_sine_law, rank_start
 from jitterid.metrology.sinelik_loglik import SineLikelihood
 from jitterid.systems.tones import SineWave
 
@@ -159,3 +159,26 @@ def test_the_meter_fits_the_chosen_law_once(monkeypatch):
     assert again.family == "uniform"
     assert "met this maximum" not in again.fit.message
     assert abs(again.jitter_std - m.jitter_std) <= 0.01 * m.jitter_std_stderr
+
+
+def test_a_ranking_from_its_presearched_start_is_the_same_ranking():
+    """rank_sine_law from rank_start's point (the meter's, after ordering the laws by
+    their subsample BIC) is the ranking from the start itself, bit for bit; on a uniform
+    record the uniform's subsample BIC is below the Gaussian's (it is ranked first)."""
+    y, model, fam, here, _ = _setting(7)
+    gauss = ji.GaussianFamily(sigma_max=10 * T, sigma_min=1e-9 * T)
+    # (a rival far ahead: each ranking stops after its first step on the record)
+    rival = {"rival_loglik": 1e9, "rival_n_params": here.size}
+    pre = rank_start(y, T, model, fam, here)
+    assert isinstance(pre, RankStart)
+    assert pre.fitted
+    assert pre.samples == N // 4
+    direct = rank_sine_law(y, T, model, fam, here, **rival)
+    via = rank_sine_law(y, T, model, fam, pre, **rival)
+    assert np.array_equal(direct.fit.x, via.fit.x)
+    assert direct.fit.cost == via.fit.cost
+    assert direct.ranked_out
+    assert via.ranked_out
+    assert direct.fit.nfev == via.fit.nfev
+    g_pre = rank_start(y, T, model, gauss, np.r_[JITTER, here[1:]])
+    assert pre.bic() < g_pre.bic()

@@ -63,9 +63,12 @@ from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jit
 from .sinelik import (  # issue 26, item 2
     NUMERIC_FLOOR,
     RANK_MARGIN_BIC,
+    RankStart,
     SineLikelihood,
     fit_sine_ml,
     rank_sine_law,
+    rank_start,
+    ranked_nested,
     sine_ml_applies,
     start_subsample,
 )
@@ -1207,7 +1210,30 @@ def _measure(
             FitStatus.CONVERGED,
             FitStatus.AT_BOUND,
         )
-        for name in fam_names[1:]:
+        later = list(fam_names[1:])
+        starts: dict[str, RankStart] = {}
+        if route == "ml" and structured:
+            # each ranking's start on the subsample first, then the rankings in the order of
+            # their subsample ln L less its BIC penalty, the likeliest first, so that the
+            # others are ranked out against it (a scale mixture ranked from the Gaussian it
+            # nests is ranked last, from there). A 12-bit dual-Dirac record of 2^16 samples:
+            # the uniform, ranked before the dual Dirac, led the Gaussian and was fitted to
+            # its maximum (16 passes of the record, 15 CPU-s)
+            for name in later:
+                if not (nests_gaussian and ranked_nested(known[name])):
+                    starts[name] = rank_start(
+                        yv,
+                        T,
+                        model,
+                        known[name],
+                        _other_start(data, known[name], other),
+                        noise_floor=floor,
+                        quantisation_step=bin_step,
+                    )
+
+            # (stable: the given order among those not fitted on a subsample, last)
+            later.sort(key=lambda n: starts[n].bic() if n in starts else math.inf)
+        for name in later:
             alt = None
             if route == "ml" and structured:
                 # rank before the full fit: from the first family's fit (the full route's
@@ -1218,7 +1244,7 @@ def _measure(
                     T,
                     model,
                     known[name],
-                    _other_start(data, known[name], other),
+                    starts.get(name, _other_start(data, known[name], other)),
                     rival_loglik=rival_ll,
                     rival_n_params=rival_p,
                     noise_floor=floor,

@@ -44,8 +44,11 @@ from .sinelik_fit import (
     NUMERIC_FLOOR,
     RANK_MARGIN_BIC,
     LawRank,
+    RankStart,
     fit_sine_ml,
     rank_sine_law,
+    rank_start,
+    ranked_nested,
     start_subsample,
 )
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
@@ -56,9 +59,12 @@ __all__ = [
     "RANK_MARGIN_BIC",
     "TOLERANCE",
     "LawRank",
+    "RankStart",
     "SineLikelihood",
     "fit_sine_ml",
     "rank_sine_law",
+    "rank_start",
+    "ranked_nested",
     "sine_ml_applies",
     "start_subsample",
 ]

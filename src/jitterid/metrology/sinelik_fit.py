@@ -30,8 +30,11 @@ __all__ = [
     "NUMERIC_FLOOR",
     "RANK_MARGIN_BIC",
     "LawRank",
+    "RankStart",
     "fit_sine_ml",
     "rank_sine_law",
+    "rank_start",
+    "ranked_nested",
     "start_subsample",
 ]
 
@@ -406,6 +409,20 @@ def _subsample_start(
     return sub.x if ended and np.all(np.isfinite(sub.x)) else start
 
 
+def ranked_nested(family: JitterFamily) -> bool:
+    """Whether :func:`rank_sine_law` with ``nested=True`` ranks ``family`` from the Gaussian
+    it nests (:data:`RANK_NESTED`: the scale mixture; :func:`_nested_start`), not from a
+    start of its own.
+
+    Parameters
+    ----------
+    family : JitterFamily
+        The family.
+    """
+    even = family.even_index
+    return RANK_NESTED and isinstance(family, GaussianScaleMixtureFamily) and bool(even)
+
+
 def _nested_start(family: JitterFamily, start: ArrayLike) -> FloatArray | None:
     """``start`` (a law of ``family`` at the Gaussian's std, its sine and noise) moved to the
     Gaussian that a scale mixture nests: rho 0 and sigma the std; None for other families.
@@ -418,7 +435,7 @@ def _nested_start(family: JitterFamily, start: ArrayLike) -> FloatArray | None:
     at dj = 0 is blind to the shape, and on the same records its maximum lay 0.08-71 above
     the nested "upper estimate" (dual-Dirac truths among them)."""
     even = family.even_index
-    if not isinstance(family, GaussianScaleMixtureFamily) or even is None or even == 0:
+    if not ranked_nested(family) or even is None:
         return None
     x0 = np.array(start, dtype=float)
     nj = len(family.param_names)
@@ -451,12 +468,45 @@ class LawRank:
     loglik_upper: float
 
 
+@dataclass(frozen=True)
+class RankStart:
+    """Where :func:`rank_sine_law` searches the whole record from (:func:`rank_start`).
+
+    Attributes
+    ----------
+    x : ndarray
+        The point, in :attr:`SineLikelihood.names` order.
+    loglik : float
+        Its ln L on the subsample it was fitted on; -inf where it was not (a record under
+        4 x :data:`RANK_SUBSAMPLE` samples, or a subsample fit that did not end at a
+        maximum: ``x`` is then the start itself).
+    samples : int
+        The subsample's size (0 where there is none).
+    """
+
+    x: FloatArray
+    loglik: float
+    samples: int
+
+    @property
+    def fitted(self) -> bool:
+        """Whether ``x`` is a subsample optimum."""
+        return math.isfinite(self.loglik) and self.samples > 0
+
+    def bic(self) -> float:
+        """The subsample's BIC at ``x``, -2 ln L + P ln(samples) (+inf where not fitted):
+        the meter ranks the laws in its order."""
+        if not self.fitted:
+            return math.inf
+        return -2.0 * self.loglik + self.x.size * math.log(self.samples)
+
+
 def rank_sine_law(
     y: ArrayLike,
     T: float,
     model: SineWave,
     family: JitterFamily,
-    start: ArrayLike,
+    start: ArrayLike | RankStart,
     *,
     rival_loglik: float,
     rival_n_params: int,
@@ -484,10 +534,11 @@ def rank_sine_law(
         The pure-tone model.
     family : JitterFamily
         Gaussian, uniform, dual-Dirac or scale-mixture family.
-    start : array_like
+    start : array_like or RankStart
         The start (e.g. the rival's optimum with this family's parameters at its std; a
         dual Dirac's variance is re-split to hold ``RANK_DJ_SHARE`` of it in dj, a scale
-        mixture's rho^2 set to it).
+        mixture's rho^2 set to it), or :func:`rank_start`'s point from such a start (its
+        subsample fit made; ``nested`` does not apply then).
     rival_loglik : float
         The leading family's maximised ln L.
     rival_n_params : int
@@ -519,7 +570,9 @@ def rank_sine_law(
     )
     if not math.isfinite(give_up):
         give_up = -math.inf  # no finite rival: nothing is ranked out
-    x0 = _nested_start(family, start) if nested and RANK_NESTED else None
+    x0 = None
+    if not isinstance(start, RankStart) and nested:
+        x0 = _nested_start(family, start)
     if x0 is not None:  # the Newton model at the nested maximum: the score test's
         return LawRank(
             *_search(
@@ -536,19 +589,18 @@ def rank_sine_law(
                 q_step=quantisation_step,
             )
         )
-    if isinstance(family, DualDiracFamily):  # the variance re-split (RANK_DJ_SHARE)
-        start = np.asarray(start, dtype=float).copy()
-        var = start[0] ** 2 + 0.25 * start[1] ** 2
-        (rlo, rhi), (dlo, dhi) = family.bounds
-        rj = min(max(math.sqrt((1 - RANK_DJ_SHARE) * var), rlo), rhi)
-        start[:2] = rj, min(max(2 * math.sqrt(RANK_DJ_SHARE * var), dlo), dhi)
-    elif isinstance(family, GaussianScaleMixtureFamily):  # near the nested Gaussian too
-        start = np.asarray(start, dtype=float).copy()
-        start[1] = min(math.sqrt(RANK_DJ_SHARE), family.bounds[1][1])
-    sub = _subsample_start(
-        y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE, q_step=quantisation_step
-    )
-    min_steps = 1 if sub is not start else RANK_MIN_STEPS
+    if not isinstance(start, RankStart):
+        start = rank_start(
+            y,
+            T,
+            model,
+            family,
+            start,
+            noise_floor=noise_floor,
+            max_iter=max_iter,
+            quantisation_step=quantisation_step,
+        )
+    sub, min_steps = start.x, 1 if start.fitted else RANK_MIN_STEPS
     return LawRank(
         *_search(
             y,
@@ -564,6 +616,73 @@ def rank_sine_law(
             q_step=quantisation_step,
         )
     )
+
+
+def rank_start(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    *,
+    noise_floor: float = 0.0,
+    max_iter: int = 100,
+    quantisation_step: float | None = None,
+) -> RankStart:
+    """Where :func:`rank_sine_law` (not ``nested``) searches the whole record from:
+    ``start`` (a
+    dual Dirac's or a scale mixture's re-split near the nested Gaussian,
+    :data:`RANK_DJ_SHARE`) fitted on every s-th sample (:data:`RANK_SUBSAMPLE`) where the
+    record holds 4 x that many samples and the fit ends at a maximum; else ``start``. The
+    meter ranks the laws in the order of their subsample ln L (the likeliest first, so
+    that the others are ranked out against it), passing each to :func:`rank_sine_law`.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The record.
+    T : float
+        The nominal sampling interval (s).
+    model : SineWave
+        The pure-tone model.
+    family : JitterFamily
+        Gaussian, uniform, dual-Dirac or scale-mixture family.
+    start : array_like
+        The start (:func:`rank_sine_law`'s).
+    noise_floor : float
+        The smallest noise std searched.
+    max_iter : int
+        The most steps.
+    quantisation_step : float or None
+        The record's quantisation step (:func:`fit_sine_ml`).
+    """
+    start = np.asarray(start, dtype=float).copy()
+    if isinstance(family, DualDiracFamily):  # the variance re-split (RANK_DJ_SHARE)
+        var = start[0] ** 2 + 0.25 * start[1] ** 2
+        (rlo, rhi), (dlo, dhi) = family.bounds
+        rj = min(max(math.sqrt((1 - RANK_DJ_SHARE) * var), rlo), rhi)
+        start[:2] = rj, min(max(2 * math.sqrt(RANK_DJ_SHARE * var), dlo), dhi)
+    elif isinstance(family, GaussianScaleMixtureFamily):  # near the nested Gaussian too
+        start[1] = min(math.sqrt(RANK_DJ_SHARE), family.bounds[1][1])
+    every = _every(y, T, RANK_SUBSAMPLE)
+    if every is None:
+        return RankStart(start, -math.inf, 0)
+    sub = _search(
+        *every,
+        model,
+        family,
+        start,
+        noise_floor,
+        max_iter,
+        None,
+        decrement=SUB_DECREMENT,
+        covariance=False,
+        q_step=quantisation_step,
+    )[0]
+    ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)
+    if not (ended and np.all(np.isfinite(sub.x)) and np.isfinite(sub.cost)):
+        return RankStart(start, -math.inf, 0)
+    return RankStart(np.asarray(sub.x, dtype=float), -0.5 * float(sub.cost), int(every[0].size))
 
 
 def _search(
