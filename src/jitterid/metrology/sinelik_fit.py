@@ -390,9 +390,27 @@ def _subsample_start(
     s T), fitted to :data:`SUB_DECREMENT`, where s >= 4 and that fit ends at a maximum
     (CONVERGED, or AT_BOUND: a noise-free record's noise std on its floor); else
     ``start``."""
+    sub = _subsample_fit(y, T, model, family, start, noise_floor, max_iter, size, q_step)
+    return start if sub is None else sub[0].x
+
+
+def _subsample_fit(
+    y: ArrayLike,
+    T: float,
+    model: SineWave,
+    family: JitterFamily,
+    start: ArrayLike,
+    noise_floor: float,
+    max_iter: int,
+    size: int,
+    q_step: float | None,
+) -> tuple[FitResult, int] | None:
+    """The family's fit on every s-th sample (:func:`_subsample_start`) and the
+    subsample's size, where s >= 4 and the fit ends at a maximum (CONVERGED, or AT_BOUND:
+    a noise-free record's noise std on its floor) with finite values; else None."""
     every = _every(y, T, size)
     if every is None:
-        return start
+        return None
     sub = _search(
         *every,
         model,
@@ -405,8 +423,10 @@ def _subsample_start(
         covariance=False,
         q_step=q_step,
     )[0]
-    ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)  # the noise on its floor
-    return sub.x if ended and np.all(np.isfinite(sub.x)) else start
+    ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)
+    if not (ended and np.all(np.isfinite(sub.x)) and math.isfinite(sub.cost)):
+        return None
+    return sub, int(every[0].size)
 
 
 def ranked_nested(family: JitterFamily) -> bool:
@@ -630,12 +650,12 @@ def rank_start(
     quantisation_step: float | None = None,
 ) -> RankStart:
     """Where :func:`rank_sine_law` (not ``nested``) searches the whole record from:
-    ``start`` (a
-    dual Dirac's or a scale mixture's re-split near the nested Gaussian,
+    ``start`` (a dual Dirac's or a scale mixture's re-split near the nested Gaussian,
     :data:`RANK_DJ_SHARE`) fitted on every s-th sample (:data:`RANK_SUBSAMPLE`) where the
     record holds 4 x that many samples and the fit ends at a maximum; else ``start``. The
-    meter ranks the laws in the order of their subsample ln L (the likeliest first, so
-    that the others are ranked out against it), passing each to :func:`rank_sine_law`.
+    meter ranks the laws in the order of their subsample BIC (:meth:`RankStart.bic`, the
+    likeliest first, so that the others are ranked out against it), passing each to
+    :func:`rank_sine_law`.
 
     Parameters
     ----------
@@ -664,25 +684,12 @@ def rank_start(
         start[:2] = rj, min(max(2 * math.sqrt(RANK_DJ_SHARE * var), dlo), dhi)
     elif isinstance(family, GaussianScaleMixtureFamily):  # near the nested Gaussian too
         start[1] = min(math.sqrt(RANK_DJ_SHARE), family.bounds[1][1])
-    every = _every(y, T, RANK_SUBSAMPLE)
-    if every is None:
+    sub = _subsample_fit(
+        y, T, model, family, start, noise_floor, max_iter, RANK_SUBSAMPLE, quantisation_step
+    )
+    if sub is None:
         return RankStart(start, -math.inf, 0)
-    sub = _search(
-        *every,
-        model,
-        family,
-        start,
-        noise_floor,
-        max_iter,
-        None,
-        decrement=SUB_DECREMENT,
-        covariance=False,
-        q_step=quantisation_step,
-    )[0]
-    ended = sub.status in (FitStatus.CONVERGED, FitStatus.AT_BOUND)
-    if not (ended and np.all(np.isfinite(sub.x)) and np.isfinite(sub.cost)):
-        return RankStart(start, -math.inf, 0)
-    return RankStart(np.asarray(sub.x, dtype=float), -0.5 * float(sub.cost), int(every[0].size))
+    return RankStart(np.asarray(sub[0].x, dtype=float), -0.5 * float(sub[0].cost), sub[1])
 
 
 def _search(
