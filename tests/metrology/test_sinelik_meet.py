@@ -105,7 +105,9 @@ def test_the_bowl_test_reads_the_quadratic_model(monkeypatch):
     y, model, fam, here, _ = _setting(4)
     first = fit_sine_ml(y, T, model, fam, here)
     size = sinelik_fit._fit_subsample_size(N)
-    sub = sinelik_fit._subsample_start(y, T, model, fam, here, 0.0, 100, size)
+    fitted = sinelik_fit._subsample_fit(y, T, model, fam, here, 0.0, 100, size, None)
+    assert fitted is not None
+    sub = fitted[0].x
     assert sinelik_fit._meets(y, T, fam, sub, first, size, None) is not None
     far = np.asarray(sub) + 30.0 * (first.x - np.asarray(sub))
     assert sinelik_fit._meets(y, T, fam, sub, replace(first, x=far), size, None) is None

@@ -122,7 +122,7 @@ def test_a_noise_free_2_18_record_is_fitted_with_an_honest_interval():
 
 def test_records_from_2_15_samples_start_from_a_subsample():
     # 2^15-2^17 samples: from every s-th sample, s = N // RANK_SUBSAMPLE (s >= 4); from 2^18
-    # on, s = N // FIT_SUBSAMPLE as before; below 2^15 no subsample (_subsample_start)
+    # on, s = N // FIT_SUBSAMPLE as before; below 2^15 no subsample (_subsample_fit)
     assert sf._fit_subsample_size(1 << 16) == sf.RANK_SUBSAMPLE
     assert (1 << 15) // sf._fit_subsample_size(1 << 15) == 4
     assert (1 << 14) // sf._fit_subsample_size(1 << 14) < 4

@@ -258,9 +258,12 @@ class OutputErrorRoute:
             problem, best = run_search(problem, x0, max_nfev)
             nfev = best.nfev
             lower = None
-            if not self.restart:  # (fit's restart=False: where this search stopped)
-                pass
-            elif best.status is FitStatus.CONVERGED and self._defaults_apply(problem):
+            # (fit's restart=False: the search's end as it is, no comparison, no restart)
+            if (
+                self.restart
+                and best.status is FitStatus.CONVERGED
+                and self._defaults_apply(problem)
+            ):
                 lower, n = self._lower_default(problem, best)
                 nfev += n
                 # (none lower: the post-search check need not evaluate them again)

@@ -1259,7 +1259,7 @@ def _measure(
             # (the likelihood's start under a law the moment route inverts: its few passes,
             # as for the first family, not the Gaussian criterion's search)
             gauss_start = None
-            if route == "ml" and H == 1 and name in ROUTE_LAWS and name != "free":
+            if route == "ml" and H == 1 and name in ROUTE_LAWS:
                 mf_name = moment_route(yv, T, fit4, name)
                 if math.isfinite(mf_name.jitter_var):
                     gauss_start = _moment_result(mf_name, known[name], model, physical)

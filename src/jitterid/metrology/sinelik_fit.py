@@ -227,10 +227,10 @@ def fit_sine_ml(
     """
     size = _fit_subsample_size(int(np.size(y)))
     q = quantisation_step
-    first = start
-    start = _subsample_start(y, T, model, family, start, noise_floor, max_iter, size, q_step=q)
-    if found is not None and start is not first:
-        met = _meets(y, T, family, start, found, size, q)
+    sub = _subsample_fit(y, T, model, family, start, noise_floor, max_iter, size, q)
+    if sub is not None:
+        start = sub[0].x
+        met = None if found is None else _meets(y, T, family, start, found, size, q)
         if met is not None:
             return _probe_scale(y, T, model, family, met, noise_floor, max_iter, q_step=q)
     fit = _search(y, T, model, family, start, noise_floor, max_iter, None, q_step=q)[0]
@@ -370,28 +370,8 @@ def _every(y: ArrayLike, T: float, size: int) -> tuple[FloatArray, float] | None
 def _fit_subsample_size(n: int) -> int:
     """The subsample size of :func:`fit_sine_ml`'s start on a record of ``n`` samples:
     ``FIT_SUBSAMPLE`` from 4 x that on, else ``RANK_SUBSAMPLE`` (no subsample below 4 x
-    that: :func:`_subsample_start`)."""
+    that: :func:`_subsample_fit`)."""
     return FIT_SUBSAMPLE if n >= 4 * FIT_SUBSAMPLE else RANK_SUBSAMPLE
-
-
-def _subsample_start(
-    y: ArrayLike,
-    T: float,
-    model: SineWave,
-    family: JitterFamily,
-    start: ArrayLike,
-    noise_floor: float,
-    max_iter: int,
-    size: int,
-    *,
-    q_step: float | None = None,
-) -> ArrayLike:
-    """The family's optimum on every s-th sample (s = N // size, a record of its own at
-    s T), fitted to :data:`SUB_DECREMENT`, where s >= 4 and that fit ends at a maximum
-    (CONVERGED, or AT_BOUND: a noise-free record's noise std on its floor); else
-    ``start``."""
-    sub = _subsample_fit(y, T, model, family, start, noise_floor, max_iter, size, q_step)
-    return start if sub is None else sub[0].x
 
 
 def _subsample_fit(
@@ -405,9 +385,10 @@ def _subsample_fit(
     size: int,
     q_step: float | None,
 ) -> tuple[FitResult, int] | None:
-    """The family's fit on every s-th sample (:func:`_subsample_start`) and the
-    subsample's size, where s >= 4 and the fit ends at a maximum (CONVERGED, or AT_BOUND:
-    a noise-free record's noise std on its floor) with finite values; else None."""
+    """The family's fit on every s-th sample (s = N // size, a record of its own at s T),
+    to :data:`SUB_DECREMENT`, and the subsample's size, where s >= 4 and the fit ends at a
+    maximum (CONVERGED, or AT_BOUND: a noise-free record's noise std on its floor) with
+    finite values; else None."""
     every = _every(y, T, size)
     if every is None:
         return None
