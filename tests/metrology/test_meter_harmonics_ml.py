@@ -1,6 +1,8 @@
-"""The meter's exact likelihood with harmonics (the generic quadrature route) on a
-converter's record: a 12-bit tone with HD2 and HD3, picosecond jitter, little thermal
-noise."""
+"""The meter's exact likelihood with harmonics on a converter's record: a 12-bit tone with
+HD2 and HD3, picosecond jitter, little thermal noise. (The generic quadrature's route when
+written; since session 25 such small harmonics are held at their least-squares fit and the
+fundamental measured by the structured likelihood: tests/metrology/test_held.py. The
+generic route with harmonics: tests/metrology/test_sinelik.py.)"""
 
 from __future__ import annotations
 

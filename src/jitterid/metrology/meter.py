@@ -14,8 +14,10 @@ estimated (the JOE structure (2c) with a signal model, the paper's (1a)). In ord
    and its numeric noise floor);
 4. (``method="ml"``) the exact likelihood (notes 4) for each candidate family, the lowest
    BIC kept: for a pure tone under a Gaussian, uniform, dual-Dirac or scale-mixture family
-   the structured one of :mod:`jitterid.metrology.sinelik` (O(N), any noise std), else the generic
-   quadrature of :mod:`jitterid.estimation.likelihood`;
+   the structured one of :mod:`jitterid.metrology.sinelik` (O(N), any noise std), also for
+   a tone with small harmonics, held at their least-squares fit
+   (:mod:`jitterid.metrology.held`), else the generic quadrature of
+   :mod:`jitterid.estimation.likelihood`;
 5. the adequacy checks on the chosen fit (rails, lines in the residual), the per-sample
    phase error (:mod:`jitterid.metrology.phase`: periodic and coloured jitter, the RJ/PJ
    decomposition, a Newey-West interval for a coloured jitter), a law's hard edges
@@ -56,6 +58,7 @@ from .adequacy import (
 )
 from .converter import ConverterFigures, converter_figures  # meterio (issue 26, item 3)
 from .edges import sharp_edge_finding
+from .held import HeldHarmonics, hold_harmonics
 from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .reading import LAW_MARGIN_BIC, summary_extras  # meterio (issue 26, item 5)
@@ -468,6 +471,16 @@ def _start_fit(
     damping = math.exp(-0.5 * (w * sj) ** 2)
     theta = np.array([fit4.amplitude / max(damping, 0.05), fit4.phase, fit4.frequency, fit4.offset])
     return theta, sj, sv, float(reg.jitter_std), fit4
+
+
+def _refined_frequency(
+    y: FloatArray, T: float, f0: float, band: tuple[float, float], fit4: SineFit | None
+) -> float | None:
+    """The IEEE 1057 four-parameter fit's frequency from ``f0`` inside ``band`` (``fit4``:
+    that fit, where at hand), None where it does not converge."""
+    if fit4 is None:
+        fit4 = sine_fit_4(y, np.arange(y.size, dtype=float) * T, f0, frequency_bounds=band)
+    return abs(float(fit4.frequency)) if fit4.converged else None
 
 
 def _start_moments(
@@ -926,7 +939,14 @@ def measure_jitter(
     harmonics : int
         Harmonics of the sine model (1: a pure sine; more for a distorted source). Only
         those up to the highest one significant in the record are fitted (the message says
-        so). The exact likelihood with harmonics is the generic quadrature: where its
+        so). With ``method="ml"`` and the four default laws, harmonics whose slopes sum to
+        at most a tenth of the fundamental's (:data:`jitterid.metrology.held
+        .HELD_SLOPE_SHARE`: HD2 and HD3 at -40 dBc and below) are held at their
+        least-squares fit and the fundamental measured by the structured likelihood on the
+        record less them (:mod:`jitterid.metrology.held`: seconds at N = 2^16, the
+        quantiser's bins modelled); their own jitter, left out, biases the std to first
+        order by about A_3 / A_1, which is added to its standard error and stated.
+        Otherwise the exact likelihood with harmonics is the generic quadrature: where its
         predicted cost exceeds about two minutes (N times about 2 ms a sample for the
         Gaussian family, 3-10 ms for the other default laws and 20 ms for the generalized
         normal, summed over ``laws``: beyond N of about 5200 with the four default laws),
@@ -938,9 +958,9 @@ def measure_jitter(
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound. For a pure tone
         with Gaussian, uniform, dual-Dirac or scale-mixture families it is
         :class:`jitterid.metrology.sinelik.SineLikelihood` (about 40 nodes per sample and
-        family, a dozen passes a fit: seconds at N = 2^16); with harmonics or other
-        families the generic quadrature (about 100 nodes per sample, many more
-        evaluations). ``"gaussian"``: for a pure
+        family, a dozen passes a fit: seconds at N = 2^16), also with small harmonics held
+        (see ``harmonics``); with strong harmonics or other families the generic
+        quadrature (about 100 nodes per sample, many more evaluations). ``"gaussian"``: for a pure
         tone the moment route (:func:`jitterid.metrology.moments.moment_route`: the IEEE
         1057 fit, then the closed-form variance profile by reweighted least squares, a few
         passes over the record, its interval a sandwich that holds for any law and noise);
@@ -1097,6 +1117,20 @@ def _measure(
     model = SineWave(band_hz=band, harmonics=H)
     # the structured likelihood (a pure tone, its laws), else the generic quadrature
     structured = all(sine_ml_applies(model, known[name]) for name in fam_names)
+    # with harmonics, the exact likelihood under those laws: the harmonics held at their
+    # least-squares fit and the fundamental measured by the structured likelihood on the
+    # record less them (jitterid.metrology.held; the generic quadrature was minutes at
+    # N = 4096 and Gaussian noise only), where they are small beside the fundamental
+    held: HeldHarmonics | None = None
+    tone = SineWave(band_hz=band)
+    if route == "ml" and H > 1 and all(sine_ml_applies(tone, known[n]) for n in fam_names):
+        f_held = _refined_frequency(yv, T, fc, band, base_fit if fc == f_start else None)
+        held = hold_harmonics(yv, T, f_held, H) if f_held is not None else None
+    full_model = model
+    if held is not None:
+        model, structured = tone, True
+    y_fit = yv if held is None else yv - held.offset
+    H_fit = 1 if held is not None else H
     seconds = N * sum(_GENERIC_SECONDS_PER_SAMPLE[n] for n in fam_names)
     if route == "ml" and not structured and seconds > _COST_LIMIT:
         if not fallback:
@@ -1113,7 +1147,9 @@ def _measure(
     try:
         same = base_fit if (fc == f_start and base_fit is not None) else None
         mf_start: MomentFit | None = None
-        if harmonics == 1 and not hopeless:
+        if held is not None:
+            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(y_fit, T, fc, band)
+        elif harmonics == 1 and not hopeless:
             theta, sj, sv, slope_std, fit4, mf_start = _start_moments(yv, T, fc, band, same)
         else:
             theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band, same)
@@ -1128,12 +1164,12 @@ def _measure(
     # the moment route (a few passes, law-free variance profile) for a pure tone: the
     # answer of method="gaussian", the likelihood's start and its numeric noise floor
     mf: MomentFit | None = None
-    if H == 1:
+    if H_fit == 1:
         first = fam_names[0] if fam_names[0] in ROUTE_LAWS else "gaussian"
         if law_free and route == "gaussian":
             first = "free"
         mf = mf_start if first == "gaussian" and mf_start is not None else None
-        mf = mf or moment_route(yv, T, fit4, first)
+        mf = mf or moment_route(y_fit, T, fit4, first)
         if law_free and mf.law == "free" and math.isnan(mf.shape):
             # beyond ~0.2 rad of phase spread the law's shape moves the std and the moments
             # cannot tell it (the law-free interval spans the shapes; its middle is 15-26 %
@@ -1170,8 +1206,8 @@ def _measure(
     if bin_step:
         numeric = _ml_floor(None, mf, float(fit4.amplitude), structured)
         floor = max(numeric, BIN_NOISE_FLOOR * bin_step)
-    data = SampledData(yv, T, None, resolution=floor)
-    theta_h = _harmonic_start(model, yv, T, theta)
+    data = SampledData(y_fit, T, None, resolution=floor)
+    theta_h = _harmonic_start(model, y_fit, T, theta)
     first_family = fam_names[0]
     gauss_first = None
     if (
@@ -1182,7 +1218,7 @@ def _measure(
         gauss_first = _moment_result(mf, known[first_family], model, physical)
     fast_done = route == "gaussian" and gauss_first is not None
     if not fast_done:
-        _check_cost(N, H, len(fam_names))
+        _check_cost(N, H_fit, len(fam_names))
     try:
         if gauss_first is not None and fast_done:
             best = gauss_first
@@ -1222,7 +1258,7 @@ def _measure(
             for name in later:
                 if not (nests_gaussian and ranked_nested(known[name])):
                     starts[name] = rank_start(
-                        yv,
+                        y_fit,
                         T,
                         model,
                         known[name],
@@ -1240,7 +1276,7 @@ def _measure(
                 # second start), given up where it cannot come within the margin of the lead
                 rival_ll, rival_p = _rival(fitted, N)
                 rank = rank_sine_law(
-                    yv,
+                    y_fit,
                     T,
                     model,
                     known[name],
@@ -1259,8 +1295,8 @@ def _measure(
             # (the likelihood's start under a law the moment route inverts: its few passes,
             # as for the first family, not the Gaussian criterion's search)
             gauss_start = None
-            if route == "ml" and H == 1 and name in ROUTE_LAWS:
-                mf_name = moment_route(yv, T, fit4, name)
+            if route == "ml" and H_fit == 1 and name in ROUTE_LAWS:
+                mf_name = moment_route(y_fit, T, fit4, name)
                 if math.isfinite(mf_name.jitter_var):
                     gauss_start = _moment_result(mf_name, known[name], model, physical)
             fitted[name] = _fit_one(
@@ -1285,6 +1321,9 @@ def _measure(
             f"the exact likelihood's quadrature exceeded its budget ({exc})",
         )
 
+    if held is not None:  # (each family's fit as the tone's with its harmonics)
+        fitted = {name: held.attach(r, full_model) for name, r in fitted.items()}
+        model = full_model
     cands_law = []
     for name, r in fitted.items():
         p = r.x.size
@@ -1353,6 +1392,17 @@ def _measure(
                 # the fit assumes independent samples: widen its standard error by the
                 # moment route's Newey-West / independent-sample ratio
                 jse *= max(widened.jitter_var_stderr / nw_base.jitter_var_stderr, 1.0)
+    if held is not None:
+        # the harmonics' own jitter, left out of the fundamental's variance profile: its
+        # first-order bias of the std (jitterid.metrology.held), added to the interval
+        bias = held.jitter_std_bias(r, bin_step)
+        if math.isfinite(bias):
+            jse = math.hypot(jse, abs(bias) * jstd)
+        notes.append(
+            f"the harmonics' own jitter (their slopes {held.slope_share:.2g} of the "
+            "fundamental's), left out of the fundamental's variance profile, biases the std "
+            f"by {bias * 100:+.2g} % to first order: added to its standard error"
+        )
     if route == "ml" and structured and not on_route:
         # a law's hard edges sharper than the record resolves: the interval is too narrow
         edge = sharp_edge_finding(r, N)
