@@ -61,7 +61,10 @@ def gaussian_first(first) -> ji.OrderSelection:
 @pytest.mark.parametrize(("truth", "label"), [("first", "tf:0,1"), ("second", "tf:0,2")])
 def test_the_true_order_is_chosen_on_a_clear_case(method, truth, label, request):
     data = request.getfixturevalue(truth)
-    sel = ji.select_order(data, [TF01, TF02, TF12], JITTER, method)
+    if (truth, method) == ("first", "gaussian"):  # that selection, made once for the module
+        sel = request.getfixturevalue("gaussian_first")
+    else:
+        sel = ji.select_order(data, [TF01, TF02, TF12], JITTER, method)
     assert sel.best is not None
     assert sel.best.label == label, sel.summary()
     assert sel.best.trustworthy
@@ -477,7 +480,10 @@ def test_an_over_order_search_stays_where_the_samples_see_its_modes():
     """An over-order model's extra poles used to run off to |p| T ~ 1e5..1e9, where every
     evaluation of the jittered moments took seconds (one gaussian fit of tf:1,3 ran 633 s):
     the search now refuses modes beyond resources.SEARCH_RATE_LIMIT, and the fit ends with
-    an honest status or a row the selection sets aside."""
+    an honest status or a row the selection sets aside. The fits take no covariance
+    (cov_type="none", passed on to fit): the search is what is tested, and the same rows
+    end the same way either way (tf:1,3 OPTIMISER_FAILED at |p| T = 9.1e3), but the
+    sandwich's moments at that mode cost 5.8 of the selection's 6.4 CPU-s."""
     from jitterid.estimation.resources import SEARCH_RATE_LIMIT
 
     rng = np.random.default_rng(102)
@@ -492,7 +498,11 @@ def test_an_over_order_search_stays_where_the_samples_see_its_modes():
         rng=rng,
     )
     sel = ji.select_order(
-        data, [ji.RationalModel(0, 1), ji.RationalModel(1, 3)], ji.Uniform(0.5), "gaussian"
+        data,
+        [ji.RationalModel(0, 1), ji.RationalModel(1, 3)],
+        ji.Uniform(0.5),
+        "gaussian",
+        cov_type="none",
     )
     assert sel.best is not None
     assert sel.best.label == "tf:0,1"

@@ -107,6 +107,10 @@ def test_the_message_names_hard_edges_only_where_the_law_has_them():
         assert "a few samples" in message
 
 
+@pytest.mark.slow  # the default run has this check on 20 other such records (2 CPU-s here):
+# tests/estimation/test_likelihood.py::test_ml_error_bars_cover_the_truth_small_monte_carlo
+# asserts that every ml fit of Table 2's setting (the same known law and noise) is
+# successful, i.e. CONVERGED, not IRREGULAR
 def test_regular_ml_fits_are_not_irregular():
     # Table 2's system, U(-0.5, 0.5) known, noise 1e-2: the largest generalized eigenvalue
     # of the scores' outer product to the information was 0.85-2.2 (session 19)

@@ -45,6 +45,12 @@ def default(data: ji.SampledData) -> ji.FitResult:
     return res
 
 
+@pytest.fixture(scope="module")
+def far_40(data: ji.SampledData) -> ji.FitResult:
+    """The fit from FAR with 40 evaluations per search (and its restart): two tests read it."""
+    return ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=40)
+
+
 def _same_optimum(a: ji.FitResult, b: ji.FitResult) -> None:
     assert np.allclose(a.x, b.x, rtol=1e-6, atol=0)
     assert a.cost == pytest.approx(b.cost, rel=1e-9)
@@ -70,10 +76,10 @@ def test_ml_from_far_start_reaches_the_default_routes_optimum(
         assert "the search from the given start" in far.message
 
 
-def test_budget_used_up_is_restarted(data: ji.SampledData, default: ji.FitResult) -> None:
+def test_budget_used_up_is_restarted(far_40: ji.FitResult, default: ji.FitResult) -> None:
     # each search has its own budget: 40 evaluations do not take the likelihood's search out
     # of the flat region (MAX_EVALUATIONS), they do take BCLS to the optimum's basin
-    far = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=40)
+    far = far_40
     assert far.status is FitStatus.CONVERGED, far.message
     _same_optimum(far, default)
     assert "MAX_EVALUATIONS" in far.message
@@ -91,7 +97,7 @@ def test_restart_that_finds_nothing_lower_keeps_the_status(data: ji.SampledData)
 
 
 def test_without_restart_the_fit_ends_where_the_search_from_the_start_stopped(
-    data: ji.SampledData,
+    data: ji.SampledData, far_40: ji.FitResult
 ) -> None:
     """``restart=False`` (a budgeted start for another search): the search from FAR with
     40 evaluations alone, its status MAX_EVALUATIONS (the restart would have converged,
@@ -102,7 +108,7 @@ def test_without_restart_the_fit_ends_where_the_search_from_the_start_stopped(
     )
     assert alone.status is FitStatus.MAX_EVALUATIONS, alone.message
     assert "restart" not in alone.message
-    restarted = ji.fit(data, ji.PolePairGain(), ji.Uniform(0.5), "ml", start=FAR, max_nfev=40)
+    restarted = far_40
     assert "MAX_EVALUATIONS" in restarted.message
     assert alone.nfev < restarted.nfev
     with pytest.raises(TypeError, match="restart"):

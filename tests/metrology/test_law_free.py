@@ -38,9 +38,12 @@ def _draw(law, rng, s, n):
 @pytest.mark.parametrize("s", [0.3, 0.8])
 def test_the_fourth_moment_identity_against_brute_force(law, s):
     """(F4): the cos(4 phi) coefficient of E[(sin(phi + e) - chi_1 sin phi)^4] is
-    (chi_4 - 4 chi_1 chi_3 + 6 chi_1^2 chi_2 - 3 chi_1^4) / 8."""
+    (chi_4 - 4 chi_1 chi_3 + 6 chi_1^2 chi_2 - 3 chi_1^4) / 8. Both sides are taken over
+    the same draws, and the identity holds for their own empirical law to rounding (1e-11
+    of the tolerance with 2e5 draws or 2e4): 2e4 draws test it as well. A wrong
+    coefficient (6 -> 5) misses by 4-6000 tolerances, with either."""
     rng = np.random.default_rng(2)
-    e = _draw(law, rng, s, 200_000)
+    e = _draw(law, rng, s, 20_000)
     chi = [float(np.mean(np.cos(m * e))) for m in range(5)]
     c1 = chi[1]
     formula = (chi[4] - 4 * c1 * chi[3] + 6 * c1 * c1 * chi[2] - 3 * c1**4) / 8

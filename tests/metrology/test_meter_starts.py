@@ -42,18 +42,22 @@ class _Starts:
 
 
 def test_a_later_law_the_moments_invert_starts_from_them(monkeypatch):
-    """A uniform record, the default laws: the uniform (not ranked out) starts from the
-    moment route, no Gaussian-criterion search under it; the law and the estimate are those
-    of the measurement whose uniform starts from that search (within 0.05 stated errors),
-    where that search ran without a restart and without a covariance."""
-    y = _uniform_record(1)
+    """A uniform record, the Gaussian and the uniform law: the uniform, a later law (not
+    ranked out), starts from the moment route, no Gaussian-criterion search under it; the
+    law and the estimate are those of the measurement whose uniform starts from that search
+    (within 0.05 stated errors), where that search ran without a restart and without a
+    covariance. (N = 1024: the uniform's BIC stands 255 below the Gaussian's. Was 2048
+    samples and the four default laws, at 3.5 x the cost: the same starts and choice; the
+    dual Dirac's and the scale mixture's starts are not asserted on.)"""
+    y = _uniform_record(1, N=1024)
+    laws = ["gaussian", "uniform"]
     starts = _Starts(monkeypatch)
-    m = ji.measure_jitter(y, T)
+    m = ji.measure_jitter(y, T, laws=laws)
     assert m.family == "uniform"
     assert "UniformFamily" not in [name for name, _ in starts.calls]
     starts.calls.clear()
     monkeypatch.setattr(meter, "ROUTE_LAWS", ("gaussian", "free"))
-    ref = ji.measure_jitter(y, T)
+    ref = ji.measure_jitter(y, T, laws=laws)
     uniform = [kw for name, kw in starts.calls if name == "UniformFamily"]
     assert uniform, starts.calls
     assert all(kw["restart"] is False and kw["cov_type"] == "none" for kw in uniform)

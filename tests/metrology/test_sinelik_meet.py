@@ -43,6 +43,14 @@ def _setting(seed: int):
     return y, model, fam, here, there
 
 
+@pytest.fixture(scope="module")
+def record_fit():
+    """The record of seed 1, its setting, and its maximum from ``here`` (the fit the first
+    four tests start from or compare with: one fit of 2^15 samples, made once)."""
+    y, model, fam, here, there = _setting(1)
+    return y, model, fam, here, there, fit_sine_ml(y, T, model, fam, here)
+
+
 class _Passes:
     """Counts the whole record's passes (score passes of N samples)."""
 
@@ -58,13 +66,12 @@ class _Passes:
         monkeypatch.setattr(SineLikelihood, "scores_information", counted)
 
 
-def test_a_search_that_meets_a_maximum_is_not_run_again(monkeypatch):
+def test_a_search_that_meets_a_maximum_is_not_run_again(monkeypatch, record_fit):
     """From a second start, with the first start's maximum as ``found``: that maximum,
     the message saying the search met it, no score pass of the whole record; the search
     without ``found`` ends within 0.01 standard errors of it, after score passes of the
     whole record."""
-    y, model, fam, here, there = _setting(1)
-    first = fit_sine_ml(y, T, model, fam, here)
+    y, model, fam, _, there, first = record_fit
     assert first.status is ji.FitStatus.CONVERGED
     passes = _Passes(monkeypatch)
     alone = fit_sine_ml(y, T, model, fam, there)
@@ -80,12 +87,11 @@ def test_a_search_that_meets_a_maximum_is_not_run_again(monkeypatch):
     assert np.all(np.abs(alone.x - first.x) <= 0.01 * se)
 
 
-def test_a_maximum_elsewhere_is_not_met(monkeypatch):
+def test_a_maximum_elsewhere_is_not_met(monkeypatch, record_fit):
     """``found`` moved by 40 of its standard errors in the phase (a maximum that is not
     the one the start climbs to): not met; the search runs on the whole record and ends at
     the maximum, not at ``found``."""
-    y, model, fam, here, there = _setting(3)
-    first = fit_sine_ml(y, T, model, fam, here)
+    y, model, fam, _, there, first = record_fit
     k = first.names.index("phase_rad")
     x = first.x.copy()
     x[k] += 40.0 * math.sqrt(first.cov[k, k])
@@ -97,13 +103,12 @@ def test_a_maximum_elsewhere_is_not_met(monkeypatch):
     assert abs(got.x[k] - first.x[k]) <= 0.01 * math.sqrt(first.cov[k, k])
 
 
-def test_the_bowl_test_reads_the_quadratic_model(monkeypatch):
+def test_the_bowl_test_reads_the_quadratic_model(monkeypatch, record_fit):
     """The test itself: the maximum meets its own subsample optimum; a point on the segment
     beyond the chi^2 radius does not; and with MEET_QUADRATIC and MEET_SLACK at 0 a point
     inside the radius is refused unless ln L falls exactly as the quadratic model says (it
     never does to the last digit)."""
-    y, model, fam, here, _ = _setting(4)
-    first = fit_sine_ml(y, T, model, fam, here)
+    y, model, fam, here, _, first = record_fit
     size = sinelik_fit._fit_subsample_size(N)
     fitted = sinelik_fit._subsample_fit(y, T, model, fam, here, 0.0, 100, size, None)
     assert fitted is not None
@@ -118,13 +123,12 @@ def test_the_bowl_test_reads_the_quadratic_model(monkeypatch):
     assert sinelik_fit._meets(y, T, fam, sub, first, size, None) is None
 
 
-def test_a_ranking_past_its_give_up_line_takes_the_fit_s_information(monkeypatch):
+def test_a_ranking_past_its_give_up_line_takes_the_fit_s_information(monkeypatch, record_fit):
     """A ranking whose ln L is above its give-up line (the family leads its rival by 50)
     cannot be ranked out: after its first step its passes take their information as
     fit_sine_ml's do (every chunk at 2^15 samples, not every RANK_INFO_SAMPLES-th), and it
     ends at fit_sine_ml's maximum (within 0.01 standard errors)."""
-    y, model, fam, here, _ = _setting(5)
-    full = fit_sine_ml(y, T, model, fam, here)
+    y, model, fam, here, _, full = record_fit
     strides: list[int] = []
     inner = SineLikelihood.scores_information
 

@@ -85,11 +85,12 @@ def test_rejected_trials_cost_a_loglik_pass_only(monkeypatch):
 
 def test_a_long_record_starts_from_its_subsample_optimum(monkeypatch):
     """With the subsample start (every 4th sample here, FIT_SUBSAMPLE lowered so that a
-    small record takes the long records' path) the search ends at the maximum the direct
-    search reaches: ln L within 0.01, the jitter std within 0.05 of its standard error."""
-    y, _, model, fam, start, floor = _noise_free(13, 4)
+    small record, 2^12 samples, takes the long records' path) the search ends at the maximum
+    the direct search reaches: ln L within 0.01, the jitter std within 0.05 of its standard
+    error."""
+    y, _, model, fam, start, floor = _noise_free(12, 4)
     direct = fit_sine_ml(y, T, model, fam, start, noise_floor=floor)
-    monkeypatch.setattr(sf, "FIT_SUBSAMPLE", 1 << 11)
+    monkeypatch.setattr(sf, "FIT_SUBSAMPLE", 1 << 10)
     calls = []
     orig = sf._search
 

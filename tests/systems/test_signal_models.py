@@ -173,10 +173,12 @@ def test_ls_is_biased_where_bcls_is_not_on_a_sinusoid():
 
 def test_joint_jitter_and_sinusoid_estimation_with_a_family():
     """JOE on a signal model: the jitter std from a Gaussian family, with the analytic scale
-    derivative from the signal's slope, and the same answer through the differenced route."""
+    derivative from the signal's slope, and the same answer through the differenced route.
+    (N = 300, was 600: the two routes' estimates differ by 3e-5 of the tolerance there,
+    1e-4 at 600; the std is 1.0 of its errors from the truth, 0.06 at 600.)"""
     rng = np.random.default_rng(5)
     sigma = 0.35
-    data = record(ji.Gaussian(sigma), 600, 0.03, rng)
+    data = record(ji.Gaussian(sigma), 300, 0.03, rng)
     res = ji.fit(data, sine(), ji.GaussianFamily(), "gaussian", noise_std=0.03)
     assert res.success, res.message
     assert abs(res.params["sigma"] - sigma) < 3.5 * res.stderr["sigma"]
