@@ -5,7 +5,11 @@ coherent, seeds 500, 501, ...):
 
 - ``hd-quant``: amplitude 0.45, offset 0.01, HD3 at -60 dBc and HD2 at -66 dBc, 2 ps
   Gaussian jitter, 30 uV thermal noise, 12-bit quantiser; ``harmonics=3`` (the generic
-  exact likelihood);
+  exact likelihood until session 25; since, the harmonics held at their least-squares fit,
+  :mod:`jitterid.metrology.held`);
+- ``hd-undithered``: amplitude 0.95, HD2 at -70 and HD3 at -64 dBc, 2 ps Gaussian jitter,
+  0.2 steps of noise before a 12-bit quantiser of full scale +-1 (undithered: the bins are
+  modelled); ``harmonics=3``;
 - ``uniform-quant``: amplitude 0.49, 3 ps uniform jitter, 20 uV, 14-bit; a pure tone (the
   structured likelihood);
 - ``uniform-float``: as ``uniform-quant`` with no quantiser and 26.6 uV of noise (the same
@@ -49,6 +53,13 @@ def record(cfg: str, seed: int, N: int) -> tuple[np.ndarray, float, dict[str, An
         x += 0.45 * 10 ** (-66 / 20) * np.sin(2 * ph + 1.0)
         x += 30e-6 * rng.standard_normal(N)
         return 2.0**-12 * np.round(x * 2**12), sj, {"harmonics": 3}
+    if cfg == "hd-undithered":
+        sj, lsb = 2e-12, 2.0**-11
+        ph = 2 * np.pi * f * (t + sj * rng.standard_normal(N)) + 0.3
+        x = 0.95 * np.sin(ph) + 0.95 * 10 ** (-70 / 20) * np.sin(2 * ph + 1)
+        x += 0.95 * 10 ** (-64 / 20) * np.sin(3 * ph + 2)
+        x += 0.2 * lsb * rng.standard_normal(N)
+        return lsb * np.round(x / lsb), sj, {"harmonics": 3}
     if cfg in ("uniform-quant", "uniform-float"):
         sj = 3e-12
         tau = rng.uniform(-np.sqrt(3) * sj, np.sqrt(3) * sj, N)
@@ -67,7 +78,9 @@ def record(cfg: str, seed: int, N: int) -> tuple[np.ndarray, float, dict[str, An
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("setting", choices=["hd-quant", "uniform-quant", "uniform-float", "pj"])
+    ap.add_argument(
+        "setting", choices=["hd-quant", "hd-undithered", "uniform-quant", "uniform-float", "pj"]
+    )
     ap.add_argument("--records", type=int, default=24)
     ap.add_argument("--n", type=int, default=1024, help="samples per record")
     args = ap.parse_args()
