@@ -1,7 +1,7 @@
 """The meter on converter-style records outside the study grid: coverage, status and cost.
 
 Records made here with numpy (a 1 GS/s converter, a tone near 97.1 MHz that is not
-coherent, seeds 500, 501, ...):
+coherent, seeds 500, 501, ... by default, ``--first-seed``):
 
 - ``hd-quant``: amplitude 0.45, offset 0.01, HD3 at -60 dBc and HD2 at -66 dBc, 2 ps
   Gaussian jitter, 30 uV thermal noise, 12-bit quantiser; ``harmonics=3`` (the generic
@@ -83,6 +83,7 @@ def main() -> None:
     )
     ap.add_argument("--records", type=int, default=24)
     ap.add_argument("--n", type=int, default=1024, help="samples per record")
+    ap.add_argument("--first-seed", type=int, default=500, help="the first record's seed")
     args = ap.parse_args()
     print(
         f"# jitterid meter records, {args.setting}, N = {args.n}, load "
@@ -91,7 +92,7 @@ def main() -> None:
     est, truth, hits, statuses = [], [], 0, Counter()
     c0 = time.process_time()
     for r in range(args.records):
-        y, sj, kw = record(args.setting, 500 + r, args.n)
+        y, sj, kw = record(args.setting, args.first_seed + r, args.n)
         c1 = time.process_time()
         m = ji.measure_jitter(y, TS, **kw)
         cpu = time.process_time() - c1
@@ -107,10 +108,11 @@ def main() -> None:
             flush=True,
         )
     ratio = np.asarray(est) / np.asarray(truth)
-    sem = ratio.std(ddof=1) / np.sqrt(ratio.size)
+    spread = float(ratio.std(ddof=1)) if ratio.size > 1 else float("nan")
+    sem = spread / np.sqrt(ratio.size)
     print(
         f"estimate / truth: mean {ratio.mean():.4f} (SEM {sem:.4f})"
-        f", std {ratio.std(ddof=1):.4f}; covered {hits} of {args.records}; {dict(statuses)}; "
+        f", std {spread:.4f}; covered {hits} of {args.records}; {dict(statuses)}; "
         f"CPU {(time.process_time() - c0) / args.records:.1f} s a record"
     )
 
