@@ -60,7 +60,8 @@ FloatArray = NDArray[np.float64]
 
 #: Harmonics are held (:func:`hold_harmonics`) where their slopes sum to at most this share
 #: of the fundamental's, sum_h h |A_h| / |A_1| (HD2 and HD3 at -40 dBc: 0.05): the jitter's
-#: first-order bias is then below about a third of it (module doc)
+#: first-order bias, 0.3-2 x A_3 / A_1 (module doc), is then a few percent at most, and it
+#: is stated and added to the standard error
 HELD_SLOPE_SHARE = 0.1
 #: ... and where each column's norm not explained by the columns before it is at least this
 #: share of its norm (a harmonic's alias a third of a bin or more from the others')
