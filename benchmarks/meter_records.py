@@ -17,10 +17,10 @@ coherent, seeds 500, 501, ... by default, ``--first-seed``):
 - ``pj``: amplitude 0.49, 1.5 ps Gaussian jitter plus a 1 ps rms sinusoid at 1.37 MHz, 20 uV,
   no quantiser (the truth: the realised rms).
 
-``measure_jitter(y, 1e-9, ...)`` with its defaults (``method="ml"``, the four default laws)
-on each record. Printed: each record's status, law and estimate; then the mean and spread
-of the estimates over the truth, how many 95 % intervals cover it, the statuses and the CPU
-per record, with the machine's load.
+``measure_jitter(y, 1e-9, ...)`` with its defaults (``method="ml"`` unless ``--method``, the
+four default laws) on each record. Printed: each record's status, law and estimate; then the
+mean and spread of the estimates over the truth, how many 95 % intervals cover it, the
+statuses and the CPU per record, with the machine's load.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/meter_records.py hd-quant --records 24 --n 1024
 """
@@ -84,9 +84,10 @@ def main() -> None:
     ap.add_argument("--records", type=int, default=24)
     ap.add_argument("--n", type=int, default=1024, help="samples per record")
     ap.add_argument("--first-seed", type=int, default=500, help="the first record's seed")
+    ap.add_argument("--method", choices=["ml", "gaussian"], default="ml")
     args = ap.parse_args()
     print(
-        f"# jitterid meter records, {args.setting}, N = {args.n}, load "
+        f"# jitterid meter records, {args.setting}, N = {args.n}, method={args.method}, load "
         f"{os.getloadavg()[0]:.1f}, {time.strftime('%F %H:%M')}"
     )
     est, truth, hits, statuses = [], [], 0, Counter()
@@ -94,7 +95,7 @@ def main() -> None:
     for r in range(args.records):
         y, sj, kw = record(args.setting, args.first_seed + r, args.n)
         c1 = time.process_time()
-        m = ji.measure_jitter(y, TS, **kw)
+        m = ji.measure_jitter(y, TS, method=args.method, **kw)
         cpu = time.process_time() - c1
         lo, hi = m.interval()
         hit = lo <= sj <= hi

@@ -68,10 +68,14 @@ def test_ml_from_far_start_reaches_the_default_routes_optimum(
     # "converges" on the flat stretch there (stationary in the directions the data
     # determine, k0 ~ 6.4e3, pr ~ -83), where the criterion is far above its value at a
     # default start: it is searched again from that start (session 21: first, before the
-    # first stage's restart)
+    # first stage's restart); or (the same versions on another machine's floating point,
+    # an AMD EPYC without AVX-512, 2026-11-29) the continuation in the noise std that the
+    # likelihood starts with, where the known noise is small beside the jitter's spread,
+    # carries the search out of the flat stretch and it converges at the optimum itself
     restarted = "after a restart" in far.message and "bcls fit from that start" in far.message
     again = "searched again from the default start" in far.message
-    assert restarted or again, far.message
+    continued = "started by a continuation in the noise std" in far.message
+    assert restarted or again or continued, far.message
     if again:
         assert "the search from the given start" in far.message
 

@@ -244,3 +244,37 @@ def test_a_harmonic_aliased_next_to_the_fundamental_is_not_held():
     f_far = (1 / 3 + 20 / n) / TS  # 60 bins apart
     y = _tone(n, {2: (1e-3, 0.0)}, 0.0, np.random.default_rng(4), noise=1e-4, f=f_far)
     assert hold_harmonics(y, TS, f_far, 2) is not None
+
+
+def test_the_gaussian_route_holds_the_harmonics_and_measures_the_rest_as_a_pure_tone():
+    """``method="gaussian"`` with harmonics: before, the Gaussian criterion with harmonics
+    (its Newton search over 10 parameters on closed-form moments: 5-7 CPU-s a record at
+    N = 2^16); now the moment route on the record less the held harmonics. The referee is
+    the second route: the pure-tone call on y - offset (the harmonics' least-squares sum at
+    the IEEE frequency), which must give the same jitter std, and whose error the held
+    call widens by exactly the first-order bias it states (in quadrature). The fit carries
+    the harmonics in its layout."""
+    y, _ = _converter(11, 4096, noise_lsb=0.6)
+    m = ji.measure_jitter(y, TS, harmonics=3, method="gaussian", laws=["gaussian"])
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert "held at their least-squares fit" in m.message
+    assert m.fit.structure.harmonics == 3
+    f0 = m.fit.params["frequency_hz"]
+    held = hold_harmonics(y, TS, f0, 3)
+    assert held is not None
+    pure = ji.measure_jitter(y - held.offset, TS, method="gaussian", laws=["gaussian"])
+    assert pure.status is ji.FitStatus.CONVERGED, pure.message
+    assert m.jitter_std == pytest.approx(pure.jitter_std, rel=1e-6)
+    bias = held.jitter_std_bias(m.fit)
+    assert abs(bias) > 0  # (odd harmonics: a first-order bias to state)
+    want = math.hypot(pure.jitter_std_stderr, bias * pure.jitter_std)
+    assert m.jitter_std_stderr == pytest.approx(want, rel=1e-3)
+    assert f"{bias * 100:+.2g} %" in m.message
+    # the fit's jitter and law are the measurement's (not the family's bound)
+    assert m.fit.jitter_std == pytest.approx(m.jitter_std, rel=1e-9)
+    assert m.law.std == pytest.approx(m.jitter_std, rel=1e-9)
+    assert abs(m.jitter_std - SJ) < 3 * m.jitter_std_stderr
+    # HD3 against its generating value, from the fit's layout and errors
+    assert (
+        abs(m.fit.params["amplitude_3"] - 0.95 * 10 ** (-64 / 20)) < 4 * m.fit.stderr["amplitude_3"]
+    )

@@ -78,15 +78,19 @@ def _run(law, s, seed, N=2000):
 @pytest.mark.parametrize("law", ["uniform", "dual-dirac", "mixture"])
 def test_non_gaussian_jitter_gets_an_honest_interval_small(law):
     """Before: the Gaussian route fitted the first law only (issue 26: uniform at 0.3 rad
-    coverage 0.79-0.83, dual-Dirac 0.12-0.21). 12 records at 0.15 rad, where the fourth
+    coverage 0.79-0.83, dual-Dirac 0.12-0.21). 48 records at 0.15 rad, where the fourth
     moment tells the shape (beyond ~0.2 rad the likelihood measures: the slow test below
-    and tests/metrology/test_meter_large_spread.py): >= 10 covered."""
+    and tests/metrology/test_meter_large_spread.py): >= 41 covered (a coverage of 0.93 fails
+    this 3 % of the time, one of 0.8 82 %; 128 records covered 0.93 / 0.96 / 0.98 for the
+    three laws in session 26, the stated errors 0.98-1.0 of the spreads). Until session 26
+    12 records, >= 10: a coverage of 0.93 failed that 5 % of the time, and the moment
+    route's Gaussian weights met it on the uniform's first 12 (9 of 12; 44 of 48)."""
     covered = 0
-    for r in range(12):
+    for r in range(48):
         m, _, hit = _run(law, 0.15, 100 + r)
         assert m.family == "law-free"
         covered += hit
-    assert covered >= 10, covered
+    assert covered >= 41, covered
 
 
 def test_the_kurtosis_is_measured_at_small_spread():

@@ -157,3 +157,24 @@ def test_coverage_on_noise_free_and_quantised_records(setting):
     hits, flagged = _coverage(setting, 64, 8192, 12)
     assert hits >= 58
     assert flagged <= 3
+
+
+@pytest.mark.parametrize("T", [1e-9, 1e-3])
+@pytest.mark.parametrize("laws", [["gaussian"], ["uniform"], list(DEFAULT_LAWS)])
+def test_the_fit_and_law_carry_the_measured_jitter(T, laws):
+    """The moment route's answer as a fit: its jitter parameter is the family's scale at
+    the measured std (the law's std is the measurement's, the scale's error the std's
+    times the scale per unit std). Before: the scale per unit std was read at a std of 1 s,
+    which the families' bounds (10 T) clip, so the fit, its law and the report's pdf had a
+    std of 1e-18 s at 1 GS/s (5e-7 of the truth at 1 kS/s) and an error of zero."""
+    rng = np.random.default_rng(3)
+    N, f, sj = 4096, 0.0971 / T, 2e-3 * T
+    t = np.arange(N) * T
+    y = 0.45 * np.sin(2 * np.pi * f * (t + sj * rng.standard_normal(N)))
+    y += 30e-6 * rng.standard_normal(N)
+    m = ji.measure_jitter(y, T, method="gaussian", laws=laws)
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert m.fit.jitter_std == pytest.approx(m.jitter_std, rel=1e-9)
+    assert m.law.std == pytest.approx(m.jitter_std, rel=1e-9)
+    assert m.fit.jitter_std_stderr == pytest.approx(m.jitter_std_stderr, rel=1e-6)
+    assert abs(m.jitter_std - sj) < 4 * m.jitter_std_stderr

@@ -91,11 +91,12 @@ def dither_finding(step: float | None, noise_std: float) -> Finding | None:
     """A finding (kind ``"undithered"``) where a quantised record's noise before its
     quantiser, ``sqrt(noise_std^2 - step^2 / 12)``, is below :data:`DITHER_STEPS` of a step
     and the fit modelled the quantiser's error as Gaussian noise (the moment route, and the
-    generic likelihood of a tone with harmonics; the structured likelihood of a pure tone
-    models the bins: :mod:`jitterid.metrology.sinelik_kernel`): the error is then a
-    uniform-like function of the signal, and the jitter comes out biased by an amount that
-    does not shrink with the record's length while the stated error does. None for a float
-    record (``step`` None) and above that dither.
+    generic likelihood of a tone with harmonics; the structured likelihood of a pure tone,
+    also with small harmonics held, models the bins:
+    :mod:`jitterid.metrology.sinelik_kernel`): the error is then a uniform-like function of
+    the signal, and the jitter comes out biased by an amount that does not shrink with the
+    record's length while the stated error does. None for a float record (``step`` None)
+    and above that dither.
 
     Measured (plain numpy records, 1 GS/s, a 97.1 MHz tone at 0.95 of full scale, 2 ps
     Gaussian jitter, 12 bits, 0.2 steps of noise before the quantiser, N = 2^16, 16
@@ -125,9 +126,9 @@ def dither_finding(step: float | None, noise_std: float) -> Finding | None:
         "Gaussian noise this fit models, which biases the jitter by an amount that does not "
         "shrink with the record's length (12-bit records at 2 ps with 0.2 steps, N = 2^16: "
         "the moment route 0.2 stated errors low, a Gaussian-noise likelihood 1.3), so read "
-        "the interval as too narrow; the exact likelihood of a pure tone (method='ml', no "
-        "harmonics) models the bins, and more dither (0.5 steps of noise or more) removes "
-        "the bias",
+        "the interval as too narrow; the exact likelihood under the default laws "
+        "(method='ml', small harmonics held) models the bins, and more dither (0.5 steps of "
+        "noise or more) removes the bias",
     )
 
 

@@ -151,8 +151,8 @@ class HeldHarmonics:
             layout=layout,
             message=(
                 f"{fit.message}; harmonics 2..{self.harmonics} held at their least-squares "
-                "fit (the fundamental measured by the structured likelihood on the record "
-                "less them: jitterid.metrology.held)"
+                "fit (the fundamental measured as a pure tone on the record less them: "
+                "jitterid.metrology.held)"
             ),
         )
 

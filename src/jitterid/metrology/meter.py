@@ -11,7 +11,8 @@ estimated (the JOE structure (2c) with a signal model, the paper's (1a)). In ord
 3. the moment route (:mod:`jitterid.metrology.moments`): the closed-form per-sample mean
    and variance of a jittered tone, fitted in a few passes (the answer of
    ``method="gaussian"``, law-free when several laws are given, and the likelihood's start
-   and its numeric noise floor);
+   and its numeric noise floor); with small harmonics, on the record less them, held at
+   their least-squares fit (:mod:`jitterid.metrology.held`), for either method;
 4. (``method="ml"``) the exact likelihood (notes 4) for each candidate family, the lowest
    BIC kept: for a pure tone under a Gaussian, uniform, dual-Dirac or scale-mixture family
    the structured one of :mod:`jitterid.metrology.sinelik` (O(N), any noise std), also for
@@ -59,7 +60,14 @@ from .adequacy import (
 from .converter import ConverterFigures, converter_figures  # meterio (issue 26, item 3)
 from .edges import sharp_edge_finding
 from .held import HeldHarmonics, hold_harmonics
-from .moments import ROUTE_LAWS, MomentFit, moment_route, std_interval
+from .moments import (
+    QUANTISED_WEIGHT_FLOOR,
+    ROUTE_LAWS,
+    WEIGHT_FLOOR,
+    MomentFit,
+    moment_route,
+    std_interval,
+)
 from .phase import JitterDecomposition, newey_west_lags, phase_error_analysis
 from .reading import LAW_MARGIN_BIC, summary_extras  # meterio (issue 26, item 5)
 from .sinefit import SineFit, periodogram_peak, sine_fit_4, slope_regression_jitter
@@ -111,7 +119,7 @@ _COST_LIMIT = 120.0
 #: sample for the Gaussian, 1.2-2.3 for the uniform, 3.1-6.3 for the dual Dirac, 2.8-4.5 for
 #: the scale mixture, 10-15 for the generalized normal at 2048); the upper ends, with room
 #: (eight records at 4096 with the four default laws took 46-164 CPU-s, mean 84).
-#: :func:`measure_jitter` measures by the Gaussian criterion instead where the sum over its
+#: :func:`measure_jitter` measures with ``method="gaussian"`` instead where the sum over its
 #: families exceeds :data:`_COST_LIMIT` (the four default laws: beyond N of about 5200).
 _GENERIC_SECONDS_PER_SAMPLE = {
     "gaussian": 2e-3,
@@ -489,10 +497,12 @@ def _start_moments(
     f0: float,
     band: tuple[float, float],
     fit4: SineFit | None = None,
+    *,
+    weight_floor: float,
 ) -> tuple[FloatArray, float, float, float, SineFit, MomentFit]:
     """:func:`_start_fit` for a pure tone with the slope regression read off the moment
     route (:attr:`MomentFit.slope_regression_std`: the same regression, one pass fewer),
-    and that Gaussian moment fit."""
+    and that Gaussian moment fit (``weight_floor``: :func:`_weight_floor`)."""
     t = np.arange(y.size, dtype=float) * T
     if fit4 is None:
         fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
@@ -501,7 +511,7 @@ def _start_moments(
             f"the four-parameter sine fit did not converge from {f0:g} Hz ({fit4.message}); "
             "give the frequency (frequency=...) or check that y is a sine record"
         )
-    mf = moment_route(y, T, fit4, "gaussian")
+    mf = moment_route(y, T, fit4, "gaussian", weight_floor=weight_floor)
     w = 2 * math.pi * fit4.frequency
     sj = mf.slope_regression_std if np.isfinite(mf.slope_regression_std) else 0.0
     sj = max(sj, 1e-3 / w)
@@ -666,9 +676,10 @@ def _off_zero_jitter(
     whose jitter is not, where that is higher. ln L is even in the jitter's scale, so zero
     jitter is a stationary point that a search started there never leaves: a 10-bit record
     (0.3 step of noise before the quantiser, 1 ps of Gaussian jitter at 97 MHz, N = 2^14)
-    whose moment route put its jitter at 0 started the Gaussian's search there, which
-    ended CONVERGED at 0.004 fs, ln L 77 below the uniform's maximum at 930 fs, and the
-    uniform was chosen."""
+    whose moment start had its jitter at 0 (until session 26 every one did, through a
+    defect in :func:`_moment_result`; a moment route that reads no jitter still does)
+    started the Gaussian's search there, which ended CONVERGED at 0.004 fs, ln L 77 below
+    the uniform's maximum at 930 fs, and the uniform was chosen."""
     nj = len(family.param_names)
     stds = []
     for _, _, c in sorted(scored, key=lambda t: t[:2]):
@@ -939,21 +950,22 @@ def measure_jitter(
     harmonics : int
         Harmonics of the sine model (1: a pure sine; more for a distorted source). Only
         those up to the highest one significant in the record are fitted (the message says
-        so). With ``method="ml"`` and the four default laws, harmonics whose slopes sum to
-        at most a tenth of the fundamental's (:data:`jitterid.metrology.held
-        .HELD_SLOPE_SHARE`: HD2 and HD3 at -40 dBc and below) are held at their
-        least-squares fit and the fundamental measured by the structured likelihood on the
-        record less them (:mod:`jitterid.metrology.held`: seconds at N = 2^16, the
-        quantiser's bins modelled); their own jitter, left out, biases the std to first
-        order by about A_3 / A_1, which is added to its standard error and stated.
-        Otherwise the exact likelihood with harmonics is the generic quadrature: where its
-        predicted cost exceeds about two minutes (N times about 2 ms a sample for the
-        Gaussian family, 3-10 ms for the other default laws and 20 ms for the generalized
-        normal, summed over ``laws``: beyond N of about 5200 with the four default laws),
-        or its rule would exceed its budget, the record is measured by the Gaussian
-        criterion instead and the message says so. A
-        Gaussian criterion whose cost would exceed about two minutes is refused with its
-        estimate.
+        so). Harmonics whose slopes sum to at most a tenth of the fundamental's
+        (:data:`jitterid.metrology.held.HELD_SLOPE_SHARE`: HD2 and HD3 at -40 dBc and
+        below) are held at their least-squares fit and the fundamental measured as a pure
+        tone on the record less them (:mod:`jitterid.metrology.held`): by the structured
+        likelihood with ``method="ml"`` and the four default laws (seconds at N = 2^16, the
+        quantiser's bins modelled), by the moment route with ``method="gaussian"`` (a few
+        passes); their own jitter, left out, biases the std to first order by about
+        A_3 / A_1, which is added to its standard error and stated. Otherwise (stronger
+        harmonics, or a law the structured likelihood does not integrate) the exact
+        likelihood with harmonics is the generic quadrature: where its predicted cost
+        exceeds about two minutes (N times about 2 ms a sample for the Gaussian family,
+        3-10 ms for the other default laws and 20 ms for the generalized normal, summed
+        over ``laws``: beyond N of about 5200 with the four default laws), or its rule
+        would exceed its budget, the record is measured with ``method="gaussian"`` instead
+        and the message says so. A Gaussian criterion whose cost would exceed about two
+        minutes is refused with its estimate.
     method : {"ml", "gaussian"}
         ``"ml"`` (default): the exact likelihood, at the Cramer-Rao bound. For a pure tone
         with Gaussian, uniform, dual-Dirac or scale-mixture families it is
@@ -969,7 +981,8 @@ def measure_jitter(
         2 pi f sigma is below about 0.2 rad; beyond, where the moments cannot tell the
         law's shape and the shape moves the std, it measures with the exact likelihood
         over the laws (as ``"ml"``; the message says so). With one law it assumes that law
-        (gaussian or uniform) at any spread. With harmonics, the exact Gaussian criterion on
+        (gaussian or uniform) at any spread. With small harmonics, the same on the record
+        less them (see ``harmonics``); with strong ones, the exact Gaussian criterion on
         the closed-form moments of the first law, its interval the Huber-White sandwich
         (right whatever the law's shape at a small phase spread: the information's was 0.6 of
         the spread for a heavy-tailed law).
@@ -1028,8 +1041,8 @@ def _measure(
     fallback: bool,
 ) -> JitterMeasurement:
     """:func:`measure_jitter`; ``fallback``: where the exact likelihood is out of reach
-    (the generic quadrature on a long record), measure by the Gaussian criterion and say so
-    (False: refuse, naming the cost; the Gaussian criterion's own call)."""
+    (the generic quadrature on a long record), measure with ``method="gaussian"`` and say so
+    (False: refuse, naming the cost; the Gaussian route's own call)."""
     yv = _record(y)
     T = positive(T, "T")
     if method not in ("ml", "gaussian"):
@@ -1070,6 +1083,9 @@ def _measure(
     )
     step = quantisation_step(yv) if resolution is None else None
     physical = _resolution(resolution, step)
+    # the moment route's weights: Gaussian nearly everywhere on a float record, floored at a
+    # quarter of the mean variance on a quantised one (jitterid.metrology.moments)
+    floor_w = WEIGHT_FLOOR if physical is None else QUANTISED_WEIGHT_FLOOR
     half_bin = 1.0 / (N * T)
     # the IEEE 1057 fit at the start: the tone test, and (aliases) the baseband frequency
     try:
@@ -1112,20 +1128,22 @@ def _measure(
         )
     fam_names = laws[:1] if hopeless else laws
     route = "gaussian" if hopeless else method
-    if law_free and H > 1:  # the moment route's law-free std is a pure tone's
-        notes[notes.index(_LAW_FREE_NOTE)] = _HARMONICS_GAUSSIAN_NOTE
     model = SineWave(band_hz=band, harmonics=H)
     # the structured likelihood (a pure tone, its laws), else the generic quadrature
     structured = all(sine_ml_applies(model, known[name]) for name in fam_names)
-    # with harmonics, the exact likelihood under those laws: the harmonics held at their
-    # least-squares fit and the fundamental measured by the structured likelihood on the
-    # record less them (jitterid.metrology.held; the generic quadrature was minutes at
-    # N = 4096 and Gaussian noise only), where they are small beside the fundamental
+    # with harmonics, the pure tone's routes on the record less them: the harmonics held at
+    # their least-squares fit and the fundamental measured by the structured likelihood
+    # (method="ml"; the generic quadrature was minutes at N = 4096 and Gaussian noise only)
+    # or by the moment route (method="gaussian"; the Gaussian criterion with harmonics was
+    # 9 CPU-s at N = 2^16), where they are small beside the fundamental
+    # (jitterid.metrology.held)
     held: HeldHarmonics | None = None
     tone = SineWave(band_hz=band)
-    if route == "ml" and H > 1 and all(sine_ml_applies(tone, known[n]) for n in fam_names):
+    if not hopeless and H > 1 and all(sine_ml_applies(tone, known[n]) for n in fam_names):
         f_held = _refined_frequency(yv, T, fc, band, base_fit if fc == f_start else None)
         held = hold_harmonics(yv, T, f_held, H) if f_held is not None else None
+    if law_free and H > 1 and held is None:  # the moment route's law-free std is a tone's
+        notes[notes.index(_LAW_FREE_NOTE)] = _HARMONICS_GAUSSIAN_NOTE
     full_model = model
     if held is not None:
         model, structured = tone, True
@@ -1148,9 +1166,13 @@ def _measure(
         same = base_fit if (fc == f_start and base_fit is not None) else None
         mf_start: MomentFit | None = None
         if held is not None:
-            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(y_fit, T, fc, band)
+            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(
+                y_fit, T, fc, band, weight_floor=floor_w
+            )
         elif harmonics == 1 and not hopeless:
-            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(yv, T, fc, band, same)
+            theta, sj, sv, slope_std, fit4, mf_start = _start_moments(
+                yv, T, fc, band, same, weight_floor=floor_w
+            )
         else:
             theta, sj, sv, slope_std, fit4 = _start_fit(yv, T, fc, band, same)
     except ValueError as exc:
@@ -1169,7 +1191,7 @@ def _measure(
         if law_free and route == "gaussian":
             first = "free"
         mf = mf_start if first == "gaussian" and mf_start is not None else None
-        mf = mf or moment_route(y_fit, T, fit4, first)
+        mf = mf or moment_route(y_fit, T, fit4, first, weight_floor=floor_w)
         if law_free and mf.law == "free" and math.isnan(mf.shape):
             # beyond ~0.2 rad of phase spread the law's shape moves the std and the moments
             # cannot tell it (the law-free interval spans the shapes; its middle is 15-26 %
@@ -1296,7 +1318,7 @@ def _measure(
             # as for the first family, not the Gaussian criterion's search)
             gauss_start = None
             if route == "ml" and H_fit == 1 and name in ROUTE_LAWS:
-                mf_name = moment_route(y_fit, T, fit4, name)
+                mf_name = moment_route(y_fit, T, fit4, name, weight_floor=floor_w)
                 if math.isfinite(mf_name.jitter_var):
                     gauss_start = _moment_result(mf_name, known[name], model, physical)
             fitted[name] = _fit_one(
@@ -1321,6 +1343,7 @@ def _measure(
             f"the exact likelihood's quadrature exceeded its budget ({exc})",
         )
 
+    fast_name = next((n for n, f in fitted.items() if f is gauss_first), None)
     if held is not None:  # (each family's fit as the tone's with its harmonics)
         fitted = {name: held.attach(r, full_model) for name, r in fitted.items()}
         model = full_model
@@ -1355,7 +1378,7 @@ def _measure(
         AliasCandidate(f_fit + (f - fc), -0.5 * r.cost, r.jitter_std * f_fit / (f_fit + f - fc))
         for f in cands
     )
-    on_route = fast_done and mf is not None and r is gauss_first
+    on_route = fast_done and mf is not None and chosen.name == fast_name
     if on_route:
         assert mf is not None
         resid, sd = mf.residuals, np.sqrt(np.maximum(mf.variance, 0.0))
@@ -1378,7 +1401,13 @@ def _measure(
     if not hopeless:
         # with harmonics, the moment route's Newey-West ratio on the fitted model's residuals
         # (its variance profile is the fundamental's: the harmonics' slopes are 1e-3 of it)
-        nw_base = mf if H == 1 else moment_route(yv, T, replace(fit4, residuals=resid), "gaussian")
+        nw_base = (
+            mf
+            if H_fit == 1
+            else moment_route(
+                yv, T, replace(fit4, residuals=resid), "gaussian", weight_floor=floor_w
+            )
+        )
         decomposition, info, widened = _phase_findings(yv, T, r, resid, sd, jstd, nw_base)
         if widened is not None and nw_base is not None:
             if on_route:
@@ -1472,9 +1501,9 @@ _LAW_FREE_NOTE = (
     "give one law to assume it"
 )
 _HARMONICS_GAUSSIAN_NOTE = (
-    "method='gaussian' does not rank laws: with harmonics the std is measured by the "
-    "Gaussian criterion (the jitter through its variance), its interval the robust "
-    "sandwich, which holds whatever the law's shape at a small phase spread"
+    "method='gaussian' does not rank laws: with strong harmonics (not held) the std is "
+    "measured by the Gaussian criterion (the jitter through its variance), its interval "
+    "the robust sandwich, which holds whatever the law's shape at a small phase spread"
 )
 
 
@@ -1498,9 +1527,9 @@ def _by_gaussian_criterion(
         y, T, frequency, laws, band_hz, harmonics, "gaussian", resolution, fallback=False
     )
     note = (
-        f"method='ml': {reason}; measured by the Gaussian criterion instead "
-        "(method='gaussian': the law's shape is not chosen; for the likelihood give one law, "
-        "laws=['gaussian'], or fewer samples)"
+        f"method='ml': {reason}; measured with method='gaussian' instead (the law's shape "
+        "is not chosen; for the likelihood give one law, laws=['gaussian'], or fewer "
+        "samples)"
     )
     return replace(out, message=f"{out.message}; {note}")
 
@@ -1543,8 +1572,12 @@ def _moment_result(
 ) -> FitResult:
     """The moment route's estimate as a :class:`FitResult` of ``model`` (parameters, a
     diagonal heteroscedasticity-consistent covariance, the Gaussian criterion as cost)."""
-    per_std = float(family.start_for_std(1.0)[0])  # the family's scale per unit std
+    # the family's scale per unit std (a scale family's start is linear in the std), taken
+    # inside its bounds: at a std of 1 (s) the start is clipped to the upper bound (10 T
+    # here), and the fit's scale, law and error bars came out 1e-8 to 1e-2 of the truth
     lo, hi = family.bounds[0]
+    mid = math.sqrt(lo * hi)
+    per_std = float(family.start_for_std(mid)[0]) / mid
     std = min(max(mf.jitter_std, lo / per_std), hi / per_std)
     noise = math.sqrt(max(mf.noise_var, 0.0))
     noise_se = (
@@ -1667,7 +1700,9 @@ def _phase_findings(
         lags = newey_west_lags(N, dec.decay)
         dec = JitterDecomposition(**{**dec.__dict__, "hac_lags": lags})
         if mf is not None:
-            widened = moment_route(y, T, _fit4_of(mf), mf.law, hac_lags=lags)
+            widened = moment_route(
+                y, T, _fit4_of(mf), mf.law, hac_lags=lags, weight_floor=mf.weight_floor
+            )
         out.append(
             Finding(
                 "coloured-jitter",
