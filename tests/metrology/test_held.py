@@ -278,3 +278,19 @@ def test_the_gaussian_route_holds_the_harmonics_and_measures_the_rest_as_a_pure_
     assert (
         abs(m.fit.params["amplitude_3"] - 0.95 * 10 ** (-64 / 20)) < 4 * m.fit.stderr["amplitude_3"]
     )
+
+
+@pytest.mark.parametrize("method", ["gaussian", "ml"])
+def test_harmonics_are_found_at_a_given_frequency_a_third_of_a_bin_off(method):
+    """A generator's nominal frequency given (97.123 MHz) where the record's tone is 91 kHz
+    (0.37 bin at N = 4096) above it. Before: the harmonics were tested at the given
+    frequency, where HD3's column turns 2 rad out of phase over the record, so "harmonics
+    2..3 are not significant: 1 fitted" and the measurement LACK_OF_FIT (the distortion
+    left in the residual). Now at the IEEE 1057 fit's frequency: both found and held."""
+    y, _ = _converter(10, 4096, noise_lsb=0.6)  # (f = F + 91.2 kHz)
+    m = ji.measure_jitter(y, TS, frequency=F, harmonics=3, method=method, laws=["gaussian"])
+    assert m.harmonics_fitted == 3, m.message
+    assert m.status is ji.FitStatus.CONVERGED, m.message
+    assert "held at their least-squares fit" in m.message
+    assert abs(m.frequency - (F + 91.2e3)) < 1e3
+    assert abs(m.jitter_std - SJ) < 3 * m.jitter_std_stderr

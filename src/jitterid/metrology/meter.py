@@ -1121,7 +1121,16 @@ def _measure(
     band = _near(fc, half_bin)
     folding = folding_check(fc, T, N)
     hopeless = p_tone >= ALPHA_TONE or folding is not None
-    H = _harmonics_present(yv, T, fc, harmonics) if not hopeless else 1
+    # the harmonics tested (and held) at the IEEE 1057 fit's frequency: a given frequency a
+    # third of a bin off (a generator's nominal setting) left HD3 at -60 dBc "not
+    # significant" (its column 1.8 rad out of phase over the record) and the measurement
+    # LACK_OF_FIT
+    f_ref = (
+        _refined_frequency(yv, T, fc, band, base_fit if fc == f_start else None)
+        if harmonics > 1 and not hopeless
+        else None
+    )
+    H = _harmonics_present(yv, T, f_ref or fc, harmonics) if not hopeless else 1
     if harmonics > H:
         notes.append(
             f"harmonics {H + 1}..{harmonics} are not significant in the record: {H} fitted"
@@ -1140,8 +1149,7 @@ def _measure(
     held: HeldHarmonics | None = None
     tone = SineWave(band_hz=band)
     if not hopeless and H > 1 and all(sine_ml_applies(tone, known[n]) for n in fam_names):
-        f_held = _refined_frequency(yv, T, fc, band, base_fit if fc == f_start else None)
-        held = hold_harmonics(yv, T, f_held, H) if f_held is not None else None
+        held = hold_harmonics(yv, T, f_ref, H) if f_ref is not None else None
     if law_free and H > 1 and held is None:  # the moment route's law-free std is a tone's
         notes[notes.index(_LAW_FREE_NOTE)] = _HARMONICS_GAUSSIAN_NOTE
     full_model = model
