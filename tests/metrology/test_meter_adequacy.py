@@ -94,6 +94,50 @@ def test_a_tone_on_a_folding_frequency_is_refused_as_unidentifiable():
         assert "fs/2" in m.message
 
 
+def test_the_folding_check_refuses_only_phases_where_the_slope_cannot_vary():
+    """The referee: the variance of cos(2 phi_k + 2 phi) over the samples, minimised over
+    the tone's phase phi by brute force (0.5 where the phases cover the period). Coherent
+    at fs/P: P = 4 leaves four phases whose slopes are equal in size at phi = pi/4 (spread
+    0: refused); P = 3, 5, 6, 7, 8 have spread 0.5 (measured). Before session 26 every P
+    below 8 was refused (fewer than 8 of 16 phase bins)."""
+    from jitterid.metrology.adequacy import folding_check
+
+    Ts, N = 1e-9, 1024
+    k = np.arange(N)
+    for P in (3, 4, 5, 6, 7, 8):
+        phis = np.linspace(0, np.pi, 181)
+        brute = min(float(np.var(np.cos(2 * (2 * np.pi * k / P + p)))) for p in phis)
+        finding = folding_check(1 / (P * Ts), Ts, N)
+        assert (finding is not None) == (brute < 0.1), (P, brute, finding)
+        assert (P == 4) == (finding is not None)
+
+
+def test_a_coherent_tone_at_fs_over_7_is_measured():
+    """1 GHz at 7 GS/s, exactly coherent (every seventh sample repeats the phase), 100 fs
+    of Gaussian jitter, 20 uV of noise, N = 4096: before session 26 UNIDENTIFIABLE ("sampled
+    at only 7 of 16 phase bins"); its seven phases have slopes of four different sizes
+    whatever the tone's phase, and the moment route measures it (16 records: at least 13
+    intervals cover the truth); the likelihood on one record as well."""
+    Ts, N, sj = 1 / 7e9, 4096, 100e-15
+    t = np.arange(N) * Ts
+    covered = 0
+    for seed in range(16):
+        rng = np.random.default_rng(seed)
+        tau = sj * rng.standard_normal(N)
+        y = 0.49 * np.sin(2 * np.pi * 1e9 * (t + tau) + rng.uniform(0, 2 * np.pi))
+        y += 20e-6 * rng.standard_normal(N)
+        m = ji.measure_jitter(y, Ts, method="gaussian")
+        assert "folding" not in {x.kind for x in m.findings}, m.message
+        assert m.status is ji.FitStatus.CONVERGED, m.message
+        lo, hi = m.interval()
+        covered += lo <= sj <= hi
+        if seed == 0:
+            ml = ji.measure_jitter(y[:2048], Ts, laws=["gaussian"])
+            assert ml.status is ji.FitStatus.CONVERGED, ml.message
+            assert abs(ml.jitter_std - sj) < 3 * ml.jitter_std_stderr
+    assert covered >= 13, covered
+
+
 def test_white_noise_is_not_measured():
     """A record with no tone at all: NOT_SIGNIFICANT, or a ValueError naming it where the
     periodogram's peak sits on DC or Nyquist (no sine can even be fitted there)."""

@@ -10,8 +10,8 @@ records that *are* one jittered tone:
   three-parameter sine fit against the offset alone, Bonferroni-corrected for the
   frequency having been chosen among the record's N/2 periodogram bins;
 - :func:`folding_check`: does the tone's baseband alias sit within one record-bin of DC or
-  of the Nyquist frequency (a tone at a multiple of fs/2), or do its samples visit too few
-  phases to tell jitter from amplitude and noise?
+  of the Nyquist frequency (a tone at a multiple of fs/2), or are its samples on phases
+  where its slope cannot vary (a coherent fs/4), so that jitter is not told from noise?
 - :func:`rail_check`: are samples piled on the record's extreme values (a clipped sine: the
   converter's rails), far beyond what the fitted model puts there?
 - :func:`residual_lines`: are there spectral lines in the residual beyond the fitted tone
@@ -58,6 +58,10 @@ ALPHA_RAIL = 1e-4
 MAX_HARMONIC = 10
 #: Neighbours on either side that a periodogram ordinate is compared with.
 LOCAL_BINS = 16
+#: :func:`folding_check`: the smallest spread of cos 2 phi_k over the samples, at the
+#: tone's worst phase, with which the variance profile tells jitter from noise (0.5 where
+#: the phases cover the period; the jitter's error grows as sqrt(0.5 / spread): 2.2x here)
+MIN_PROFILE_SPREAD = 0.1
 #: Most lines :func:`residual_lines` reports.
 MAX_LINES = 8
 
@@ -244,13 +248,20 @@ def tone_significance(y: FloatArray, residual_ss: float, n_params: int = 4) -> f
 
 
 def folding_check(frequency_hz: float, T: float, N: int) -> Finding | None:
-    """A tone whose samples cannot show jitter: near DC or Nyquist, or on too few phases.
+    """A tone whose samples cannot show jitter: near DC or Nyquist, or on phases where its
+    slope does not vary.
 
     The tone's baseband alias is within one record-bin (1/(NT)) of DC or of the Nyquist
-    frequency (the tone sits on a multiple of fs/2, e.g. at fs), or its samples fall in
-    fewer than 8 of 16 phase bins (a coherent tone at fs/4 visits four phases). Either way
-    the sample phases do not spread over the period, and amplitude, offset, noise and
-    jitter are not told apart.
+    frequency (the tone sits on a multiple of fs/2, e.g. at fs): the sample phases do not
+    spread over the period, and amplitude, offset, noise and jitter are not told apart. Or
+    the samples' variance profile cannot tell jitter from noise whatever the tone's phase:
+    the jitter's share of a sample's variance goes with cos 2 phi_k, and the spread of
+    cos(2 phi_k + 2 phi) over the samples, at its smallest over phi, is below
+    :data:`MIN_PROFILE_SPREAD` (a coherent tone at fs/4: its four phases have slopes of
+    equal size at phi = pi/4, spread 0). A coherent tone at fs/3, fs/5, fs/6, fs/7 has the
+    spread of phases covering the period (0.5) and is measured (until session 26 every
+    tone on fewer than 8 of 16 phase bins was refused: 1 GHz at 7 GS/s among them, which
+    the moment route measured with 11 of 12 intervals covering).
 
     Parameters
     ----------
@@ -283,18 +294,30 @@ def folding_check(frequency_hz: float, T: float, N: int) -> Finding | None:
             f"(a multiple of fs/2): its samples repeat nearly the same phases, so the jitter "
             f"cannot be told from amplitude, offset and noise; {fix}",
         )
-    k = np.arange(N, dtype=float)
-    phase = np.mod(fb * T * k, 1.0)
-    occupied = int(np.count_nonzero(np.bincount(np.minimum((phase * 16).astype(int), 15))))
-    if occupied < 8:
+    spread = _profile_spread(fb, T, N)
+    if spread < MIN_PROFILE_SPREAD:
         return Finding(
             "folding",
             math.nan,
-            f"the tone at {frequency_hz:.6g} Hz{alias} is sampled at only {occupied} of 16 "
-            f"phase bins over its period (coherent at a simple fraction of fs): jitter "
-            f"cannot be told from amplitude and noise; {fix}",
+            f"the tone at {frequency_hz:.6g} Hz{alias} is sampled at phases where its slope "
+            f"hardly varies (the spread of cos 2 phi over the samples is {spread:.2g} at the "
+            "tone's worst phase, 0.5 where the phases cover the period; coherent at a simple "
+            f"fraction of fs such as fs/4): jitter cannot be told from noise; {fix}",
         )
     return None
+
+
+def _profile_spread(fb: float, T: float, N: int) -> float:
+    """min over phi of the variance of cos(2 phi_k + 2 phi) over k < N, phi_k = 2 pi fb kT:
+    1/2 + Re(e^{2 i theta} m4) / 2 - Re(e^{i theta} m2)^2 at theta = 2 phi, m_j the mean of
+    e^{i j phi_k} (a grid of 256 theta over the period, O(N) for the means)."""
+    k = np.arange(N, dtype=float)
+    a = 4 * math.pi * math.fmod(fb * T, 1.0) * k  # 2 phi_k
+    m2 = complex(np.mean(np.exp(1j * a)))
+    m4 = complex(np.mean(np.exp(2j * a)))
+    theta = np.linspace(0.0, 2 * math.pi, 256, endpoint=False)
+    var = 0.5 + 0.5 * np.real(np.exp(2j * theta) * m4) - np.real(np.exp(1j * theta) * m2) ** 2
+    return float(max(np.min(var), 0.0))
 
 
 def _good_bin(N: int) -> int:

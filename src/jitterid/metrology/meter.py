@@ -917,10 +917,11 @@ def measure_jitter(
     Before it reports, the meter checks that the record is one jittered tone
     (:mod:`jitterid.metrology.adequacy`): that a tone stands out of the record at all
     (else ``NOT_SIGNIFICANT``), that its alias is not on a multiple of fs/2 nor sampled at
-    too few phases (else ``UNIDENTIFIABLE``), that no samples are piled at the rails
-    (clipping) and that the residual holds no spectral line the model lacks (a second
-    tone, distortion: ``LACK_OF_FIT``), and that the jitter std has a standard error
-    (else ``UNIDENTIFIABLE``). :attr:`JitterMeasurement.findings` lists what was found.
+    phases where its slope cannot vary (a coherent fs/4; else ``UNIDENTIFIABLE``), that no
+    samples are piled at the rails (clipping) and that the residual holds no spectral line
+    the model lacks (a second tone, distortion: ``LACK_OF_FIT``), and that the jitter std
+    has a standard error (else ``UNIDENTIFIABLE``). :attr:`JitterMeasurement.findings`
+    lists what was found.
 
     Parameters
     ----------
