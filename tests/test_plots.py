@@ -113,6 +113,24 @@ def test_jitter_pdf_band_and_truth():
     assert "band" not in known
 
 
+def test_jitter_pdf_of_a_moment_route_measurement_is_drawn_at_its_std():
+    """``measure_jitter(method="gaussian")``'s law drawn over +-4.5 of the measured std, in
+    ps, with a band. Before session 26 the moment route's fit carried a jitter of 1e-18 s
+    (the family's scale read at a std of 1 s, clipped by its bounds): the report's pdf was
+    a curve of std 1e-6 ps with no band beside a measured 2 ps."""
+    rng = np.random.default_rng(3)
+    N, T = 8192, 1e-9
+    tau = 2e-12 * rng.standard_normal(N)
+    y = 0.95 * np.sin(2 * np.pi * 97.3e6 * (np.arange(N) * T + tau))
+    y += 30e-6 * rng.standard_normal(N)
+    m = ji.measure_jitter(y, T, method="gaussian", laws=["gaussian"])
+    art = plots.plot_jitter_pdf(m)
+    x = art["pdf"].get_xdata()
+    assert np.max(x) == pytest.approx(4.5 * m.jitter_std * 1e12, rel=1e-6)
+    assert "band" in art
+    assert art["pdf"].axes.get_xlabel() == "jitter τ (ps)"
+
+
 def test_residual_panels_and_envelope():
     rng = np.random.default_rng(0)
     t = np.arange(30.0)
