@@ -1436,6 +1436,8 @@ def _measure(
         bias = held.jitter_std_bias(r, bin_step)
         if math.isfinite(bias):
             jse = math.hypot(jse, abs(bias) * jstd)
+            if math.isfinite(jvar_se):  # (the moment route's interval is the variance's)
+                jvar_se = math.hypot(jvar_se, 2 * abs(bias) * max(jvar, 0.0))
         notes.append(
             f"the harmonics' own jitter (their slopes {held.slope_share:.2g} of the "
             "fundamental's), left out of the fundamental's variance profile, biases the std "
