@@ -310,11 +310,19 @@ def folding_check(frequency_hz: float, T: float, N: int) -> Finding | None:
 def _profile_spread(fb: float, T: float, N: int) -> float:
     """min over phi of the variance of cos(2 phi_k + 2 phi) over k < N, phi_k = 2 pi fb kT:
     1/2 + Re(e^{2 i theta} m4) / 2 - Re(e^{i theta} m2)^2 at theta = 2 phi, m_j the mean of
-    e^{i j phi_k} (a grid of 256 theta over the period, O(N) for the means)."""
-    k = np.arange(N, dtype=float)
-    a = 4 * math.pi * math.fmod(fb * T, 1.0) * k  # 2 phi_k
-    m2 = complex(np.mean(np.exp(1j * a)))
-    m4 = complex(np.mean(np.exp(2j * a)))
+    e^{i j phi_k} (geometric sums in closed form; a grid of 256 theta over the period)."""
+    step = 4 * math.pi * math.fmod(fb * T, 1.0)  # 2 phi_{k+1} - 2 phi_k
+
+    def mean_phasor(d: float) -> complex:
+        # (1 / N) sum_k e^{i d k}, k < N
+        z = complex(math.cos(d), math.sin(d))
+        if abs(z - 1) < 1e-12:
+            return 1.0 + 0j
+        zn = complex(math.cos(d * N), math.sin(d * N))
+        return (1 - zn) / (N * (1 - z))
+
+    m2 = mean_phasor(step)
+    m4 = mean_phasor(2 * step)
     theta = np.linspace(0.0, 2 * math.pi, 256, endpoint=False)
     var = 0.5 + 0.5 * np.real(np.exp(2j * theta) * m4) - np.real(np.exp(1j * theta) * m2) ** 2
     return float(max(np.min(var), 0.0))

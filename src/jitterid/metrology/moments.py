@@ -423,31 +423,37 @@ def moment_route(
     X = np.empty((n, 2))
     X[:, 0] = 1.0
     X[:, 1] = c2
-    coef = np.linalg.solve(X.T @ X, X.T @ r2)
+    gram_w = X.T @ X  # (the normal equations' matrix of the pair (coef, wts) below)
+    coef = np.linalg.solve(gram_w, X.T @ r2)
     ols = coef * ((n - p_mean) / n)  # the plain regression of r^2 (IEEE 1057's, reparametrised)
     wts = np.ones(n)  # (coef, wts): a weighted least squares solution and its weights
+    # (the normal equations of [1, cos 2 phi] by five dot products a reweighting)
+    c2_mean = float(np.mean(c2))
+    c2c2, c2r2 = c2 * c2, c2 * r2
     for i in range(_MAX_REWEIGHTS):
-        v = X @ coef
-        vbar = float(np.mean(v))
+        v = coef[0] + coef[1] * c2
+        vbar = float(coef[0] + coef[1] * c2_mean)
         if not vbar > 0:
             break
         # (the first reweighting from the plain regression, whose profile can cross zero
         # near the tone's peaks, floored at a quarter: a profile at 1e-3 there weighted a
         # few samples 1e6 times and the next profile went negative, at 0.3 rad of spread)
         floor = max(weight_floor, QUANTISED_WEIGHT_FLOOR) if i == 0 else weight_floor
-        w_new = 1.0 / np.maximum(v, floor * vbar) ** 2
-        Xw = X * w_new[:, None]
-        new = np.linalg.solve(X.T @ Xw, Xw.T @ r2)
-        if not (np.all(np.isfinite(new)) and float(np.mean(X @ new)) > 0):
+        np.maximum(v, floor * vbar, out=v)
+        w_new = 1.0 / (v * v)
+        s1 = float(w_new @ c2)
+        gram = np.array([[float(w_new.sum()), s1], [s1, float(w_new @ c2c2)]])
+        new = np.linalg.solve(gram, np.array([float(w_new @ r2), float(w_new @ c2r2)]))
+        if not (np.all(np.isfinite(new)) and float(new[0] + new[1] * c2_mean) > 0):
             # a profile gone negative on average (N = 256, 0.04 rad, noise 1e-3 of the
             # amplitude: the iterates diverged): the last pair stands
             break
         settled = float(np.max(np.abs(new - coef))) <= _REWEIGHT_TOL * vbar
-        coef, wts = new, w_new
+        coef, wts, gram_w = new, w_new, gram
         if settled and i > 0:
             break
     u = r2 - X @ coef
-    bread = np.linalg.inv(X.T @ (X * wts[:, None]))
+    bread = np.linalg.inv(gram_w)
     gw = X * (wts * u)[:, None]
     meat = gw.T @ gw
     for lag in range(1, max(int(hac_lags), 0) + 1):
