@@ -1,5 +1,6 @@
 """Harmonics held at their least-squares fit, so that a distorted tone is measured by the
-structured likelihood of a pure tone (:mod:`jitterid.metrology.sinelik`).
+structured likelihood of a pure tone (:mod:`jitterid.metrology.sinelik`), or by the moment
+route (:mod:`jitterid.metrology.moments`, ``method="gaussian"``).
 
 A converter's record of a sine holds its harmonics (HD2, HD3, ... at -90 to -50 dBc). The
 exact likelihood of a tone with harmonics is the generic quadrature
@@ -10,7 +11,7 @@ by linear least squares at the fundamental's frequency (the columns cos, sin of 
 with the fundamental and the offset), their sum o_k at the nominal instants is taken from
 the record, and the fundamental is measured on y - o by the structured likelihood, with the
 record's quantisation bins where it is quantised (a bin of width q about y_k is a bin about
-y_k - o_k: the quantiser's kernel is exact for the shifted record).
+y_k - o_k: the quantiser's kernel is exact for the shifted record), or by the moment route.
 
 What is left out, and what it costs (:meth:`HeldHarmonics.jitter_std_bias`):
 
@@ -27,9 +28,11 @@ What is left out, and what it costs (:meth:`HeldHarmonics.jitter_std_bias`):
   in quadrature, the message giving it. Against the structured likelihood's own estimates
   with and without HD3 (12 records of 2^14 samples each): -30 dBc, phi_3 = 2.5: +4.656 +-
   0.055 % measured, +4.642 % predicted; phi_3 = 0: -5.895 +- 0.056 against -5.875 %;
-  -40 dBc: -1.133 +- 0.019 against -1.140 % (so it could correct the estimate; it widens
-  the interval, the conservative use, until it has been checked on the bins and the other
-  laws as well).
+  -40 dBc: -1.133 +- 0.019 against -1.140 %; against the moment route's (float records,
+  session 26): -30 dBc, phi_3 = 2.5: +4.630 +- 0.056 against +4.629 %; phi_3 = 0: -5.891 +-
+  0.056 against -5.865 %; -40 dBc, phi_3 = 2.5: +1.613 +- 0.017 against +1.612 % (so it
+  could correct the estimate; it widens the interval, the conservative use, until it has
+  been checked on the bins and the other laws as well).
 * The harmonics' uncertainty in the jitter's: none to first order (the harmonics move the
   samples' mean, the jitter their variance). Their own standard errors are the least
   squares' Huber-White ones (heteroscedastic: the jitter's variance varies along the
