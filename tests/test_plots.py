@@ -129,6 +129,11 @@ def test_jitter_pdf_of_a_moment_route_measurement_is_drawn_at_its_std():
     assert np.max(x) == pytest.approx(4.5 * m.jitter_std * 1e12, rel=1e-6)
     assert "band" in art
     assert art["pdf"].axes.get_xlabel() == "jitter τ (ps)"
+    # law-free (the default laws): a Gaussian of the measured std, said to be one
+    free = ji.measure_jitter(y, T, method="gaussian")
+    assert free.family == "law-free"
+    label = plots.plot_jitter_pdf(free)["pdf"].get_label()
+    assert label.startswith("law-free: a Gaussian of the measured std"), label
 
 
 def test_residual_panels_and_envelope():

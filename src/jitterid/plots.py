@@ -224,8 +224,11 @@ def plot_jitter_pdf(
         tau = np.linspace(max(lo, -4.5 * std), min(hi, 4.5 * std), 401)
         band = m.fit.jitter_pdf_band(tau, 0 if rng is None else rng)
         if label == "estimated pdf":
+            shown = f"{std / _time_unit(std)[1]:.3g} {_time_unit(std)[0]}"
             label = (
-                f"fitted {m.family} law, std {std / _time_unit(std)[1]:.3g} {_time_unit(std)[0]}"
+                f"law-free: a Gaussian of the measured std {shown} (the shape not fitted)"
+                if m.family == "law-free"
+                else f"fitted {m.family} law, std {shown}"
             )
         unit, scale = _time_unit(std)
     if not isinstance(band, PdfBand):

@@ -121,6 +121,24 @@ def test_no_pdf_plot_for_an_undetermined_law(
     assert ("jitter_pdf.png not drawn" in text) == (verdict == "undetermined")
 
 
+def test_no_pdf_plot_for_a_law_free_measurement(tmp_path: Path) -> None:
+    """The law-free moment route (``--method gaussian`` with the default laws) measures the
+    std and the kurtosis; its law is a Gaussian of that std whatever the kurtosis, so no
+    density is drawn (before session 26 a Gaussian was drawn, labelled "fitted law-free
+    law", on a record of any shape)."""
+    rec = _csv(tmp_path / "sine.csv", _sine())
+    out = tmp_path / "free"
+    code, text = _run(
+        str(rec), "--method", "gaussian", "--no-progress", "--out", str(out), "--plot"
+    )
+    assert code in (0, 3), text
+    res = json.loads((out / "jitter.json").read_text())
+    assert res["family"] == "law-free", res["family"]
+    assert (out / "jitter_phase.png").exists()
+    assert not (out / "jitter_pdf.png").exists()
+    assert "jitter_pdf.png not drawn: the law-free route" in text
+
+
 @pytest.mark.parametrize(
     ("args", "words"),
     [

@@ -542,12 +542,21 @@ def _single(data_path: str, options: Any, out_dir: Path | None, plot: bool, prog
         click.echo("\n".join(_zone_lines(m)))
     if out_dir is not None:
         ev = law_evidence(m)
-        written = _write(
-            out_dir, m, y, data_path, ds.sha256, plot, ev.verdict != "undetermined", zones
-        )
+        # no density where the law is undetermined, nor where none was fitted (the law-free
+        # moment route measures the std and the kurtosis: its "law" is a Gaussian of that
+        # std, whatever the kurtosis)
+        law_free = m.family == "law-free"
+        draw_pdf = ev.verdict != "undetermined" and not law_free
+        written = _write(out_dir, m, y, data_path, ds.sha256, plot, draw_pdf, zones)
         click.echo("wrote " + ", ".join(str(p) for p in written))
         if plot and ev.verdict == "undetermined":
             click.echo(f"jitter_pdf.png not drawn: {ev.message}")
+        elif plot and law_free:
+            click.echo(
+                "jitter_pdf.png not drawn: the law-free route measures the jitter's std and "
+                "kurtosis, not its density (give one law, --law gaussian, or --method ml to "
+                "fit one)"
+            )
     if m.status.name != "CONVERGED":
         click.echo(f"error: the fit did not converge: {m.status.name}: {m.message}", err=True)
         raise click.exceptions.Exit(3)
