@@ -57,6 +57,22 @@ def test_a_failed_rival_does_not_count(m: ji.JitterMeasurement) -> None:
     assert "no other family's fit converged" in ev.message
 
 
+def test_a_law_free_measurement_says_no_law_was_fitted(m: ji.JitterMeasurement) -> None:
+    """The law-free moment route (the default laws with method="gaussian") fits no law:
+    before session 26 the evidence said "law assumed (law-free) ... its shape is not
+    measured" beside a message giving the measured kurtosis."""
+    rng = np.random.default_rng(0)
+    t = np.arange(N) * T + SIGMA * rng.standard_normal(N)
+    y = np.sin(2 * np.pi * F * t) + 1e-2 * rng.standard_normal(N)
+    free = ji.measure_jitter(y, T, method="gaussian")
+    assert free.family == "law-free"
+    ev = law_evidence(free)
+    assert ev.verdict == "assumed"
+    assert ev.message.startswith("no law fitted (law-free)")
+    assert "kurtosis" in ev.message
+    assert law_evidence(m).message.startswith("law assumed (gaussian)")
+
+
 def test_an_undetermined_law_is_said_in_the_summary(m: ji.JitterMeasurement) -> None:
     text = _with_laws(m, {"uniform": -100.0, "gaussian": -97.8}).summary()
     assert "law undetermined" in text

@@ -130,13 +130,14 @@ def law_evidence(m: JitterMeasurement, margin: float = LAW_MARGIN_BIC) -> LawEvi
     if chosen is None or not others:
         tried = len(m.laws)
         why = "only this family was fitted" if tried <= 1 else "no other family's fit converged"
-        return LawEvidence(
-            "assumed",
-            math.inf,
-            None,
-            float(margin),
-            f"law assumed ({m.family}): {why}, so its shape is not measured",
-        )
+        words = f"law assumed ({m.family}): {why}, so its shape is not measured"
+        if m.family == "law-free":  # (the moment route: the std whatever the law)
+            words = (
+                "no law fitted (law-free): the std from the moments, its interval holding "
+                "whatever the law's shape; the kurtosis, where the moments tell it, is in the "
+                "message"
+            )
+        return LawEvidence("assumed", math.inf, None, float(margin), words)
     best_other = min(others, key=lambda c: c.bic)
     delta = best_other.bic - chosen.bic
     if delta >= margin:
