@@ -227,7 +227,7 @@ def plot_jitter_pdf(
             shown = f"{std / _time_unit(std)[1]:.3g} {_time_unit(std)[0]}"
             label = (
                 f"law-free: a Gaussian of the measured std {shown} (the shape not fitted)"
-                if m.family == "law-free"
+                if not m.law_fitted
                 else f"fitted {m.family} law, std {shown}"
             )
         unit, scale = _time_unit(std)

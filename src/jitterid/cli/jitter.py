@@ -545,7 +545,7 @@ def _single(data_path: str, options: Any, out_dir: Path | None, plot: bool, prog
         # no density where the law is undetermined, nor where none was fitted (the law-free
         # moment route measures the std and the kurtosis: its "law" is a Gaussian of that
         # std, whatever the kurtosis)
-        law_free = m.family == "law-free"
+        law_free = not m.law_fitted
         draw_pdf = ev.verdict != "undetermined" and not law_free
         written = _write(out_dir, m, y, data_path, ds.sha256, plot, draw_pdf, zones)
         click.echo("wrote " + ", ".join(str(p) for p in written))

@@ -361,6 +361,12 @@ class JitterMeasurement:
         )
         return dataclasses.replace(self, converter=figs)
 
+    @property
+    def law_fitted(self) -> bool:
+        """Whether a jitter law was fitted (False on the law-free moment route, whose
+        :attr:`law` is a Gaussian of the measured std whatever its shape)."""
+        return self.family != LAW_FREE
+
     def interval(self, level: float = 0.95) -> tuple[float, float]:
         """Normal-approximation interval of the jitter std, cut at 0: on the variance's
         scale where :attr:`jitter_var_stderr` is known (then one-sided, [0, upper], where
@@ -502,7 +508,8 @@ def _start_moments(
 ) -> tuple[FloatArray, float, float, float, SineFit, MomentFit]:
     """:func:`_start_fit` for a pure tone with the slope regression read off the moment
     route (:attr:`MomentFit.slope_regression_std`: the same regression, one pass fewer),
-    and that Gaussian moment fit (``weight_floor``: :func:`_weight_floor`)."""
+    and that Gaussian moment fit (``weight_floor``: :func:`~jitterid.metrology.moments.
+    moment_route`'s)."""
     t = np.arange(y.size, dtype=float) * T
     if fit4 is None:
         fit4 = sine_fit_4(y, t, f0, frequency_bounds=band)
@@ -1352,7 +1359,6 @@ def _measure(
             f"the exact likelihood's quadrature exceeded its budget ({exc})",
         )
 
-    fast_name = next((n for n, f in fitted.items() if f is gauss_first), None)
     if held is not None:  # (each family's fit as the tone's with its harmonics)
         fitted = {name: held.attach(r, full_model) for name, r in fitted.items()}
         model = full_model
@@ -1387,7 +1393,8 @@ def _measure(
         AliasCandidate(f_fit + (f - fc), -0.5 * r.cost, r.jitter_std * f_fit / (f_fit + f - fc))
         for f in cands
     )
-    on_route = fast_done and mf is not None and chosen.name == fast_name
+    # (fast_done: the first family's fit is the moment route's, gauss_first)
+    on_route = fast_done and mf is not None and chosen.name == first_family
     if on_route:
         assert mf is not None
         resid, sd = mf.residuals, np.sqrt(np.maximum(mf.variance, 0.0))
@@ -1487,7 +1494,7 @@ def _measure(
         phase_rad=float(r.params["phase_rad"]),
         offset=float(r.params["offset"]),
         law=r.jitter_law,
-        family="law-free" if (on_route and mf is not None and mf.law == "free") else chosen.name,
+        family=LAW_FREE if (on_route and mf is not None and mf.law == "free") else chosen.name,
         laws=tuple(cands_law),
         aliases=aliases,
         fit=r,
@@ -1506,6 +1513,8 @@ def _measure(
     )
 
 
+#: :attr:`JitterMeasurement.family` where the moment route measured the std law-free.
+LAW_FREE = "law-free"
 _LAW_FREE_NOTE = (
     "method='gaussian' does not rank laws: with several laws given, the std is measured "
     "law-free (the law's shape from the fourth moment, its uncertainty in the interval); "

@@ -33,6 +33,8 @@ class JitterMeasurement(Protocol):
     @property
     def family(self) -> str: ...
     @property
+    def law_fitted(self) -> bool: ...
+    @property
     def frequency(self) -> float: ...
     @property
     def jitter_std(self) -> float: ...
@@ -131,7 +133,7 @@ def law_evidence(m: JitterMeasurement, margin: float = LAW_MARGIN_BIC) -> LawEvi
         tried = len(m.laws)
         why = "only this family was fitted" if tried <= 1 else "no other family's fit converged"
         words = f"law assumed ({m.family}): {why}, so its shape is not measured"
-        if m.family == "law-free":  # (the moment route: the std whatever the law)
+        if not m.law_fitted:  # (the moment route: the std whatever the law)
             words = (
                 "no law fitted (law-free): the std from the moments, its interval holding "
                 "whatever the law's shape; the kurtosis, where the moments tell it, is in the "
