@@ -148,6 +148,17 @@ class _Group:
 
 
 @dataclass(frozen=True)
+class _NodeTerms:
+    """What the score of a group (:func:`_score_group`) hands the information
+    (:func:`_second_group`) at the nodes (pieces, nodes): the noise kernel's derivatives
+    (:meth:`~jitterid.metrology.sinelik_kernel.Kernel.second`), sin psi and cos psi."""
+
+    kernel: tuple[FloatArray, ...]
+    sin: FloatArray
+    cos: FloatArray
+
+
+@dataclass(frozen=True)
 class _Chunk:
     """One chunk's pieces: per-sample ln p, (with the score) the per-sample score, and
     (with the information) sum_nodes pi_j (d2 ln f_j + g_j g_j^T) over the chunk."""
@@ -383,11 +394,12 @@ def _mode_derivatives(
     return -k1 * A * co - prec_p * u, k2 * (A * co) ** 2 + k1 * A * sn - prec_p
 
 
-def _score_group(S: FloatArray, grp: _Group, full: bool = False) -> tuple[FloatArray, ...] | None:
+def _score_group(S: FloatArray, grp: _Group, full: bool = False) -> _NodeTerms | None:
     """Add the module doc's score terms of one group of pieces to S (per sample), with the
-    posterior weights ``grp.post`` at their nodes ``grp.psi``; with ``full``, return the
-    noise kernel's first and second derivatives at the nodes
-    (:meth:`~jitterid.metrology.sinelik_kernel.Kernel.second`, for the information)."""
+    posterior weights ``grp.post`` at their nodes ``grp.psi``; with ``full``, return what
+    the information reads at the nodes (:class:`_NodeTerms`: the noise kernel's first and
+    second derivatives, :meth:`~jitterid.metrology.sinelik_kernel.Kernel.second`, and the
+    nodes' sin and cos, so that they are not computed twice)."""
     post, psi, gidx, yy, th = grp.post, grp.psi, grp.gidx, grp.yy, grp.th
     w, A, c, kern, nj = grp.w, grp.A, grp.c, grp.kern, grp.nj
     n = S.shape[0]
@@ -411,8 +423,8 @@ def _score_group(S: FloatArray, grp: _Group, full: bool = False) -> tuple[FloatA
         k1, ks = kern.first(e, grp.kr)
         pk = -post * k1
         sig_col = np.einsum("ij,ij->i", post, ks)
-    pd = np.cos(psi)
-    pd *= pk
+    co = np.cos(psi)
+    pd = co * pk
     pd *= A  # post x D
     sum_pd = pd.sum(axis=1)
     pd_tau = (np.einsum("ij,ij->i", pd, psi) - th * sum_pd) / w  # E[D tau]
@@ -440,7 +452,7 @@ def _score_group(S: FloatArray, grp: _Group, full: bool = False) -> tuple[FloatA
     ]
     for col, v in enumerate(cols):
         S[:, col] += np.bincount(gidx, weights=v, minlength=n)
-    return terms
+    return None if terms is None else _NodeTerms(terms, sn, co)
 
 
 def _outer_sum(S: FloatArray) -> FloatArray:
@@ -453,7 +465,7 @@ def _outer_sum(S: FloatArray) -> FloatArray:
     return np.asarray(out)
 
 
-def _second_group(grp: _Group, terms: tuple[FloatArray, ...]) -> FloatArray:
+def _second_group(grp: _Group, nodes: _NodeTerms) -> FloatArray:
     """sum_j pi_j (d2 ln f_j + g_j g_j^T) over one group's nodes, with ln f = ln K(e) (the
     noise kernel: -e^2 / (2 sigma^2) - ln sigma + const for Gaussian noise) + (the law's,
     free of x at a fixed standard variable),
@@ -468,14 +480,13 @@ def _second_group(grp: _Group, terms: tuple[FloatArray, ...]) -> FloatArray:
     dpsi^T only on the rows where psi moves (the phase, frequency and, unless at a fixed
     jitter, the law's); the other rows (the noise std's, the law's at a fixed jitter) by
     their own thin products."""
-    post, psi, yy, th, w = grp.post, grp.psi, grp.yy, grp.th, grp.w
-    A, c, nj = grp.A, grp.c, grp.nj
+    post, psi, th, w = grp.post, grp.psi, grp.th, grp.w
+    A, nj = grp.A, grp.nj
     P = nj + 5
     iA, iphi, ifr, ic, isg = nj, nj + 1, nj + 2, nj + 3, nj + 4
-    sn2 = np.sin(psi)
-    sn, co = sn2.ravel(), np.cos(psi).ravel()
+    terms = nodes.kernel
+    sn, co = nodes.sin.ravel(), nodes.cos.ravel()
     pw = post.ravel()
-    e = (yy[:, None] - c - A * sn2).ravel()
     tau2 = (psi - th[:, None]) / w
     tau = tau2.ravel()
     xi = ((tau2 - grp.cen[:, None]) / grp.scale[:, None]).ravel()
@@ -493,7 +504,6 @@ def _second_group(grp: _Group, terms: tuple[FloatArray, ...]) -> FloatArray:
     dpsi[-1] = 2 * math.pi * (kT + tau)
     live = pw > 0  # nodes of empty panels carry no weight (and may be far off)
     pw = np.where(live, pw, 0.0)
-    e = np.where(live, e, 0.0)
     # the rows with g = k1 de (de: d e / dx; 0 on the others)
     data = [*ph, iA, ic]
     de = np.empty((len(data), psi.size))
@@ -536,9 +546,7 @@ def _second_group(grp: _Group, terms: tuple[FloatArray, ...]) -> FloatArray:
             others += [0, 1]
             g_o += [np.where(live, gl[0].ravel(), 0.0), np.where(live, gl[1].ravel(), 0.0)]
             assert hl is not None
-            law2 = np.array(
-                [[float(np.sum(np.where(live, pw * h.ravel(), 0.0))) for h in row] for row in hl]
-            )
+            law2 = _weighted_sums(hl, pw, live)
         G_o = np.array(g_o) * pw
         cross_o = (G_o * k1) @ de.T  # (others, data) of g g^T
         out[np.ix_(others, data)] += cross_o
@@ -552,6 +560,23 @@ def _second_group(grp: _Group, terms: tuple[FloatArray, ...]) -> FloatArray:
     out[isg, isg] += float(np.sum(pw * kss))
     if law2 is not None:  # the law's own second derivatives (at a fixed jitter)
         out[:2, :2] += law2
+    return out
+
+
+def _weighted_sums(
+    hl: list[list[FloatArray]], pw: FloatArray, live: NDArray[np.bool_]
+) -> FloatArray:
+    """sum_j pw_j h_j for each array h of the symmetric 2 x 2 ``hl`` (the law's second
+    derivatives at the nodes; the off-diagonal summed once): one dot product each, the
+    nodes that carry no weight (``live`` False, ``pw`` 0 there) masked only where a value
+    there is not finite."""
+    out = np.empty((2, 2))
+    for i, j in ((0, 0), (0, 1), (1, 1)):
+        h = hl[i][j].ravel()
+        v = float(pw @ h)
+        if not math.isfinite(v):
+            v = float(pw @ np.where(live, h, 0.0))
+        out[i, j] = out[j, i] = v
     return out
 
 
@@ -705,10 +730,14 @@ def _dual_dirac_terms(
     ``tau`` the nodes' jitter (pieces, nodes), ``cen`` the pieces' component centres (+-d):
     d = |cen|. Returns the two first derivatives and, with ``second``, the 2 x 2 second
     derivatives, at the nodes."""
-    if np.ndim(tau) == 2:
-        d = np.abs(cen)[:, None]
+    dd = np.abs(cen)
+    d: FloatArray | float
+    if dd.size and np.all(dd == dd[0]):  # (the two components' |centre| is dj / 2)
+        d = float(dd[0])
+    elif np.ndim(tau) == 2:
+        d = dd[:, None]
     else:  # flattened nodes (the information's): d per node
-        d = np.repeat(np.abs(cen), tau.size // max(cen.size, 1))
+        d = np.repeat(dd, tau.size // max(dd.size, 1))
     r2 = rj * rj
     x = tau * (d / r2)
     tc, h, sech2 = _tanhc_terms(x, second)
