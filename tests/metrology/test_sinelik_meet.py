@@ -188,3 +188,33 @@ def test_a_ranking_from_its_presearched_start_is_the_same_ranking():
     assert direct.fit.nfev == via.fit.nfev
     g_pre = rank_start(y, T, model, gauss, np.r_[JITTER, here[1:]])
     assert pre.bic() < g_pre.bic()
+
+
+def test_a_start_in_the_maximum_s_bowl_is_not_searched_at_all(monkeypatch, record_fit):
+    """A start one standard error (of the whole record) from ``found`` in the phase and the
+    jitter: met at once, with no search on the subsample either (one score pass of the
+    subsample, at ``found``; before, the subsample's search from the start ran first); a
+    start 40 standard errors off in the phase: not met at once (its subsample search
+    runs, then the test at its optimum)."""
+    y, model, fam, _, _, first = record_fit
+    se = np.sqrt(np.diag(first.cov))
+    k = [first.names.index("phase_rad"), 0]
+    sub_passes = {"n": 0}
+    inner = SineLikelihood.scores_information
+
+    def counted(lik, x, stride=1):
+        if lik.N < N:
+            sub_passes["n"] += 1
+        return inner(lik, x, stride)
+
+    monkeypatch.setattr(SineLikelihood, "scores_information", counted)
+    near = first.x.copy()
+    near[k] += se[k]
+    met = fit_sine_ml(y, T, model, fam, near, found=first)
+    assert "met this maximum" in met.message
+    assert sub_passes["n"] == 1
+    far = first.x.copy()
+    far[k[0]] += 40.0 * se[k[0]]
+    sub_passes["n"] = 0
+    fit_sine_ml(y, T, model, fam, far, found=first)
+    assert sub_passes["n"] >= 3

@@ -129,17 +129,20 @@ _LAM_MIN = 1e-3
 ROUGH_GAIN = 1e-2
 ROUGH_STEPS = 3
 #: A search from a start meets a maximum already found (:func:`fit_sine_ml`'s ``found``)
-#: where its subsample optimum x_s and that maximum x_f lie in one quadratic bowl of the
-#: subsample's ln L: m^2 = d^T I_s d (d = x_f - x_s, I_s the subsample's observed
-#: information at x_s, positive definite) below the chi^2 quantile at MEET_LEVEL for the
-#: parameters' number (the full record's maximum lies about sqrt(1 - 1/s) of the
-#: subsample's standard errors from the subsample's own), and ln L_s(x_s) - ln L_s(x_f)
-#: within MEET_QUADRATIC of the quadratic model's m^2 / 2 (plus MEET_SLACK). Then the
-#: search on the whole record from x_s would climb to x_f: it is not run. The meter's
-#: ranking fits a family from another family's maximum and, where it is not ranked out,
-#: to its maximum; its fit from the family's own start then did the same passes again
-#: (a 12-bit uniform-jitter record of 2^16 samples: 6.7 of its 30.7 CPU-s; a Gaussian one
-#: whose dual Dirac was not ranked out: 13.1 of 58).
+#: where the start, or else its subsample optimum, x_s and that maximum x_f lie in one
+#: quadratic bowl of the subsample's ln L. About x_f, with g and I the subsample's score
+#: and observed information there (I positive definite) and d = x_s - x_f: m^2 = d^T I d
+#: and g^T I^-1 g (the distance to the subsample's own maximum, a Newton step from x_f:
+#: the full record's maximum lies about sqrt(1 - 1/s) of the subsample's standard errors
+#: from it) both below the chi^2 quantile at MEET_LEVEL for the parameters' number, and
+#: ln L_s(x_s) within MEET_QUADRATIC x m^2 / 2 (plus MEET_SLACK) of the quadratic model's
+#: ln L_s(x_f) + g^T d - m^2 / 2. Then the search from x_s climbs to x_f: it is not run.
+#: The meter's ranking fits a family from another family's maximum and, where it is not
+#: ranked out, to its maximum; its fit from the family's own start then did the same
+#: passes again (a 12-bit uniform-jitter record of 2^16 samples: 6.7 of its 30.7 CPU-s; a
+#: Gaussian one whose dual Dirac was not ranked out: 13.1 of 58), and, where only the
+#: subsample optimum was tested, the subsample's search (a dual-Dirac record of 2^16
+#: samples: 12 passes of the subsample, 3.6 of its 19 CPU-s).
 MEET_LEVEL = 0.999
 MEET_QUADRATIC = 0.25
 MEET_SLACK = 0.5
@@ -214,10 +217,10 @@ def fit_sine_ml(
         with ``noise_std`` the noise before the quantiser (:class:`SineLikelihood`).
     found : FitResult or None
         A CONVERGED maximum of the same likelihood (record, family, quantisation step)
-        found from another start (the meter's ranking). Where the optimum of every s-th
-        sample from ``start`` lies in one quadratic bowl with it (:data:`MEET_LEVEL`), the
-        search on the whole record is not run and ``found`` is the fit, its message saying
-        so.
+        found from another start (the meter's ranking). Where ``start``, or else the
+        optimum of every s-th sample from it, lies in one quadratic bowl with it
+        (:data:`MEET_LEVEL`), the search on the whole record is not run and ``found`` is
+        the fit, its message saying so.
 
     Returns
     -------
@@ -227,6 +230,10 @@ def fit_sine_ml(
     """
     size = _fit_subsample_size(int(np.size(y)))
     q = quantisation_step
+    if found is not None:  # the start itself in found's bowl: no search at all
+        met = _meets(y, T, family, start, found, size, q)
+        if met is not None:
+            return _probe_scale(y, T, model, family, met, noise_floor, max_iter, q_step=q)
     sub = _subsample_fit(y, T, model, family, start, noise_floor, max_iter, size, q)
     if sub is not None:
         start = sub[0].x
@@ -241,20 +248,20 @@ def _meets(
     y: ArrayLike,
     T: float,
     family: JitterFamily,
-    x_sub: ArrayLike,
+    x_s: ArrayLike,
     found: FitResult,
     size: int,
     q_step: float | None,
 ) -> FitResult | None:
-    """``found`` (its message saying so) where the subsample's optimum ``x_sub`` and
-    ``found``'s maximum lie in one quadratic bowl of the subsample's ln L
-    (:data:`MEET_LEVEL`); else None. Two passes of the subsample (1/s of a record's pass
-    each)."""
+    """``found`` (its message saying so) where ``x_s`` (a search's start, or its optimum on
+    the subsample) and ``found``'s maximum lie in one quadratic bowl of the subsample's
+    ln L (:data:`MEET_LEVEL`); else None. Two passes of the subsample (1/s of a record's
+    pass each)."""
     every = _every(y, T, size)
     if every is None or found.status is not FitStatus.CONVERGED:
         return None
     lik = SineLikelihood(*every, family, squared=True, quantisation_step=q_step)
-    zs = np.asarray(x_sub, dtype=float).copy()
+    zs = np.asarray(x_s, dtype=float).copy()
     zf = np.asarray(found.x, dtype=float).copy()
     if zs.shape != zf.shape or not (np.all(np.isfinite(zs)) and np.all(np.isfinite(zf))):
         return None
@@ -262,29 +269,40 @@ def _meets(
         zs[lik.squared] = zs[lik.squared] ** 2
         zf[lik.squared] = zf[lik.squared] ** 2
     with np.errstate(all="ignore"):
-        ll_s, _, _, info = lik.scores_information(zs, 1)
-        ll_f = lik.loglik(zf)
-    if not (math.isfinite(ll_s) and math.isfinite(ll_f) and np.all(np.isfinite(info))):
+        try:
+            ll_f, g, _, info = lik.scores_information(zf, 1)
+            ll_s = lik.loglik(zs)
+        except ValueError:  # (a start outside the family's domain)
+            return None
+    if not (
+        math.isfinite(ll_s)
+        and math.isfinite(ll_f)
+        and np.all(np.isfinite(g))
+        and np.all(np.isfinite(info))
+    ):
         return None
     try:
         np.linalg.cholesky(info)
+        to_max = np.linalg.solve(info, g)
     except np.linalg.LinAlgError:
         return None
-    d = zf - zs
+    d = zs - zf
     m2 = float(d @ info @ d)
-    drop = ll_s - ll_f
+    level = float(chi2.ppf(MEET_LEVEL, d.size))
+    model_ll = ll_f + float(g @ d) - 0.5 * m2
     if not (
-        m2 <= float(chi2.ppf(MEET_LEVEL, d.size))
-        and abs(drop - 0.5 * m2) <= MEET_QUADRATIC * 0.5 * m2 + MEET_SLACK
+        m2 <= level
+        and float(g @ to_max) <= level
+        and abs(ll_s - model_ll) <= MEET_QUADRATIC * 0.5 * m2 + MEET_SLACK
     ):
         return None
     s = int(np.size(y)) // size
     return replace(
         found,
         message=(
-            f"{found.message}; the search from the family's own start met this maximum (its "
-            f"optimum on every {s}th sample in one quadratic bowl with it: squared distance "
-            f"{m2:.3g} in standard errors) and was not run on the whole record"
+            f"{found.message}; the search from the family's own start met this maximum (that "
+            f"start, or its optimum on every {s}th sample, in one quadratic bowl with it: "
+            f"squared distance {m2:.3g} in standard errors) and was not run on the whole record"
         ),
         nfev=found.nfev + 2,
     )
