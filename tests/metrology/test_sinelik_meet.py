@@ -218,3 +218,25 @@ def test_a_start_in_the_maximum_s_bowl_is_not_searched_at_all(monkeypatch, recor
     sub_passes["n"] = 0
     fit_sine_ml(y, T, model, fam, far, found=first)
     assert sub_passes["n"] >= 3
+
+
+def test_a_search_that_cannot_reach_the_maximum_found_is_given_up(record_fit):
+    """``found`` 1e4 above in ln L (its cost lowered; x moved 40 standard errors in the
+    phase, so that neither the start nor its subsample optimum meets it): the search from
+    the start, whose upper estimate (ln L + RANK_SAFETY x its predicted further gain) stays
+    below that, is given up after RANK_MIN_STEPS steps, and ``found`` is the fit, its
+    message saying so; with ``found`` at its own ln L the search runs to its maximum."""
+    y, model, fam, _, there, first = record_fit
+    k = first.names.index("phase_rad")
+    x = first.x.copy()
+    x[k] += 40.0 * math.sqrt(first.cov[k, k])
+    high = replace(first, x=x, cost=first.cost - 2e4)
+    got = fit_sine_ml(y, T, model, fam, there, found=high)
+    assert got.cost == high.cost
+    assert "was given up after" in got.message
+    assert got.nfev - high.nfev <= sinelik_fit.RANK_MIN_STEPS + 2
+    level = replace(first, x=x)
+    searched = fit_sine_ml(y, T, model, fam, there, found=level)
+    assert "given up" not in searched.message
+    assert searched.status is ji.FitStatus.CONVERGED
+    assert abs(searched.cost - first.cost) < 1e-6 * abs(first.cost)
