@@ -14,6 +14,8 @@ coherent, seeds 500, 501, ... by default, ``--first-seed``):
   structured likelihood);
 - ``uniform-float``: as ``uniform-quant`` with no quantiser and 26.6 uV of noise (the same
   total noise std);
+- ``dd-float``: amplitude 0.49, dual-Dirac jitter (2 ps rms Gaussian, Diracs at +-3 ps:
+  3.61 ps rms), 26.6 uV, no quantiser;
 - ``pj``: amplitude 0.49, 1.5 ps Gaussian jitter plus a 1 ps rms sinusoid at 1.37 MHz, 20 uV,
   no quantiser (the truth: the realised rms).
 
@@ -28,6 +30,7 @@ statuses and the CPU per record, with the machine's load.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 from collections import Counter
@@ -68,6 +71,10 @@ def record(cfg: str, seed: int, N: int) -> tuple[np.ndarray, float, dict[str, An
             return x + 26.6e-6 * rng.standard_normal(N), sj, {}
         x += 20e-6 * rng.standard_normal(N)
         return 2.0**-14 * np.round(x * 2**14), sj, {}
+    if cfg == "dd-float":
+        tau = 2e-12 * rng.standard_normal(N) + 3e-12 * rng.choice([-1.0, 1.0], N)
+        y = 0.49 * np.sin(2 * np.pi * f * (t + tau)) + 26.6e-6 * rng.standard_normal(N)
+        return y, math.sqrt(2e-12**2 + 3e-12**2), {}
     if cfg == "pj":
         tau = 1.5e-12 * rng.standard_normal(N)
         tau += 1e-12 * np.sqrt(2) * np.sin(2 * np.pi * 1.37e6 * t)
@@ -78,9 +85,8 @@ def record(cfg: str, seed: int, N: int) -> tuple[np.ndarray, float, dict[str, An
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument(
-        "setting", choices=["hd-quant", "hd-undithered", "uniform-quant", "uniform-float", "pj"]
-    )
+    settings = ["hd-quant", "hd-undithered", "uniform-quant", "uniform-float", "dd-float", "pj"]
+    ap.add_argument("setting", choices=settings)
     ap.add_argument("--records", type=int, default=24)
     ap.add_argument("--n", type=int, default=1024, help="samples per record")
     ap.add_argument("--first-seed", type=int, default=500, help="the first record's seed")

@@ -160,8 +160,10 @@ def test_meter_reports_ranked_out_laws_honestly():
 
 
 def _never_rank(monkeypatch):
-    """The full route: rank_sine_law with no rival never gives up (every family fitted
-    to its maximum from the same starts as before the ranking)."""
+    """The full route: rank_sine_law with no rival never gives up, and no family is ranked
+    out on its subsample (every family fitted to its maximum from the same starts as before
+    the ranking)."""
+    monkeypatch.setattr(meter, "rank_on_subsample", lambda *args, **kw: None)
     orig = meter.rank_sine_law
 
     def full(*args, **kw):

@@ -77,6 +77,7 @@ from .sinelik import (  # issue 26, item 2
     RankStart,
     SineLikelihood,
     fit_sine_ml,
+    rank_on_subsample,
     rank_sine_law,
     rank_start,
     ranked_nested,
@@ -1313,6 +1314,20 @@ def _measure(
                 # rank before the full fit: from the first family's fit (the full route's
                 # second start), given up where it cannot come within the margin of the lead
                 rival_ll, rival_p = _rival(fitted, N)
+                # (far behind the lead already on its ranking's subsample: no pass of the
+                # whole record, sinelik_subrank)
+                lead = _leader(fitted, N)
+                sub_rank = (
+                    rank_on_subsample(
+                        y_fit, T, model, known[name], starts[name], lead, quantisation_step=bin_step
+                    )
+                    if name in starts and lead is not None
+                    else None
+                )
+                if sub_rank is not None:
+                    fitted[name] = sub_rank.fit
+                    ranked[name] = sub_rank.loglik_upper
+                    continue
                 rank = rank_sine_law(
                     y_fit,
                     T,
@@ -1554,14 +1569,21 @@ def _by_gaussian_criterion(
     return replace(out, message=f"{out.message}; {note}")
 
 
-def _rival(fitted: dict[str, FitResult], N: int) -> tuple[float, int]:
-    """The ranking's rival: the lowest-BIC family among those fitted to their maximum
-    (none: ln L -inf, nothing is ranked out)."""
+def _leader(fitted: dict[str, FitResult], N: int) -> FitResult | None:
+    """The lowest-BIC fit among those fitted to their maximum (None: none is)."""
     ok = (FitStatus.CONVERGED, FitStatus.AT_BOUND)
     done = [r for r in fitted.values() if r.status in ok and np.isfinite(r.cost)]
     if not done:
+        return None
+    return min(done, key=lambda r: r.cost + r.x.size * math.log(N))
+
+
+def _rival(fitted: dict[str, FitResult], N: int) -> tuple[float, int]:
+    """The ranking's rival: the lowest-BIC family among those fitted to their maximum
+    (none: ln L -inf, nothing is ranked out)."""
+    lead = _leader(fitted, N)
+    if lead is None:
         return -math.inf, 0
-    lead = min(done, key=lambda r: r.cost + r.x.size * math.log(N))
     return -0.5 * lead.cost, int(lead.x.size)
 
 

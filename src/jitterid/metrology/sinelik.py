@@ -19,7 +19,9 @@ windows, Gauss-Legendre panels; its error and derivatives) is
 :func:`fit_sine_ml` (:mod:`jitterid.metrology.sinelik_fit`). This module is their public
 home. With several laws the meter ranks them before their full fits
 (:func:`rank_sine_law`): a law whose fit, from the leading law's optimum, cannot come
-within :data:`RANK_MARGIN_BIC` of it is not fitted to its maximum.
+within :data:`RANK_MARGIN_BIC` of it is not fitted to its maximum; one far behind it already
+on the subsample its ranking starts from is ranked out there (:func:`rank_on_subsample`,
+:mod:`jitterid.metrology.sinelik_subrank`).
 
 Noise-free records (sigma -> 0). (S1) holds for every sigma > 0 and the rule scales with
 sigma (the window shrinks with the Gaussian factor), so a noise std of 1e-9 of the
@@ -53,6 +55,7 @@ from .sinelik_fit import (
 )
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
 from .sinelik_rule import TOLERANCE
+from .sinelik_subrank import rank_on_subsample
 
 __all__ = [
     "NUMERIC_FLOOR",
@@ -62,6 +65,7 @@ __all__ = [
     "RankStart",
     "SineLikelihood",
     "fit_sine_ml",
+    "rank_on_subsample",
     "rank_sine_law",
     "rank_start",
     "ranked_nested",
