@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["time_text"]
+__all__ = ["ordinal", "time_text"]
 
 
 def time_text(x: float) -> str:
@@ -28,3 +28,21 @@ def time_text(x: float) -> str:
         if abs(x) >= scale or unit == "fs":
             return f"{x / scale:.4g} {unit}"
     return f"{x:.4g} s"  # pragma: no cover
+
+
+def ordinal(n: int) -> str:
+    """``n`` as an English ordinal ("every 8th sample").
+
+    Parameters
+    ----------
+    n : int
+        A positive integer.
+
+    Examples
+    --------
+    >>> [ordinal(k) for k in (1, 2, 3, 4, 11, 21, 22, 112)]
+    ['1st', '2nd', '3rd', '4th', '11th', '21st', '22nd', '112th']
+    """
+    if 10 <= n % 100 <= 20:
+        return f"{n}th"
+    return f"{n}{ {1: 'st', 2: 'nd', 3: 'rd'}.get(n % 10, 'th') }"

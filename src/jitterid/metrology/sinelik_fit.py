@@ -22,6 +22,7 @@ from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily
 from ..jitter.regular import DualDiracFamily, GaussianScaleMixtureFamily
 from ..systems.tones import SineWave
+from ._format import ordinal
 from .reading import LAW_MARGIN_BIC
 from .sinelik_loglik import SineLikelihood, sine_ml_applies
 from .sinelik_rule import FloatArray
@@ -324,7 +325,7 @@ def _meets(
         found,
         message=(
             f"{found.message}; the search from the family's own start met this maximum (that "
-            f"start, or its optimum on every {s}th sample, in one quadratic bowl with it: "
+            f"start, or its optimum on every {ordinal(s)} sample, in one quadratic bowl with it: "
             f"squared distance {m2:.3g} in standard errors) and was not run on the whole record"
         ),
         nfev=found.nfev + 2,

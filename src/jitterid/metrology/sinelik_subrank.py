@@ -41,6 +41,7 @@ from scipy.stats import chi2
 from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily
 from ..systems.tones import SineWave
+from ._format import ordinal
 from .sinelik_fit import RANK_MARGIN_BIC, LawRank, RankStart
 from .sinelik_loglik import SineLikelihood
 
@@ -201,10 +202,10 @@ def rank_on_subsample(
     lik = SineLikelihood(ys, s * T, family, quantisation_step=quantisation_step)
     jp = xf[: lik.nj]
     message = (
-        f"structured sine likelihood (jitterid.metrology.sinelik): ranked out on every {s}th "
-        f"sample, where it was fitted ({n} samples): its ln L on the whole record at that "
-        f"fit is {estimate:.6g} by the subsample's difference from the leading law's "
-        f"maximum ({-0.5 * leader.cost:.6g}), and its maximum at most {upper:.6g} "
+        f"structured sine likelihood (jitterid.metrology.sinelik): ranked out on every "
+        f"{ordinal(s)} sample, where it was fitted ({n} samples): its ln L on the whole "
+        f"record at that fit is {estimate:.6g} by the subsample's difference from the "
+        f"leading law's maximum ({-0.5 * leader.cost:.6g}), and its maximum at most {upper:.6g} "
         f"({SUB_RANK_Z:g} standard deviations of that estimate and the climb to the whole "
         f"record's maximum above it), below {give_up:.6g} (this family cannot win by the "
         "ranking margin); not fitted to its maximum, no pass of the whole record"
