@@ -138,3 +138,63 @@ def test_the_meter_chooses_as_without_the_subsample_s_ranking(monkeypatch):
     assert again.family == "uniform"
     assert again.jitter_std == pytest.approx(m.jitter_std, rel=1e-9)
     assert with_sub < passes["n"]
+
+
+def _other_record(kind: str, law: str, seed: int) -> tuple[np.ndarray, float, float, float | None]:
+    """(y, T, f, q) of a 2^15-sample record: ``kind`` "coh" a coherent ~1 GHz tone at 7 GS/s
+    (200 fs), "q12" a 97 MHz tone at 1 GS/s quantised to 12 bits (3 ps), else that tone
+    as floats; ``law`` the jitter's ("t5": Student-t with 5 degrees of freedom)."""
+    rng = np.random.default_rng(seed)
+    if kind == "coh":
+        Ts = 1 / 7e9
+        cyc = round(1e9 * N * Ts)
+        cyc += 1 - cyc % 2
+        f, sj = cyc / (N * Ts), 200e-15
+    else:
+        Ts, f, sj = T, 97.123e6 + rng.uniform(-1e5, 1e5), JITTER
+    tau = {
+        "gaussian": lambda: sj * rng.standard_normal(N),
+        "dd": lambda: 0.6 * sj * rng.standard_normal(N) + 0.8 * sj * rng.choice([-1.0, 1.0], N),
+        "t5": lambda: sj * math.sqrt(3 / 5) * rng.standard_t(5, N),
+    }[law]()
+    y = 0.49 * np.sin(2 * np.pi * f * (np.arange(N) * Ts + tau) + 0.3)
+    y = y + NOISE * rng.standard_normal(N)
+    q = None
+    if kind == "q12":
+        q = 2.0**-11
+        y = q * np.round(y / q)
+    return y, Ts, f, q
+
+
+@pytest.mark.slow  # about 3 CPU-minutes: every law's maximum on the whole record
+@pytest.mark.parametrize(
+    ("kind", "law", "seed"),
+    [("coh", "gaussian", 4), ("q12", "gaussian", 6), ("float", "dd", 3), ("float", "t5", 7)],
+)
+def test_the_bound_holds_on_other_records(kind, law, seed):
+    """Against a Gaussian leader, each other default law on coherent, quantised,
+    dual-Dirac and Student-t records: the estimate within SUB_RANK_Z standard deviations of
+    the exact ln L at the subsample optimum, and the law's maximum on the whole record below
+    the upper bound (whether or not it is ranked out)."""
+    y, Ts, f, q = _other_record(kind, law, seed)
+    model = SineWave(band_hz=(0.99 * f, 1.01 * f))
+    sj = 200e-15 if kind == "coh" else JITTER
+    gauss = ji.GaussianFamily(sigma_max=10 * Ts, sigma_min=1e-9 * Ts)
+    lead = fit_sine_ml(
+        y, Ts, model, gauss, np.r_[sj, 0.49, 0.3, f, 0.0, NOISE], quantisation_step=q
+    )
+    assert lead.status is ji.FitStatus.CONVERGED
+    for family in (
+        ji.UniformFamily(a_max=20 * Ts, a_min=1e-9 * Ts),
+        ji.DualDiracFamily(rj_max=10 * Ts, rj_min=1e-9 * Ts, dj_max=20 * Ts),
+        ji.GaussianScaleMixtureFamily(sigma_max=10 * Ts, sigma_min=1e-9 * Ts),
+    ):
+        x0 = np.r_[family.start_for_std(lead.jitter_std), lead.x[1:]]
+        start = rank_start(y, Ts, model, family, x0, quantisation_step=q)
+        got = subsample_estimate(y, Ts, family, start, lead, q)
+        assert got is not None
+        estimate, sd, climb = got
+        exact = SineLikelihood(y, Ts, family, quantisation_step=q).loglik(start.x)
+        assert abs(exact - estimate) <= SUB_RANK_Z * sd
+        peak = -0.5 * fit_sine_ml(y, Ts, model, family, start.x, quantisation_step=q).cost
+        assert peak <= estimate + SUB_RANK_Z * sd + climb
