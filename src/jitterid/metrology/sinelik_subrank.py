@@ -28,6 +28,13 @@ above G's, F is ranked out as :func:`~jitterid.metrology.sinelik_fit.rank_sine_l
 out (the same give-up line), its fit the subsample optimum, its message saying so. Where a
 phase bin that holds samples of the record holds fewer than :data:`SUB_RANK_MIN_BIN`
 samples of the subsample, nothing is ranked out here.
+
+Checked against the exact values (``tests/metrology/test_sinelik_subrank.py``; 21 (record,
+law) pairs of Gaussian, uniform, dual-Dirac and Student-t jitter, coherent and not, 12-bit
+quantised, 2^15-2^16 samples): the estimate's error -3.5 to +2.1 of its standard
+deviations, biased low (the safe side) by the subsample fit's optimism, about (s - 1) P / 2
+(P/2 gained on the subsample by fitting it, extrapolated to the other samples); the climb
+to the maximum 5-37 against bounds of 56-120; every maximum below its bound.
 """
 
 from __future__ import annotations
