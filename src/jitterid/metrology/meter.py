@@ -1313,10 +1313,12 @@ def _measure(
             if route == "ml" and structured:
                 # rank before the full fit: from the first family's fit (the full route's
                 # second start), given up where it cannot come within the margin of the lead
-                rival_ll, rival_p = _rival(fitted, N)
+                lead = _leader(fitted, N)
+                rival_ll, rival_p = (
+                    (-math.inf, 0) if lead is None else (-0.5 * lead.cost, int(lead.x.size))
+                )
                 # (far behind the lead already on its ranking's subsample: no pass of the
                 # whole record, sinelik_subrank)
-                lead = _leader(fitted, N)
                 sub_rank = (
                     rank_on_subsample(
                         y_fit, T, model, known[name], starts[name], lead, quantisation_step=bin_step
@@ -1570,21 +1572,13 @@ def _by_gaussian_criterion(
 
 
 def _leader(fitted: dict[str, FitResult], N: int) -> FitResult | None:
-    """The lowest-BIC fit among those fitted to their maximum (None: none is)."""
+    """The ranking's rival: the lowest-BIC fit among those fitted to their maximum (None:
+    none is, and nothing is ranked out)."""
     ok = (FitStatus.CONVERGED, FitStatus.AT_BOUND)
     done = [r for r in fitted.values() if r.status in ok and np.isfinite(r.cost)]
     if not done:
         return None
     return min(done, key=lambda r: r.cost + r.x.size * math.log(N))
-
-
-def _rival(fitted: dict[str, FitResult], N: int) -> tuple[float, int]:
-    """The ranking's rival: the lowest-BIC family among those fitted to their maximum
-    (none: ln L -inf, nothing is ranked out)."""
-    lead = _leader(fitted, N)
-    if lead is None:
-        return -math.inf, 0
-    return -0.5 * lead.cost, int(lead.x.size)
 
 
 def _band(band_hz: tuple[float, float] | None) -> tuple[float, float] | None:

@@ -248,8 +248,8 @@ def fit_sine_ml(
             return _probe_scale(y, T, model, family, met, noise_floor, max_iter, q_step=q)
     # (a search from elsewhere that cannot reach found's ln L, by the ranking's upper
     # estimate, is given up: the docstring's found)
-    lead = found is not None and found.status is FitStatus.CONVERGED
-    give_up = -0.5 * found.cost if found is not None and lead else None
+    converged = found is not None and found.status is FitStatus.CONVERGED
+    give_up = -0.5 * found.cost if found is not None and converged else None
     fit, gave_up, upper = _search(
         y, T, model, family, start, noise_floor, max_iter, give_up, q_step=q
     )
@@ -544,6 +544,14 @@ class RankStart:
         return -2.0 * self.loglik + self.x.size * math.log(self.samples)
 
 
+def give_up_line(rival_loglik: float, rival_n_params: int, n_params: int, N: int) -> float:
+    """The ln L below which a family of ``n_params`` parameters is ranked out against a
+    rival at ``rival_loglik`` with ``rival_n_params``, on ``N`` samples: its BIC then lies
+    more than :data:`RANK_MARGIN_BIC` above the rival's (:func:`rank_sine_law`,
+    :func:`jitterid.metrology.sinelik_subrank.rank_on_subsample`)."""
+    return rival_loglik + 0.5 * (n_params - rival_n_params) * math.log(N) - 0.5 * RANK_MARGIN_BIC
+
+
 def rank_sine_law(
     y: ArrayLike,
     T: float,
@@ -608,9 +616,7 @@ def rank_sine_law(
     """
     N = int(np.size(y))
     p = len(family.param_names) + 5
-    give_up = (
-        float(rival_loglik) + 0.5 * (p - int(rival_n_params)) * math.log(N) - 0.5 * RANK_MARGIN_BIC
-    )
+    give_up = give_up_line(float(rival_loglik), int(rival_n_params), p, N)
     if not math.isfinite(give_up):
         give_up = -math.inf  # no finite rival: nothing is ranked out
     x0 = None

@@ -49,8 +49,9 @@ from ..estimation.result import FitResult, FitStatus
 from ..jitter.laws import JitterFamily
 from ..systems.tones import SineWave
 from ._format import ordinal
-from .sinelik_fit import RANK_MARGIN_BIC, LawRank, RankStart
+from .sinelik_fit import RANK_SUBSAMPLE, LawRank, RankStart, _every, give_up_line
 from .sinelik_loglik import SineLikelihood
+from .sinelik_rule import FloatArray
 
 __all__ = ["SUB_RANK_Z", "rank_on_subsample", "subsample_estimate"]
 
@@ -66,12 +67,11 @@ SUB_RANK_BINS = 16
 SUB_RANK_MIN_BIN = 16
 
 
-def _stride(N: int, start: RankStart) -> int | None:
-    """s of the subsample (every s-th sample) that ``start`` was fitted on, or None."""
-    if start.samples <= 0:
-        return None
-    s = -(-N // start.samples)
-    return s if s >= 2 and -(-N // s) == start.samples else None
+def _subsample(y: FloatArray, T: float, start: RankStart) -> tuple[FloatArray, float] | None:
+    """The subsample ``start`` was fitted on (:func:`~jitterid.metrology.sinelik_fit.
+    rank_start`'s, every s-th sample at s T), or None where it has none."""
+    every = _every(y, T, RANK_SUBSAMPLE)
+    return every if every is not None and every[0].size == start.samples else None
 
 
 def subsample_estimate(
@@ -110,15 +110,16 @@ def subsample_estimate(
         return None
     if not isinstance(leader.jitter_model, JitterFamily):
         return None
-    s = _stride(N, start)
-    if s is None:
+    every = _subsample(yv, T, start)
+    if every is None:
         return None
-    ys = yv[::s]
+    ys, sT = every
+    s = N // RANK_SUBSAMPLE
     q = quantisation_step
     with np.errstate(all="ignore"):
         try:
-            lp_f = SineLikelihood(ys, s * T, family, quantisation_step=q).logpdf(start.x)
-            lik_g = SineLikelihood(ys, s * T, leader.jitter_model, quantisation_step=q)
+            lp_f = SineLikelihood(ys, sT, family, quantisation_step=q).logpdf(start.x)
+            lik_g = SineLikelihood(ys, sT, leader.jitter_model, quantisation_step=q)
             lp_g = lik_g.logpdf(leader.x)
         except ValueError:
             return None
@@ -192,21 +193,15 @@ def rank_on_subsample(
     if got is None:
         return None
     estimate, sd, climb = got
-    yv = np.asarray(y, dtype=float)
-    N = yv.size
-    s = _stride(N, start)
-    assert s is not None
-    ys = yv[::s]
-    n = ys.size
+    N = int(np.size(y))
     xf = np.asarray(start.x, dtype=float)
     P = xf.size
     upper = estimate + SUB_RANK_Z * sd + climb
-    give_up = (
-        -0.5 * leader.cost + 0.5 * (P - np.size(leader.x)) * math.log(N) - 0.5 * RANK_MARGIN_BIC
-    )
+    give_up = give_up_line(-0.5 * leader.cost, int(np.size(leader.x)), P, N)
     if not upper < give_up:
         return None
-    lik = SineLikelihood(ys, s * T, family, quantisation_step=quantisation_step)
+    s, n = N // RANK_SUBSAMPLE, start.samples
+    lik = SineLikelihood(np.zeros(1), T, family)  # (its names and jitter parameters)
     jp = xf[: lik.nj]
     message = (
         f"structured sine likelihood (jitterid.metrology.sinelik): ranked out on every "
