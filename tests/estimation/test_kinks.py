@@ -19,6 +19,7 @@ import pytest
 import jitterid as ji
 from jitterid.estimation.search import (
     LIKELIHOOD_FLOOR,
+    SEARCHES,
     WALK_TOL,
     Outcome,
     SearchOptions,
@@ -277,3 +278,38 @@ def test_walks_that_stop_where_an_earlier_walk_did_end_as_it_ended():
     assert out2.nfev < alone.nfev
     _, out3 = run_search(Kinked(3.0, 0.5, "newton"), np.array([4.5]), 400, walks=walks)
     assert abs(out3.x[0] - 2.4) < 1e-6
+
+
+def test_a_walk_that_meets_an_earlier_one_leaves_its_own_stops_to_later_walks():
+    # V with its minimum at 2.4: a walk from 2.6 stops there at once; a walk from 0.5 stops
+    # at the piece (0, 1)'s end 1 first, walks on and meets the first at 2.4. A third walk
+    # from 0.6, stopping at 1 in (0, 1) as the second did, ends there: its evaluations are
+    # its first search's alone
+    walks = Walks()
+    run_search(Kinked(3.0, 0.5, "newton"), np.array([2.6]), 400, walks=walks)
+    _, second = run_search(Kinked(3.0, 0.5, "newton"), np.array([0.5]), 400, walks=walks)
+    _, third = run_search(Kinked(3.0, 0.5, "newton"), np.array([0.6]), 400, walks=walks)
+    _, alone = run_search(Kinked(3.0, 0.5, "newton"), np.array([0.6]), 400)
+    first_search = Kinked(3.0, 0.5, "newton")
+    first_search.restrict(((0.0, 1.0),))
+    stop = SEARCHES["newton"](first_search, np.array([0.6]), 400, None, WALK_TOL)
+    assert abs(stop.x[0] - 1.0) < 1e-9  # (the piece's end)
+    assert abs(second.x[0] - 2.4) < 1e-6
+    assert third.x[0] == second.x[0]
+    assert third.nfev == stop.nfev < alone.nfev
+
+
+def test_stops_on_a_kink_meet_whichever_of_its_pieces_was_searched():
+    walks = Walks()
+    end = Outcome(np.array([2.4]), 0.1, FitStatus.CONVERGED, "the end", 30)
+    walks.stops.append(({0: (2.0, 3.0)}, np.array([2.0]), 1.0, end))
+
+    def stop(x: float, cost: float = 1.0) -> Outcome:
+        return Outcome(np.array([x]), cost, FitStatus.CONVERGED, "", 5)
+
+    assert walks.meet({0: (1.0, 2.0)}, stop(2.0)) is end  # the kink 2 from below
+    assert walks.meet({0: (2.0, 3.0)}, stop(2.0)) is end
+    assert walks.meet({0: (1.0, 2.0)}, stop(1.995)) is end  # (within MEET_X of the width)
+    assert walks.meet({0: (1.0, 2.0)}, stop(1.9)) is None  # inside (1, 2), not on the kink
+    assert walks.meet({0: (0.0, 1.0)}, stop(2.0)) is None  # not neighbours
+    assert walks.meet({0: (1.0, 2.0)}, stop(2.0, 1.1)) is None  # another criterion

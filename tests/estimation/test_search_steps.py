@@ -118,3 +118,36 @@ def test_a_scan_does_not_look_inside_a_piece_it_looked_inside_before():
     _, _, n4 = _scan(other, x1, other.objective(x1), 0, CUTS, scanned)
     assert scanned == {(1.0, 2.0), (2.0, 3.0), (4.0, 5.0), (5.0, 6.0)}
     assert n4 == other.evaluations - 1 > 10
+
+
+@dataclass
+class _Std:
+    """A problem whose criterion is (std - target)^2 of the family (26)'s law (a <= T/2)."""
+
+    target: float
+    jitter: ji.SumOfUniformsFamily = field(
+        default_factory=lambda: ji.SumOfUniformsFamily(a_max=0.5)
+    )
+    evaluations: int = 0
+
+    def objective(self, x: np.ndarray) -> float:
+        self.evaluations += 1
+        return float((self.jitter.law(x[:2].tolist()).std - self.target) ** 2)
+
+
+def test_a_scan_from_a_scale_on_its_bound_descends_along_the_bound():
+    # at n = 8 with a on its bound T/2 the data want a larger std (that of n = 5.25, a =
+    # T/2): at the same std no kink is lower (the criterion is the same), along the bound
+    # n = 7, 6, 5 are; the scan ends at 5.25 (a scanned fraction of (5, 6)) with a held
+    fam = ji.SumOfUniformsFamily(a_max=0.5)
+    problem = _Std(fam.law([5.25, 0.5]).std)
+    x = np.array([8.0, 0.5, 6.0])
+    x_end, v, n = _scan(problem, x, problem.objective(x), 0, CUTS)
+    assert x_end.tolist() == [5.25, 0.5, 6.0]
+    assert v == 0.0
+    assert n == problem.evaluations - 1 <= 2 + 2 + 2 * int(np.ceil(np.log2(21))) + 10
+    # a scale inside its bounds: the same-std line alone (the std kept, whatever the
+    # rounding of the equal criteria picks)
+    inside = np.array([8.0, 0.4, 6.0])
+    x_in, _, _ = _scan(problem, inside, problem.objective(inside), 0, CUTS)
+    assert fam.law(x_in[:2].tolist()).std == pytest.approx(fam.law([8.0, 0.4]).std, rel=1e-12)

@@ -272,6 +272,13 @@ def _scan(
     n = 0.7; at the same std, 0.8 is above 1 and 0.5 below; record 0: the mode is at
     0.85, 0.9 above 1 and 0.75 below).
 
+    Where the family's scale is on one of its bounds and neither kink next to x_i is lower
+    at the same std, the descent runs along the bound instead (the scale held, x_i moved):
+    the std the data want is then beyond what the bound allows at x_i, and x_i is the way
+    to it (Table 1, BCLS with a on T/2 at n = 8: the same-std kinks were higher, and the
+    walk went down n = 8, 7, 6, 5 one piece, one search and one scan at a time, 45
+    evaluations; along the bound the descent finds n = 5 in about 5).
+
     ``scanned``: the pieces whose inside an earlier scan of the same walk looked at (updated
     here), not looked at again: where that scan found a lower point the walk searched its
     piece from it, so a mode there has been searched (Table 2's record 0 with the family
@@ -281,50 +288,23 @@ def _scan(
     nj = len(jitter.param_names) if isinstance(jitter, JitterFamily) else 0
     if i >= nj:
         return x, v0, 0
+    assert isinstance(jitter, JitterFamily)
 
-    def at(c: float) -> FloatArray:
+    def same_std(c: float) -> FloatArray:
         return _same_std(problem, x, i, c)
 
-    # the kinks either side of x_i, strictly (x_i on a kink: its neighbours)
-    below = int(np.searchsorted(cuts, x[i], side="left")) - 1  # cuts[below] < x_i
-    above = int(np.searchsorted(cuts, x[i], side="right"))  # cuts[above] > x_i
-    tried = {
-        j: criterion_or_inf(problem, at(float(cuts[j])))
-        for j in (below, above)
-        if 0 <= j < cuts.size
-    }
-    best_c, best = float(x[i]), v0
-    if tried and min(tried.values()) < v0:
-        j = min(tried, key=lambda k: tried[k])
-        step = -1 if j == below else 1
-        v = tried[j]
-        # on over the kinks while the criterion falls, the stride doubling after each lower
-        # kink; then the gaps next to the lowest kink halved until both its neighbours are
-        # tried (or it is an end): a lowest kink among its neighbours, as a kink-by-kink
-        # descent ends at, in O(log) evaluations (a criterion falling over 11 kinks to
-        # n_max = 20, BCLS's: 7 evaluations, not 12)
+    def held(c: float) -> FloatArray:
+        return np.where(np.arange(x.size) == i, c, x)
 
-        def value(k: int) -> float:
-            if k not in tried:
-                tried[k] = criterion_or_inf(problem, at(float(cuts[k])))
-            return tried[k]
-
-        stride = 1
-        while (k := min(max(j + step * stride, 0), cuts.size - 1)) != j and value(k) < v:
-            j, v, stride = k, tried[k], 2 * stride
-        while True:
-            near = [
-                max((k for k in tried if k < j), default=j),
-                min((k for k in tried if k > j), default=j),
-            ]
-            gap = max(near, key=lambda k: abs(k - j))
-            if abs(gap - j) <= 1:
-                break
-            k = (j + gap) // 2
-            if value(k) < v:
-                j, v = k, tried[k]
-        best_c, best = float(cuts[j]), v
-    n = len(tried)
+    best_c, best, n, at = *_descend(problem, x, v0, i, cuts, same_std), same_std
+    k = jitter.scale_index
+    if best_c == float(x[i]) and k is not None and k != i:
+        lo, hi = jitter.bounds[k]
+        near = SNAP * ((hi - lo) if np.isfinite(hi - lo) else abs(x[k]))
+        # (a search stops just inside its bound)
+        if any(np.isfinite(b) and abs(x[k] - b) <= near for b in (lo, hi)):
+            best_c, best, m = _descend(problem, x, v0, i, cuts, held)
+            n, at = n + m, held
     # the pieces next to where the descent ends (one piece where it is inside one)
     j = int(np.searchsorted(cuts, best_c))
     on_kink = j < cuts.size and cuts[j] == best_c
@@ -345,6 +325,58 @@ def _scan(
     return (at(best_c), best, n) if best < v0 else (x, v0, n)
 
 
+def _descend(
+    problem: SearchProblem,
+    x: FloatArray,
+    v0: float,
+    i: int,
+    cuts: FloatArray,
+    at: Callable[[float], FloatArray],
+) -> tuple[float, float, int]:
+    """:func:`_scan`'s descent over the kinks along the line ``at`` (x_i -> a point):
+    (the lowest kink found, or x_i where neither kink next to it is lower than ``v0``; its
+    criterion; the evaluations used)."""
+    # the kinks either side of x_i, strictly (x_i on a kink: its neighbours)
+    below = int(np.searchsorted(cuts, x[i], side="left")) - 1  # cuts[below] < x_i
+    above = int(np.searchsorted(cuts, x[i], side="right"))  # cuts[above] > x_i
+    tried = {
+        j: criterion_or_inf(problem, at(float(cuts[j])))
+        for j in (below, above)
+        if 0 <= j < cuts.size
+    }
+    if not tried or min(tried.values()) >= v0:
+        return float(x[i]), v0, len(tried)
+    j = min(tried, key=lambda k: tried[k])
+    step = -1 if j == below else 1
+    v = tried[j]
+    # on over the kinks while the criterion falls, the stride doubling after each lower
+    # kink; then the gaps next to the lowest kink halved until both its neighbours are
+    # tried (or it is an end): a lowest kink among its neighbours, as a kink-by-kink
+    # descent ends at, in O(log) evaluations (a criterion falling over 11 kinks to
+    # n_max = 20, BCLS's: 7 evaluations, not 12)
+
+    def value(k: int) -> float:
+        if k not in tried:
+            tried[k] = criterion_or_inf(problem, at(float(cuts[k])))
+        return tried[k]
+
+    stride = 1
+    while (k := min(max(j + step * stride, 0), cuts.size - 1)) != j and value(k) < v:
+        j, v, stride = k, tried[k], 2 * stride
+    while True:
+        near = [
+            max((k for k in tried if k < j), default=j),
+            min((k for k in tried if k > j), default=j),
+        ]
+        gap = max(near, key=lambda k: abs(k - j))
+        if abs(gap - j) <= 1:
+            break
+        k = (j + gap) // 2
+        if value(k) < v:
+            j, v = k, tried[k]
+    return float(cuts[j]), v, len(tried)
+
+
 #: the Newton-decrement tolerance of the searches of a walk over pieces (piecewise) before its
 #: last: 1/100 of a standard error from stationary, where the walk's scan decides whether
 #: to move on. A piece left behind was searched to no purpose beyond that: with the shape's
@@ -357,11 +389,13 @@ WALK_TOL = 1e-4
 class Walks:
     """The stops of the walks of one multi-start (:func:`piecewise`'s ``walks``), each with
     the outcome its walk ended at: a later walk whose search stops where an earlier one's did
-    (the same pieces, the criterion within ``MEET_COST`` relative, each parameter within
-    ``MEET_X`` of its piece's width (a kinked one) or of its value) goes on as that one went
-    on, so it ends there. BCLS in the family (26), Table 1: its six starts' walks stopped at
-    one point of the piece (0, 1), the criterion equal to 1e-10, and each scanned on from it
-    (166 evaluations a fit, 40 % of the reproduction's time)."""
+    (the same pieces, or neighbouring ones with both stops on the kink they share; the
+    criterion within ``MEET_COST`` relative, each parameter within ``MEET_X`` of its piece's
+    width (a kinked one) or of its value) goes on as that one went on, so it ends there. BCLS
+    in the family (26), Table 1: its six starts' walks stopped at one point of the piece (0,
+    1), the criterion equal to 1e-10, and each scanned on from it (166 evaluations a fit, 40 %
+    of the reproduction's time). A walk that meets an earlier one leaves its own stops on the
+    way, with that end, to the later walks."""
 
     def __init__(self) -> None:
         self.stops: list[tuple[dict[int, tuple[float, float]], FloatArray, float, Outcome]] = []
@@ -369,14 +403,35 @@ class Walks:
     def meet(self, pieces: dict[int, tuple[float, float]], out: Outcome) -> Outcome | None:
         """The outcome of an earlier walk that stopped where ``out`` stops, or None."""
         for ps, x, cost, end in self.stops:
-            if ps != pieces or abs(out.cost - cost) > MEET_COST * max(1.0, abs(cost)):
+            if ps.keys() != pieces.keys() or abs(out.cost - cost) > MEET_COST * max(1.0, abs(cost)):
                 continue
             scale = np.maximum(np.abs(x), np.abs(out.x))
             for i, (a, b) in ps.items():
                 scale[i] = b - a
-            if np.all(np.abs(out.x - x) <= MEET_X * scale + 1e-300):
+            if not np.all(np.abs(out.x - x) <= MEET_X * scale + 1e-300):
+                continue
+            # the same piece, or neighbouring pieces with both stops on the kink they share
+            # (Table 1, BCLS: a walk that stopped at n = 2 searching (1, 2) went on as the
+            # earlier walk that stopped there searching (2, 3) had, 21 evaluations to its end)
+            if all(
+                ps[i] == pieces[i]
+                or (
+                    (kink := _shared(ps[i], pieces[i])) is not None
+                    and max(abs(x[i] - kink), abs(out.x[i] - kink)) <= MEET_X * scale[i]
+                )
+                for i in ps
+            ):
                 return end
         return None
+
+
+def _shared(p: tuple[float, float], q: tuple[float, float]) -> float | None:
+    """The end two neighbouring pieces share (None: not neighbours)."""
+    if p[1] == q[0]:
+        return p[1]
+    if q[1] == p[0]:
+        return p[0]
+    return None
 
 
 #: walks meet (:class:`Walks`) where their criteria agree to this, relative ...
@@ -468,7 +523,7 @@ def piecewise(
         return end
 
     if (ended := met()) is not None:
-        return ended._replace(nfev=nfev)
+        return ended._replace(nfev=nfev)  # (its first stop was an earlier walk's: none of its own)
     scanned: dict[int, set[tuple[float, float]]] = {i: set() for i in active}
     rescan = True
     kinks: list[tuple[int, float]] = []
@@ -533,6 +588,11 @@ def piecewise(
         pieces, out = moved
         walked, rescan = walked + 1, True
         if (ended := met()) is not None:
+            # (the stops this walk made on its way end as it ends: a later walk that stops
+            # at one of them goes on no further; Table 1, BCLS: the walks from (8, 0.25) and
+            # (8, 0.5) stepped down the same pieces (8, 9) ... (5, 6) along a = T/2)
+            if walks is not None:
+                walks.stops.extend((ps, xs, c, ended) for ps, xs, c in mine)
             return ended._replace(nfev=nfev)
     out = out._replace(nfev=nfev)
     if out.status is FitStatus.CONVERGED and kinks:
