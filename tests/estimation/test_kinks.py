@@ -297,19 +297,3 @@ def test_a_walk_that_meets_an_earlier_one_leaves_its_own_stops_to_later_walks():
     assert abs(second.x[0] - 2.4) < 1e-6
     assert third.x[0] == second.x[0]
     assert third.nfev == stop.nfev < alone.nfev
-
-
-def test_stops_on_a_kink_meet_whichever_of_its_pieces_was_searched():
-    walks = Walks()
-    end = Outcome(np.array([2.4]), 0.1, FitStatus.CONVERGED, "the end", 30)
-    walks.stops.append(({0: (2.0, 3.0)}, np.array([2.0]), 1.0, end))
-
-    def stop(x: float, cost: float = 1.0) -> Outcome:
-        return Outcome(np.array([x]), cost, FitStatus.CONVERGED, "", 5)
-
-    assert walks.meet({0: (1.0, 2.0)}, stop(2.0)) is end  # the kink 2 from below
-    assert walks.meet({0: (2.0, 3.0)}, stop(2.0)) is end
-    assert walks.meet({0: (1.0, 2.0)}, stop(1.995)) is end  # (within MEET_X of the width)
-    assert walks.meet({0: (1.0, 2.0)}, stop(1.9)) is None  # inside (1, 2), not on the kink
-    assert walks.meet({0: (0.0, 1.0)}, stop(2.0)) is None  # not neighbours
-    assert walks.meet({0: (1.0, 2.0)}, stop(2.0, 1.1)) is None  # another criterion
