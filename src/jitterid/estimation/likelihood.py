@@ -268,17 +268,24 @@ class _NodeSignal:
         X = tf.switch_states(self.u)
         dt = self.dt[:, 0]
         for k, (rk, p) in enumerate(zip(rho, pk, strict=True)):
-            a, half = dt * p.real, 0.5 * dt * p.imag
-            sh, ch = np.sin(half), np.cos(half)
+            a = dt * p.real
             ea = np.where(self.inside, np.exp(a), 0.0)
-            cb, sb = 1 - 2 * sh * sh, 2 * sh * ch
-            er, ei = ea * cb, ea * sb  # e^{p dt}
-            mr, mi = np.expm1(a) * cb - 2 * sh * sh, ea * sb  # expm1(p dt)
             Xj = X[self.seg, cols[k]]
             q = 1 / p
             lr, li = self.level * q.real, self.level * q.imag  # u_j / p
-            xr = er * Xj.real - ei * Xj.imag + mr * lr - mi * li
-            xi = er * Xj.imag + ei * Xj.real + mr * li + mi * lr
+            if p.imag == 0.0:  # a real pole: the same values without the rotation
+                zero = np.zeros_like(a)
+                er, ei, mr, mi = ea, zero, np.expm1(a), zero
+                xr = er * Xj.real + mr * lr
+                xi = er * Xj.imag + mr * li
+            else:
+                half = 0.5 * dt * p.imag
+                sh, ch = np.sin(half), np.cos(half)
+                cb, sb = 1 - 2 * sh * sh, 2 * sh * ch
+                er, ei = ea * cb, ea * sb  # e^{p dt}
+                mr, mi = np.expm1(a) * cb - 2 * sh * sh, ea * sb  # expm1(p dt)
+                xr = er * Xj.real - ei * Xj.imag + mr * lr - mi * li
+                xi = er * Xj.imag + ei * Xj.real + mr * li + mi * lr
             if dX is None:
                 yield rk, p, xr, xi, np.zeros(0), np.zeros(0)
                 continue
