@@ -196,10 +196,8 @@ def test_a_parameter_a_hair_inside_its_bound_is_on_it():
     # 5.3e-7 above, was AT_BOUND. The referee: pi is on its floor to within the search's
     # box margin, and its standard error dwarfs the distance
     exp = load_experiment(packaged_path("table2"))
-    rng = np.random.default_rng(runner.seed_stream(exp.seed, 0, 83))
-    u = exp.input.build(exp.duration, rng)
+    d, _ = runner.realization_data(exp, 0, runner.seed_stream(exp.seed, 0, 83))
     law = exp.cases[0].law.build()
-    d = ji.simulate(exp.system.true_system(), u, law, exp.T, exp.N, exp.noise_std, rng)
     res = ji.fit(d, ji.PolePairGain(), law, "ls")
     assert res.params["pi"] - 0.001 < 1e-4
     assert res.params["pi"] - 0.001 <= BOUND_SE * res.stderr["pi"]

@@ -171,10 +171,8 @@ def test_table2_realization_0_from_far_start() -> None:
     from jitterid.experiments.loader import load_experiment
 
     exp = load_experiment(packaged_path("table2"))
-    rng = np.random.default_rng(runner.seed_stream(exp.seed, 0, 0))
-    u = exp.input.build(exp.duration, rng)
+    d, _ = runner.realization_data(exp, 0, runner.seed_stream(exp.seed, 0, 0))
     law = exp.cases[0].law.build()
-    d = ji.simulate(exp.system.true_system(), u, law, exp.T, exp.N, exp.noise_std, rng)
     default = ji.fit(d, ji.PolePairGain(), law, "ml")
     far = ji.fit(d, ji.PolePairGain(), law, "ml", start=FAR)
     assert far.status is FitStatus.CONVERGED, far.message

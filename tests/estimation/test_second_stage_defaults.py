@@ -20,7 +20,6 @@ from jitterid.estimation.problem import Problem, default_frequencies
 from jitterid.experiments import runner
 from jitterid.experiments.config import packaged_path
 from jitterid.experiments.loader import load_experiment
-from jitterid.simulate import simulate
 from jitterid.systems.structures import as_structure
 
 #: the end the search from the BCLS estimate reached before (session 16's code)
@@ -39,9 +38,7 @@ def _gaussian_fit(ci: int, r: int):
     rows, _ = runner.realize(exp, ci, r, runner.seed_stream(exp.seed, ci, r))
     g = next(e for e in rows if e.method == "gaussian")
     case = exp.cases[ci]
-    rng = np.random.default_rng(runner.seed_stream(exp.seed, ci, r))
-    u = exp.input.build(exp.duration, rng)
-    data = simulate(exp.system.true_system(), u, case.law.build(), exp.T, exp.N, exp.noise_std, rng)
+    data, _ = runner.realization_data(exp, ci, runner.seed_stream(exp.seed, ci, r))
     fam = exp.estimation_jitter(case, "gaussian")
     problem = Problem(
         data,

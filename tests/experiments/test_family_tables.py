@@ -57,10 +57,8 @@ def test_bcls_collapse_is_its_minimum():
     import jitterid as ji
 
     exp = load_experiment(packaged_path("table3"))
-    rng = np.random.default_rng(runner.seed_stream(exp.seed, 0, 8))
-    u = exp.input.build(exp.duration, rng)
+    data, _ = runner.realization_data(exp, 0, runner.seed_stream(exp.seed, 0, 8))
     law = exp.cases[0].law.build()
-    data = ji.simulate(exp.system.true_system(), u, law, exp.T, exp.N, exp.noise_std, rng)
     fam = exp.estimation_jitter(exp.cases[0], "bcls")
     res = ji.fit(data, exp.system.model(), fam, "bcls")
     assert res.status is ji.FitStatus.AT_BOUND, res.message

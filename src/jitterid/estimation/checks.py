@@ -614,13 +614,13 @@ def _at_bound(ctx: PostContext) -> tuple[FitStatus, str] | None:
     with np.errstate(invalid="ignore"):
         se = np.sqrt(np.diag(ctx.cov)[system]) if ctx.cov.ndim == 2 else np.full(theta.size, np.nan)
     for i, (name, v) in enumerate(zip(ctx.structure.param_names, theta, strict=True)):
-        lo, hi = ctx.structure.bounds[i]
-
-        def on(b: float, i: int = i, v: float = v) -> bool:
-            return _near(v, b) or bool(np.isfinite(b) and abs(v - b) <= BOUND_SE * se[i])
-
-        if on(lo) or on(hi):
-            b = lo if on(lo) else hi
+        on = [
+            b
+            for b in ctx.structure.bounds[i]
+            if _near(v, b) or (np.isfinite(b) and abs(v - b) <= BOUND_SE * se[i])
+        ]
+        if on:
+            b = on[0]
             if isinstance(ctx.structure, Constrained) and b in ctx.structure.user_bounds.get(
                 name, ()
             ):

@@ -68,6 +68,7 @@ __all__ = [
     "default_workers",
     "local_cluster",
     "local_workers",
+    "realization_data",
     "realize",
     "run_experiment",
     "seed_stream",
@@ -136,22 +137,8 @@ def realize(
     """
     t0 = time.perf_counter()
     case = exp.cases[case_index]
-    rng = np.random.default_rng(stream)
     with single_thread():
-        u = exp.input.build(exp.duration, rng)
-        noise = exp.noise.true_model() if exp.noise is not None else None
-        data = simulate(
-            exp.system.true_system(),
-            u,
-            case.law.build(),
-            exp.T,
-            exp.N,
-            exp.noise_std,
-            rng,
-            noise_model=noise,
-        )
-        if not exp.noise_known:
-            data = SampledData(data.y, data.T, data.u, None, data.instants)
+        data, u = realization_data(exp, case_index, stream)
         model = exp.system.model()
         shared: dict[str, FitResult | Exception] = {}
         rows = [
@@ -170,6 +157,44 @@ def realize(
         if exp.crb and (realization < exp.bound_runs() or not share):
             rows.append(_bound_row(exp, case_index, realization, u))
     return rows, time.perf_counter() - t0
+
+
+def realization_data(
+    exp: Experiment, case_index: int, stream: np.random.SeedSequence
+) -> tuple[SampledData, Input]:
+    """The data of one realization as :func:`realize` fits them, and its input.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The definition.
+    case_index : int
+        Which case.
+    stream : numpy.random.SeedSequence
+        The realization's own stream (:func:`seed_stream`).
+
+    Returns
+    -------
+    (SampledData, Input)
+        The samples (without the noise std where the definition says it is not known) and
+        the input that drove them.
+    """
+    rng = np.random.default_rng(stream)
+    u = exp.input.build(exp.duration, rng)
+    noise = exp.noise.true_model() if exp.noise is not None else None
+    data = simulate(
+        exp.system.true_system(),
+        u,
+        exp.cases[case_index].law.build(),
+        exp.T,
+        exp.N,
+        exp.noise_std,
+        rng,
+        noise_model=noise,
+    )
+    if not exp.noise_known:
+        data = SampledData(data.y, data.T, data.u, None, data.instants)
+    return data, u
 
 
 def _bcls_stage(
